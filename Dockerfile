@@ -1,0 +1,18 @@
+# Build: docker build -t landform .   Run: docker run -p 8080:8080 -v landform-data:/data landform
+FROM rust:1.95-bookworm AS build
+WORKDIR /src
+COPY Cargo.toml Cargo.lock ./
+COPY src ./src
+COPY benches ./benches
+RUN cargo build --locked --release --bin landform
+
+FROM debian:bookworm-slim
+RUN useradd --system --uid 10001 --home /data landform && mkdir -p /data && chown landform /data
+COPY --from=build /src/target/release/landform /usr/local/bin/landform
+USER landform
+WORKDIR /data
+ENV LANDFORM_ADDR=0.0.0.0:8080 LANDFORM_DATABASE=/data/landform.db RUST_LOG=info
+EXPOSE 8080
+HEALTHCHECK --interval=30s --timeout=3s CMD ["bash", "-c", "exec 3<>/dev/tcp/127.0.0.1/8080 && printf 'GET /healthz HTTP/1.0\\r\\n\\r\\n' >&3 && grep -q ok <&3"]
+ENTRYPOINT ["landform"]
+CMD ["serve"]

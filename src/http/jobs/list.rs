@@ -1,0 +1,71 @@
+use axum::extract::{Query, State};
+use axum::Json;
+use serde::{Deserialize, Serialize};
+use utoipa::{IntoParams, ToSchema};
+
+use crate::http::{AppState, Problem};
+use crate::jobs::{Job, JobStatus};
+use crate::store::ListFilter;
+
+const DEFAULT_LIMIT: u32 = 20;
+const MAX_LIMIT: u32 = 100;
+
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub struct ListQuery {
+    /// Only jobs of this kind.
+    kind: Option<String>,
+    /// Only jobs in this status.
+    status: Option<String>,
+    /// Page size, 1 to 100 (default 20).
+    limit: Option<u32>,
+    /// `next_cursor` of the previous page.
+    cursor: Option<String>,
+}
+
+/// A page of jobs, newest first.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct JobPage {
+    pub items: Vec<Job>,
+    /// Pass as `cursor` for the next page; null on the last page.
+    pub next_cursor: Option<String>,
+}
+
+#[utoipa::path(
+    get, path = "/v1/jobs", tag = "jobs",
+    params(ListQuery),
+    responses(
+        (status = 200, description = "Jobs, newest first", body = JobPage),
+        (status = 422, description = "A bad filter", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+pub async fn list_jobs(
+    State(state): State<AppState>,
+    query: Result<Query<ListQuery>, axum::extract::rejection::QueryRejection>,
+) -> Result<Json<JobPage>, Problem> {
+    let Query(q) = query.map_err(|e| Problem::field("", e.body_text()))?;
+    let status = match q.status.as_deref() {
+        None | Some("") => None,
+        Some(s) => Some(JobStatus::parse(s).ok_or_else(|| {
+            Problem::field("status", "must be one of queued, running, succeeded, failed, cancelled")
+        })?),
+    };
+    if let Some(k) = q.kind.as_deref() {
+        if !k.is_empty() && !state.engine.has_kind(k) {
+            return Err(Problem::field("kind", format!("must be one of {}", state.engine.kind_names().join(", "))));
+        }
+    }
+    let limit = q.limit.unwrap_or(DEFAULT_LIMIT);
+    if !(1..=MAX_LIMIT).contains(&limit) {
+        return Err(Problem::field("limit", format!("must be between 1 and {MAX_LIMIT}")));
+    }
+    if let Some(c) = q.cursor.as_deref() {
+        if uuid::Uuid::parse_str(c).is_err() {
+            return Err(Problem::field("cursor", "is not a cursor this server gave"));
+        }
+    }
+    let filter = ListFilter { kind: q.kind.filter(|k| !k.is_empty()), status, before_id: q.cursor, limit };
+    let items = state.engine.list(filter).await?;
+    let next_cursor = if items.len() == limit as usize { items.last().map(|j| j.id.clone()) } else { None };
+    Ok(Json(JobPage { items, next_cursor }))
+}

@@ -1,0 +1,40 @@
+//! Operations endpoints: liveness, readiness, metrics, and the 404 for unknown routes.
+
+use axum::extract::State;
+use axum::http::{header, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use serde_json::json;
+
+use super::{AppState, Problem};
+
+#[utoipa::path(get, path = "/healthz", tag = "operations",
+    responses((status = 200, description = "The process is up", body = Object)))]
+pub async fn healthz() -> Json<serde_json::Value> {
+    Json(json!({ "status": "ok" }))
+}
+
+#[utoipa::path(get, path = "/readyz", tag = "operations",
+    responses(
+        (status = 200, description = "The store answers; jobs can be accepted", body = Object),
+        (status = 503, description = "The store does not answer", body = Problem, content_type = "application/problem+json"),
+    ))]
+pub async fn readyz(State(state): State<AppState>) -> Response {
+    if state.engine.ready().await {
+        Json(json!({ "status": "ready", "queue_depth": state.engine.queue_depth() })).into_response()
+    } else {
+        Problem::new(StatusCode::SERVICE_UNAVAILABLE, "not-ready", "Not ready", "the job store does not answer")
+            .into_response()
+    }
+}
+
+#[utoipa::path(get, path = "/metrics", tag = "operations",
+    responses((status = 200, description = "Prometheus text format: landform_jobs{kind,status}, landform_queue_depth, landform_jobs_running, landform_job_duration_seconds", content_type = "text/plain", body = String)))]
+pub async fn metrics(State(state): State<AppState>) -> Result<Response, Problem> {
+    let text = state.engine.metrics_text().await?;
+    Ok(([(header::CONTENT_TYPE, "text/plain; version=0.0.4; charset=utf-8")], text).into_response())
+}
+
+pub async fn not_found() -> Problem {
+    Problem::not_found("no such route; see /docs")
+}

@@ -1,0 +1,286 @@
+//! The one trait every job kind implements, and the typed form kinds write against.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use serde::{de::DeserializeOwned, Deserialize, Serialize};
+use serde_json::Value;
+use utoipa::openapi::{RefOr, Schema};
+use utoipa::ToSchema;
+
+use crate::terrain::{Heightfield, TerrainError, TerrainLookup, TerrainSource};
+use crate::validate::{FieldError, Limits, Validate, Validator};
+
+/// Where a job is: `fraction` in [0, 1], `step` of `steps` within `stage`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Progress {
+    pub fraction: f64,
+    pub step: u64,
+    pub steps: u64,
+    pub stage: String,
+    pub message: String,
+}
+
+/// A file a job produced.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Artifact {
+    pub name: String,
+    pub media_type: String,
+    pub bytes: Vec<u8>,
+}
+
+impl Artifact {
+    pub fn new(name: &str, media_type: &str, bytes: Vec<u8>) -> Self {
+        Self { name: name.to_string(), media_type: media_type.to_string(), bytes }
+    }
+}
+
+/// What a run or a replay produced: kind-specific summary figures, the recorded sequence, and
+/// the artifacts (the adapter adds `sequence.json`).
+#[derive(Debug)]
+pub struct Outcome<S> {
+    pub result: Value,
+    pub sequence: S,
+    pub artifacts: Vec<Artifact>,
+}
+
+/// Why a run stopped without a result.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    #[error("cancelled")]
+    Cancelled,
+    #[error("{message}")]
+    Invalid { field: String, message: String },
+    #[error(transparent)]
+    Terrain(#[from] TerrainError),
+    #[error("{0}")]
+    Failed(String),
+}
+
+/// Receives progress from a running job. Implemented by the engine.
+pub trait ProgressSink: Sync {
+    fn progress(&self, progress: Progress);
+    /// Whether a live snapshot would be taken now (they are rate-limited to about 1/s).
+    fn snapshot_due(&self) -> bool;
+    /// Publish a live snapshot (PNG bytes) with the progress it belongs to.
+    fn snapshot(&self, png: Vec<u8>, progress: Progress);
+}
+
+/// What a simulation may touch while it runs: cancellation, progress, earlier jobs' terrain.
+pub struct RunContext<'a> {
+    pub cancel: &'a AtomicBool,
+    pub sink: &'a dyn ProgressSink,
+    pub terrain: &'a dyn TerrainLookup,
+    pub limits: &'a Limits,
+}
+
+impl RunContext<'_> {
+    /// Err(Cancelled) once the job was cancelled or ran past its time limit; call between steps.
+    pub fn check_cancelled(&self) -> Result<(), SimError> {
+        if self.cancel.load(Ordering::Relaxed) {
+            Err(SimError::Cancelled)
+        } else {
+            Ok(())
+        }
+    }
+
+    pub fn report(&self, stage: &str, step: u64, steps: u64, message: impl Into<String>) {
+        self.sink.progress(progress(stage, step, steps, message.into()));
+    }
+
+    /// Report progress and, if one is due, a live snapshot rendered by `render` (PNG bytes).
+    pub fn report_with_snapshot(
+        &self,
+        stage: &str,
+        step: u64,
+        steps: u64,
+        message: impl Into<String>,
+        render: impl FnOnce() -> Vec<u8>,
+    ) {
+        let p = progress(stage, step, steps, message.into());
+        if self.sink.snapshot_due() {
+            self.sink.snapshot(render(), p);
+        } else {
+            self.sink.progress(p);
+        }
+    }
+
+    pub fn resolve_terrain(&self, source: &TerrainSource) -> Result<Heightfield, SimError> {
+        Ok(crate::terrain::resolve(source, self.terrain, self.limits)?)
+    }
+}
+
+fn progress(stage: &str, step: u64, steps: u64, message: String) -> Progress {
+    let fraction = if steps == 0 { 0.0 } else { (step as f64 / steps as f64).clamp(0.0, 1.0) };
+    Progress { fraction, step, steps, stage: stage.to_string(), message }
+}
+
+/// A recorded operation sequence: replayable in full or up to a step.
+pub trait Sequence: Serialize + DeserializeOwned + Send + Sync {
+    /// Number of steps a replay can stop after.
+    fn steps(&self) -> u64;
+}
+
+/// A job kind written against typed parameters and a typed sequence. `Kind<S>` turns one into
+/// a [`JobKind`]; the registry holds those.
+pub trait Simulation: Send + Sync + 'static {
+    /// The path segment: `POST /v1/jobs/{KIND}`.
+    const KIND: &'static str;
+    /// One line for the API docs.
+    const SUMMARY: &'static str;
+    type Params: Serialize + DeserializeOwned + ToSchema + Validate + Send + Sync;
+    type Sequence: Sequence;
+
+    /// Earlier jobs the parameters read, with each reference's JSON path.
+    fn job_refs(params: &Self::Params) -> Vec<(String, String)>;
+
+    fn run(params: &Self::Params, seed: u64, ctx: &RunContext) -> Result<Outcome<Self::Sequence>, SimError>;
+
+    /// Rebuild from a recorded sequence without searching or sampling; `until_step` keeps the
+    /// first k steps.
+    fn replay(
+        params: &Self::Params,
+        sequence: &Self::Sequence,
+        until_step: Option<u64>,
+        ctx: &RunContext,
+    ) -> Result<Outcome<Self::Sequence>, SimError>;
+}
+
+/// A request that passed validation.
+#[derive(Debug)]
+pub struct Prepared {
+    /// The kind's parameters with every default filled in (without `seed` and `label`).
+    pub params: Value,
+    pub job_refs: Vec<(String, String)>,
+}
+
+/// Why a request body was refused.
+#[derive(Debug)]
+pub enum RequestError {
+    /// Not JSON at all (400).
+    Malformed(String),
+    /// Wrong shapes or values (422), or sizes over a cap (413).
+    Invalid { errors: Vec<FieldError>, too_large: bool },
+}
+
+/// A job's final output as the engine stores it.
+#[derive(Debug)]
+pub struct JobOutput {
+    pub result: Value,
+    pub artifacts: Vec<Artifact>,
+}
+
+/// The object-safe face of a job kind, used by the engine, the HTTP layer and the CLI.
+pub trait JobKind: Send + Sync {
+    fn name(&self) -> &'static str;
+    fn summary(&self) -> &'static str;
+    /// Parse and validate the kind's parameters (the body without `seed` and `label`).
+    fn prepare(&self, params: Value, limits: &Limits) -> Result<Prepared, RequestError>;
+    fn run(&self, params: &Value, seed: u64, ctx: &RunContext) -> Result<JobOutput, SimError>;
+    /// Number of steps in a stored `sequence.json`.
+    fn sequence_steps(&self, sequence_json: &[u8]) -> Result<u64, SimError>;
+    fn replay(
+        &self,
+        params: &Value,
+        sequence_json: &[u8],
+        until_step: Option<u64>,
+        ctx: &RunContext,
+    ) -> Result<JobOutput, SimError>;
+    /// The request body's schema (name, schema) and every schema it refers to.
+    fn request_schema(&self) -> (String, RefOr<Schema>, Vec<(String, RefOr<Schema>)>);
+}
+
+/// Adapts a [`Simulation`] to [`JobKind`].
+pub struct Kind<S>(std::marker::PhantomData<S>);
+
+impl<S> Default for Kind<S> {
+    fn default() -> Self {
+        Self(std::marker::PhantomData)
+    }
+}
+
+/// A serde path as the `field` of a problem: `operations[0].pass.blade`, empty for the root.
+pub fn path_string(path: &serde_path_to_error::Path) -> String {
+    let s = path.to_string();
+    if s == "." {
+        String::new()
+    } else {
+        s
+    }
+}
+
+/// Deserialize with the JSON path of the first bad field (an unknown field's own name included).
+pub fn parse_params<T: DeserializeOwned>(value: Value) -> Result<T, RequestError> {
+    serde_path_to_error::deserialize(value).map_err(|e| {
+        let mut field = path_string(e.path());
+        let message = e.inner().to_string();
+        if let Some(name) = message.strip_prefix("unknown field `").and_then(|m| m.split('`').next()) {
+            field = if field.is_empty() { name.to_string() } else { format!("{field}.{name}") };
+        }
+        RequestError::Invalid { errors: vec![FieldError { field, message }], too_large: false }
+    })
+}
+
+fn sequence_artifact<Q: Serialize>(sequence: &Q) -> Result<Artifact, SimError> {
+    let bytes = serde_json::to_vec_pretty(sequence).map_err(|e| SimError::Failed(e.to_string()))?;
+    Ok(Artifact::new("sequence.json", "application/json", bytes))
+}
+
+fn finish<Q: Serialize>(outcome: Outcome<Q>) -> Result<JobOutput, SimError> {
+    let mut artifacts = outcome.artifacts;
+    artifacts.push(sequence_artifact(&outcome.sequence)?);
+    Ok(JobOutput { result: outcome.result, artifacts })
+}
+
+fn stored_params<T: DeserializeOwned>(params: &Value) -> Result<T, SimError> {
+    serde_json::from_value(params.clone()).map_err(|e| SimError::Failed(format!("stored request unreadable: {e}")))
+}
+
+fn stored_sequence<Q: DeserializeOwned>(json: &[u8]) -> Result<Q, SimError> {
+    serde_json::from_slice(json).map_err(|e| SimError::Failed(format!("stored sequence unreadable: {e}")))
+}
+
+impl<S: Simulation> JobKind for Kind<S> {
+    fn name(&self) -> &'static str {
+        S::KIND
+    }
+
+    fn summary(&self) -> &'static str {
+        S::SUMMARY
+    }
+
+    fn prepare(&self, params: Value, limits: &Limits) -> Result<Prepared, RequestError> {
+        let typed: S::Params = parse_params(params)?;
+        let mut v = Validator::new();
+        typed.validate(&mut v, limits);
+        if !v.is_ok() {
+            return Err(RequestError::Invalid { errors: v.errors, too_large: v.too_large });
+        }
+        let params = serde_json::to_value(&typed).map_err(|e| RequestError::Malformed(e.to_string()))?;
+        Ok(Prepared { params, job_refs: S::job_refs(&typed) })
+    }
+
+    fn run(&self, params: &Value, seed: u64, ctx: &RunContext) -> Result<JobOutput, SimError> {
+        finish(S::run(&stored_params(params)?, seed, ctx)?)
+    }
+
+    fn sequence_steps(&self, sequence_json: &[u8]) -> Result<u64, SimError> {
+        Ok(stored_sequence::<S::Sequence>(sequence_json)?.steps())
+    }
+
+    fn replay(
+        &self,
+        params: &Value,
+        sequence_json: &[u8],
+        until_step: Option<u64>,
+        ctx: &RunContext,
+    ) -> Result<JobOutput, SimError> {
+        let sequence = stored_sequence::<S::Sequence>(sequence_json)?;
+        finish(S::replay(&stored_params(params)?, &sequence, until_step, ctx)?)
+    }
+
+    fn request_schema(&self) -> (String, RefOr<Schema>, Vec<(String, RefOr<Schema>)>) {
+        let mut refs = Vec::new();
+        <S::Params as ToSchema>::schemas(&mut refs);
+        (<S::Params as ToSchema>::name().into_owned(), <S::Params as utoipa::PartialSchema>::schema(), refs)
+    }
+}

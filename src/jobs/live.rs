@@ -1,0 +1,203 @@
+//! In-memory state of a job the engine holds (queued or running): its cancel flag, its event
+//! log for SSE resumption, its latest progress and live snapshot.
+
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use bytes::Bytes;
+use parking_lot::Mutex;
+use serde_json::{json, Value};
+use tokio::sync::{broadcast, watch};
+
+use super::{JobStatus, Progress, ProgressSink};
+
+/// Events kept for `Last-Event-ID` resumption; older ones are dropped first.
+const EVENT_LOG_CAPACITY: usize = 4096;
+const PROGRESS_EVENT_INTERVAL: Duration = Duration::from_millis(50);
+const SNAPSHOT_INTERVAL: Duration = Duration::from_secs(1);
+
+/// One server-sent event of a job's stream.
+#[derive(Clone, Debug, PartialEq)]
+pub struct JobEvent {
+    pub id: u64,
+    /// `progress`, `status` or `done`.
+    pub event: &'static str,
+    pub data: Value,
+}
+
+/// Why a job's cancel flag was raised.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StopReason {
+    Cancelled,
+    TimedOut,
+    Deleted,
+}
+
+#[derive(Default)]
+struct Throttle {
+    last_progress: Option<Instant>,
+    last_snapshot: Option<Instant>,
+}
+
+pub struct LiveJob {
+    pub id: String,
+    pub cancel: AtomicBool,
+    stop_reason: Mutex<Option<StopReason>>,
+    log: Mutex<VecDeque<JobEvent>>,
+    next_event_id: AtomicU64,
+    tx: broadcast::Sender<JobEvent>,
+    progress: Mutex<Progress>,
+    throttle: Mutex<Throttle>,
+    snapshot: Mutex<Option<(u64, Bytes)>>,
+    snapshots_taken: AtomicU64,
+    done_tx: watch::Sender<bool>,
+}
+
+impl LiveJob {
+    pub fn new(id: String) -> Self {
+        let (tx, _) = broadcast::channel(1024);
+        let (done_tx, _) = watch::channel(false);
+        Self {
+            id,
+            cancel: AtomicBool::new(false),
+            stop_reason: Mutex::new(None),
+            log: Mutex::new(VecDeque::new()),
+            next_event_id: AtomicU64::new(1),
+            tx,
+            progress: Mutex::new(Progress::default()),
+            throttle: Mutex::new(Throttle::default()),
+            snapshot: Mutex::new(None),
+            snapshots_taken: AtomicU64::new(0),
+            done_tx,
+        }
+    }
+
+    /// Raise the cancel flag; the first reason given sticks.
+    pub fn stop(&self, reason: StopReason) {
+        let mut r = self.stop_reason.lock();
+        if r.is_none() {
+            *r = Some(reason);
+        }
+        self.cancel.store(true, Ordering::Relaxed);
+    }
+
+    pub fn stop_reason(&self) -> Option<StopReason> {
+        *self.stop_reason.lock()
+    }
+
+    pub fn progress(&self) -> Progress {
+        self.progress.lock().clone()
+    }
+
+    pub fn snapshot(&self) -> Option<(u64, Bytes)> {
+        self.snapshot.lock().clone()
+    }
+
+    /// Append an event to the log and send it to subscribers.
+    pub fn emit(&self, event: &'static str, data: Value) {
+        let mut log = self.log.lock();
+        let ev = JobEvent { id: self.next_event_id.fetch_add(1, Ordering::Relaxed), event, data };
+        if log.len() == EVENT_LOG_CAPACITY {
+            log.pop_front();
+        }
+        log.push_back(ev.clone());
+        // Sent under the log lock so a subscriber never sees a gap or a duplicate.
+        let _ = self.tx.send(ev);
+    }
+
+    pub fn emit_status(&self, status: JobStatus) {
+        self.emit("status", json!({ "status": status }));
+    }
+
+    /// The final event; wakes everyone waiting for the job to end.
+    pub fn emit_done(&self, job: Value) {
+        self.emit("done", job);
+        self.done_tx.send_replace(true);
+    }
+
+    /// Events after `last_event_id` and a receiver for everything later, without a gap.
+    pub fn subscribe(&self, last_event_id: Option<u64>) -> (Vec<JobEvent>, broadcast::Receiver<JobEvent>) {
+        let log = self.log.lock();
+        let after = last_event_id.unwrap_or(0);
+        let backlog = log.iter().filter(|e| e.id > after).cloned().collect();
+        (backlog, self.tx.subscribe())
+    }
+
+    /// Events after `last_event_id` still in the log (used after a lagging receiver).
+    pub fn events_after(&self, last_event_id: u64) -> Vec<JobEvent> {
+        self.log.lock().iter().filter(|e| e.id > last_event_id).cloned().collect()
+    }
+
+    pub fn done_receiver(&self) -> watch::Receiver<bool> {
+        self.done_tx.subscribe()
+    }
+
+    pub fn is_done(&self) -> bool {
+        *self.done_tx.borrow()
+    }
+
+    fn progress_event(&self, progress: &Progress, snapshot: Option<String>) {
+        let mut data = serde_json::to_value(progress).unwrap_or(Value::Null);
+        if let (Some(href), Some(obj)) = (snapshot, data.as_object_mut()) {
+            obj.insert("snapshot".into(), Value::String(href));
+        }
+        self.emit("progress", data);
+    }
+}
+
+impl ProgressSink for LiveJob {
+    fn progress(&self, progress: Progress) {
+        let last = progress.steps > 0 && progress.step >= progress.steps;
+        *self.progress.lock() = progress.clone();
+        let mut t = self.throttle.lock();
+        let due = t.last_progress.is_none_or(|at| at.elapsed() >= PROGRESS_EVENT_INTERVAL);
+        if due || last {
+            t.last_progress = Some(Instant::now());
+            drop(t);
+            self.progress_event(&progress, None);
+        }
+    }
+
+    fn snapshot_due(&self) -> bool {
+        self.throttle.lock().last_snapshot.is_none_or(|at| at.elapsed() >= SNAPSHOT_INTERVAL)
+    }
+
+    fn snapshot(&self, png: Vec<u8>, progress: Progress) {
+        let n = self.snapshots_taken.fetch_add(1, Ordering::Relaxed) + 1;
+        *self.snapshot.lock() = Some((n, Bytes::from(png)));
+        *self.progress.lock() = progress.clone();
+        {
+            let mut t = self.throttle.lock();
+            t.last_snapshot = Some(Instant::now());
+            t.last_progress = Some(Instant::now());
+        }
+        self.progress_event(&progress, Some(format!("/v1/jobs/{}/live.png?n={n}", self.id)));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn subscribe_resumes_after_the_last_event_id() {
+        let live = LiveJob::new("j".into());
+        live.emit_status(JobStatus::Queued);
+        live.emit_status(JobStatus::Running);
+        let (backlog, mut rx) = live.subscribe(Some(1));
+        assert_eq!(backlog.iter().map(|e| e.id).collect::<Vec<_>>(), vec![2]);
+        live.emit_done(json!({}));
+        assert_eq!(rx.try_recv().unwrap().event, "done");
+        assert!(live.is_done());
+    }
+
+    #[test]
+    fn the_first_stop_reason_sticks() {
+        let live = LiveJob::new("j".into());
+        live.stop(StopReason::TimedOut);
+        live.stop(StopReason::Cancelled);
+        assert_eq!(live.stop_reason(), Some(StopReason::TimedOut));
+        assert!(live.cancel.load(Ordering::Relaxed));
+    }
+}

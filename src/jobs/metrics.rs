@@ -1,0 +1,71 @@
+//! Prometheus figures about jobs: counts by kind and status, queue depth, run durations.
+
+use prometheus::{Encoder, HistogramOpts, HistogramVec, IntGauge, IntGaugeVec, Opts, Registry, TextEncoder};
+
+use super::JobStatus;
+
+pub struct Metrics {
+    registry: Registry,
+    jobs: IntGaugeVec,
+    queue_depth: IntGauge,
+    running: IntGauge,
+    duration: HistogramVec,
+}
+
+impl Default for Metrics {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Metrics {
+    pub fn new() -> Self {
+        let registry = Registry::new();
+        let jobs = IntGaugeVec::new(Opts::new("landform_jobs", "Jobs in the store by kind and status"), &["kind", "status"])
+            .expect("metric");
+        let queue_depth = IntGauge::new("landform_queue_depth", "Jobs waiting in the queue").expect("metric");
+        let running = IntGauge::new("landform_jobs_running", "Jobs running now").expect("metric");
+        let duration = HistogramVec::new(
+            HistogramOpts::new("landform_job_duration_seconds", "Wall time of finished job runs")
+                .buckets(vec![0.01, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0, 120.0, 300.0, 600.0]),
+            &["kind", "status"],
+        )
+        .expect("metric");
+        for c in [
+            Box::new(jobs.clone()) as Box<dyn prometheus::core::Collector>,
+            Box::new(queue_depth.clone()),
+            Box::new(running.clone()),
+            Box::new(duration.clone()),
+        ] {
+            registry.register(c).expect("register metric");
+        }
+        Self { registry, jobs, queue_depth, running, duration }
+    }
+
+    pub fn set_queue_depth(&self, n: usize) {
+        self.queue_depth.set(n as i64);
+    }
+
+    pub fn running_delta(&self, d: i64) {
+        self.running.add(d);
+    }
+
+    pub fn observe_duration(&self, kind: &str, status: JobStatus, seconds: f64) {
+        self.duration.with_label_values(&[kind, status.as_str()]).observe(seconds);
+    }
+
+    /// Prometheus text exposition, with job counts refreshed from `counts`.
+    pub fn render(&self, kinds: &[&str], counts: &[(String, JobStatus, u64)]) -> String {
+        for kind in kinds {
+            for st in JobStatus::ALL {
+                self.jobs.with_label_values(&[kind, st.as_str()]).set(0);
+            }
+        }
+        for (kind, st, n) in counts {
+            self.jobs.with_label_values(&[kind.as_str(), st.as_str()]).set(*n as i64);
+        }
+        let mut out = Vec::new();
+        TextEncoder::new().encode(&self.registry.gather(), &mut out).expect("text encoding");
+        String::from_utf8(out).unwrap_or_default()
+    }
+}

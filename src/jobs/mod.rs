@@ -1,0 +1,20 @@
+//! The job model, the engine, and the `JobKind` trait every kind implements.
+
+mod kind;
+mod model;
+
+pub use kind::{
+    parse_params, path_string, Artifact, JobKind, JobOutput, Kind, Outcome, Prepared, Progress, ProgressSink, RequestError,
+    RunContext, Sequence, SimError, Simulation,
+};
+pub use model::{ArtifactMeta, Job, JobStatus, ReplaySpec};
+
+mod engine;
+mod live;
+mod metrics;
+mod runner;
+mod store_terrain;
+
+pub use engine::{Engine, EngineConfig, EngineError, EventFeed, Submitted};
+pub use live::{JobEvent, LiveJob, StopReason};
+pub use store_terrain::{StoreTerrain, HEIGHTFIELD_ARTIFACT};

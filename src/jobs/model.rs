@@ -1,0 +1,119 @@
+//! The job as stored and as served.
+
+use chrono::{DateTime, Utc};
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use utoipa::ToSchema;
+
+use super::Progress;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum JobStatus {
+    Queued,
+    Running,
+    Succeeded,
+    Failed,
+    Cancelled,
+}
+
+impl JobStatus {
+    pub const ALL: [JobStatus; 5] =
+        [JobStatus::Queued, JobStatus::Running, JobStatus::Succeeded, JobStatus::Failed, JobStatus::Cancelled];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            JobStatus::Queued => "queued",
+            JobStatus::Running => "running",
+            JobStatus::Succeeded => "succeeded",
+            JobStatus::Failed => "failed",
+            JobStatus::Cancelled => "cancelled",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|st| st.as_str() == s)
+    }
+
+    pub fn is_terminal(self) -> bool {
+        matches!(self, JobStatus::Succeeded | JobStatus::Failed | JobStatus::Cancelled)
+    }
+}
+
+/// A stored artifact's description; `href` is filled in when served.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ArtifactMeta {
+    pub name: String,
+    pub media_type: String,
+    pub bytes: u64,
+    /// Hex sha256 of the bytes; also the artifact's ETag.
+    pub sha256: String,
+    #[serde(default)]
+    pub href: String,
+}
+
+/// What a replay job rebuilds.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReplaySpec {
+    pub of: String,
+    pub until_step: Option<u64>,
+}
+
+/// A job: what was asked, where it is, what it made.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Job {
+    /// UUIDv7: sorts by creation time.
+    pub id: String,
+    pub kind: String,
+    pub status: JobStatus,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub label: Option<String>,
+    pub created_at: DateTime<Utc>,
+    pub started_at: Option<DateTime<Utc>>,
+    pub finished_at: Option<DateTime<Utc>>,
+    pub progress: Progress,
+    /// The parameters with every default filled in, `seed` included.
+    #[schema(value_type = Object)]
+    pub request: Value,
+    /// Kind-specific summary figures once the job has succeeded.
+    #[schema(value_type = Option<Object>)]
+    pub result: Option<Value>,
+    pub artifacts: Vec<ArtifactMeta>,
+    /// A problem object (RFC 9457) when the job failed or was cancelled.
+    #[schema(value_type = Option<Object>)]
+    pub error: Option<Value>,
+    /// The job this one replays, if it is a replay.
+    pub replay_of: Option<String>,
+    /// The step a replay stops after (null: the whole sequence).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub replay_until_step: Option<u64>,
+}
+
+impl Job {
+    pub fn replay_spec(&self) -> Option<ReplaySpec> {
+        self.replay_of.as_ref().map(|of| ReplaySpec { of: of.clone(), until_step: self.replay_until_step })
+    }
+
+    /// The seed the request carries (0 when absent).
+    pub fn seed(&self) -> u64 {
+        self.request.get("seed").and_then(Value::as_u64).unwrap_or(0)
+    }
+
+    /// The kind's own parameters: the request without the common fields.
+    pub fn params(&self) -> Value {
+        let mut p = self.request.clone();
+        if let Some(obj) = p.as_object_mut() {
+            obj.remove("seed");
+            obj.remove("label");
+        }
+        p
+    }
+
+    /// Fill artifact links for serving.
+    pub fn with_hrefs(mut self) -> Self {
+        for a in &mut self.artifacts {
+            a.href = format!("/v1/jobs/{}/artifacts/{}", self.id, a.name);
+        }
+        self
+    }
+}

@@ -1,0 +1,175 @@
+//! The `landform` command: `serve`, `run`, `openapi`.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use anyhow::Context;
+use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use landform::config::{HttpArgs, ServiceArgs};
+use landform::jobs::{Engine, EventFeed, JobStatus, Submitted};
+
+#[derive(Parser)]
+#[command(name = "landform", version, about = "Terrain generation as a service")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the HTTP service.
+    Serve {
+        #[command(flatten)]
+        http: HttpArgs,
+        #[command(flatten)]
+        service: ServiceArgs,
+    },
+    /// Run one job offline with the same engine, and write its artifacts to a folder.
+    Run {
+        /// A request body, as for POST /v1/jobs/{kind}.
+        request: PathBuf,
+        /// Folder for the artifacts (created if missing).
+        #[arg(long)]
+        out: PathBuf,
+        /// Job kind; default: the request file's folder name (api/<kind>/<name>.json).
+        #[arg(long)]
+        kind: Option<String>,
+        #[command(flatten)]
+        service: ServiceArgs,
+    },
+    /// Print the OpenAPI document (YAML); openapi.yaml is its output.
+    Openapi,
+}
+
+fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Openapi => {
+            let kinds: Vec<_> = landform::sims::registry().into_iter().map(Arc::from).collect();
+            print!("{}", landform::http::openapi_yaml(&kinds));
+            Ok(())
+        }
+        Command::Serve { http, service } => runtime()?.block_on(serve(http, service)),
+        Command::Run { request, out, kind, service } => runtime()?.block_on(run(request, out, kind, service)),
+    }
+}
+
+fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
+    Ok(tokio::runtime::Builder::new_multi_thread().enable_all().build()?)
+}
+
+fn init_tracing(default: &str) {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| default.into());
+    let _ = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).try_init();
+}
+
+fn engine(service: &ServiceArgs) -> anyhow::Result<Engine> {
+    let store = service.open_store()?;
+    Ok(Engine::new(store, landform::sims::registry(), service.engine_config())?)
+}
+
+async fn serve(http: HttpArgs, service: ServiceArgs) -> anyhow::Result<()> {
+    init_tracing("info,tower_http=info");
+    let engine = engine(&service)?;
+    engine.start();
+    let listener = tokio::net::TcpListener::bind(&http.addr).await.with_context(|| format!("binding {}", http.addr))?;
+    let addr = listener.local_addr()?;
+    tracing::info!(%addr, database = %service.database_location(), workers = engine.config().workers, "listening");
+    println!("listening on http://{addr}");
+    std::io::stdout().flush()?;
+    let app = landform::http::app(engine, http.http_config());
+    axum::serve(listener, app).with_graceful_shutdown(shutdown_signal()).await?;
+    Ok(())
+}
+
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let term = async {
+        if let Ok(mut s) = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            s.recv().await;
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! { _ = ctrl_c => {}, _ = term => {} }
+}
+
+async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: ServiceArgs) -> anyhow::Result<()> {
+    init_tracing("warn");
+    let kind = match kind {
+        Some(k) => k,
+        None => request
+            .parent()
+            .and_then(|p| p.file_name())
+            .and_then(|n| n.to_str())
+            .map(str::to_string)
+            .context("give --kind: the request's folder does not name one")?,
+    };
+    let body: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(&request).with_context(|| format!("reading {}", request.display()))?,
+    )
+    .with_context(|| format!("{} is not JSON", request.display()))?;
+    let scratch = tempfile_db()?;
+    if service.database.is_none() && std::env::var("DATABASE_URL").is_err() {
+        service.database = Some(scratch.to_string_lossy().into_owned());
+    }
+    let engine = engine(&service)?;
+    engine.start();
+    let job = match engine.submit(&kind, body, None).await {
+        Ok(Submitted::Created(j) | Submitted::Existing(j)) => j,
+        Err(landform::jobs::EngineError::Invalid { errors, .. }) => {
+            for e in errors {
+                eprintln!("{}: {}", if e.field.is_empty() { "(body)" } else { &e.field }, e.message);
+            }
+            anyhow::bail!("the request is invalid");
+        }
+        Err(e) => return Err(e.into()),
+    };
+
+    let bar = ProgressBar::new(1000);
+    bar.set_style(ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {percent:>3}% {msg}")?);
+    if let EventFeed::Live { mut rx, .. } = engine.events(&job.id, None).await? {
+        while let Ok(ev) = rx.recv().await {
+            if ev.event == "progress" {
+                let f = ev.data["fraction"].as_f64().unwrap_or(0.0);
+                bar.set_position((f * 1000.0) as u64);
+                bar.set_message(format!(
+                    "{} {}/{} {}",
+                    ev.data["stage"].as_str().unwrap_or(""),
+                    ev.data["step"],
+                    ev.data["steps"],
+                    ev.data["message"].as_str().unwrap_or("")
+                ));
+            }
+            if ev.event == "done" {
+                break;
+            }
+        }
+    }
+    bar.finish_and_clear();
+    let job = engine.get(&job.id).await?;
+    let _ = std::fs::remove_file(&scratch);
+    if job.status != JobStatus::Succeeded {
+        anyhow::bail!("job {}: {}", job.status.as_str(), job.error.map(|e| e["detail"].to_string()).unwrap_or_default());
+    }
+    std::fs::create_dir_all(&out)?;
+    for a in &job.artifacts {
+        let (_, bytes) = engine.artifact(&job.id, &a.name).await?.context("artifact vanished")?;
+        std::fs::write(out.join(&a.name), bytes)?;
+        println!("{:>12} bytes  {}", a.bytes, out.join(&a.name).display());
+    }
+    std::fs::write(out.join("job.json"), serde_json::to_vec_pretty(&job)?)?;
+    println!("{}", serde_json::to_string_pretty(&job.result)?);
+    Ok(())
+}
+
+/// A throwaway store for an offline run.
+fn tempfile_db() -> anyhow::Result<PathBuf> {
+    let dir = std::env::temp_dir();
+    Ok(dir.join(format!("landform-run-{}.db", uuid::Uuid::now_v7())))
+}

@@ -1,0 +1,210 @@
+//! Plain mesh data shared by every job kind and the glb writer.
+//!
+//! Conventions: positions in metres, Y up (right-handed, +X right, +Z towards the viewer);
+//! triangles are wound counter-clockwise when seen from the side their normal points to, so a
+//! closed mesh's front faces look outwards and a terrain's look up.
+
+/// An indexed triangle mesh.
+///
+/// `positions`, `normals`, `uvs` and (when present) `colors` are per vertex and have the same
+/// length; `indices` holds three vertex indices per triangle, counter-clockwise from the front.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Metres, Y up.
+    pub positions: Vec<[f32; 3]>,
+    /// Unit vectors.
+    pub normals: Vec<[f32; 3]>,
+    /// Texture coordinates in [0, 1], (0, 0) at the first vertex's corner.
+    pub uvs: Vec<[f32; 2]>,
+    /// sRGB colour and alpha per vertex, if the mesh carries them.
+    pub colors: Option<Vec<[u8; 4]>>,
+    pub indices: Vec<u32>,
+}
+
+impl Mesh {
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+
+    /// Axis-aligned bounds `(min, max)` of the positions; `None` for a mesh without vertices.
+    pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
+        let first = *self.positions.first()?;
+        let (mut lo, mut hi) = (first, first);
+        for p in &self.positions {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        Some((lo, hi))
+    }
+
+    /// Whether the per-vertex arrays agree in length, the index count is a multiple of three,
+    /// every index names a vertex and every position is finite. Writers assert this; meshers
+    /// test it.
+    pub fn check(&self) -> Result<(), String> {
+        let n = self.positions.len();
+        if self.normals.len() != n {
+            return Err(format!("{} normals for {n} positions", self.normals.len()));
+        }
+        if self.uvs.len() != n {
+            return Err(format!("{} uvs for {n} positions", self.uvs.len()));
+        }
+        if let Some(colors) = &self.colors {
+            if colors.len() != n {
+                return Err(format!("{} colors for {n} positions", colors.len()));
+            }
+        }
+        if self.indices.len() % 3 != 0 {
+            return Err(format!("{} indices is not a whole number of triangles", self.indices.len()));
+        }
+        if let Some(&bad) = self.indices.iter().find(|&&i| i as usize >= n) {
+            return Err(format!("index {bad} out of range for {n} vertices"));
+        }
+        if let Some(i) = self.positions.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
+            return Err(format!("position {i} is not finite: {:?}", self.positions[i]));
+        }
+        Ok(())
+    }
+
+    /// Whether every undirected edge is shared by exactly two triangles: the mesh bounds a
+    /// volume without holes or fins (it may still be wound inconsistently; see
+    /// [`Mesh::signed_volume`]).
+    pub fn is_closed(&self) -> bool {
+        if self.indices.is_empty() {
+            return false;
+        }
+        // Sorting packed edge keys instead of counting in a HashMap keeps this allocation-light
+        // and independent of hashing order.
+        let mut edges: Vec<u64> = Vec::with_capacity(self.indices.len());
+        for t in self.indices.chunks_exact(3) {
+            for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+                let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+                edges.push(((lo as u64) << 32) | hi as u64);
+            }
+        }
+        edges.sort_unstable();
+        edges.chunk_by(|a, b| a == b).all(|run| run.len() == 2)
+    }
+
+    /// Signed volume in cubic metres enclosed by the triangles (divergence theorem, summed in
+    /// f64). Positive when a closed mesh's triangles face outwards; meaningless when open.
+    pub fn signed_volume(&self) -> f64 {
+        let p = |i: u32| {
+            let v = self.positions[i as usize];
+            [v[0] as f64, v[1] as f64, v[2] as f64]
+        };
+        self.indices
+            .chunks_exact(3)
+            .map(|t| {
+                let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
+                // a · (b × c) is six times the tetrahedron (origin, a, b, c).
+                a[0] * (b[1] * c[2] - b[2] * c[1])
+                    + a[1] * (b[2] * c[0] - b[0] * c[2])
+                    + a[2] * (b[0] * c[1] - b[1] * c[0])
+            })
+            .sum::<f64>()
+            / 6.0
+    }
+}
+
+/// How a node's surface looks in a glb: a non-metallic PBR material, fully rough for ground and
+/// stone.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MaterialKind {
+    /// Coloured by the mesh's per-vertex colours (base colour white); light grey without them.
+    #[default]
+    VertexColors,
+    /// One colour, as sRGB bytes (e.g. sandstone `[194, 140, 96]`), times any vertex colours.
+    Matte { srgb: [u8; 3] },
+    /// A sea or lake surface: blue and smoother than ground.
+    Water,
+}
+
+/// One named object in a [`Scene`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneNode {
+    /// Shown by viewers and engines; need not be unique, but should be.
+    pub name: String,
+    pub mesh: Mesh,
+    pub material: MaterialKind,
+}
+
+impl SceneNode {
+    pub fn new(name: impl Into<String>, mesh: Mesh, material: MaterialKind) -> Self {
+        Self { name: name.into(), mesh, material }
+    }
+}
+
+/// What a glb holds: named nodes in world coordinates (no transforms), written in this order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Scene {
+    pub nodes: Vec<SceneNode>,
+}
+
+impl Scene {
+    /// A scene of one node with the default material.
+    pub fn single(name: impl Into<String>, mesh: Mesh) -> Self {
+        Self { nodes: vec![SceneNode::new(name, mesh, MaterialKind::default())] }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A unit cube, triangles facing outwards.
+    fn cube() -> Mesh {
+        let positions: Vec<[f32; 3]> =
+            (0..8).map(|i| [(i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32]).collect();
+        #[rustfmt::skip]
+        let indices = vec![
+            0, 1, 5, 0, 5, 4, // y = 0, facing -Y
+            2, 6, 7, 2, 7, 3, // y = 1, facing +Y
+            0, 4, 6, 0, 6, 2, // x = 0, facing -X
+            1, 3, 7, 1, 7, 5, // x = 1, facing +X
+            0, 2, 3, 0, 3, 1, // z = 0, facing -Z
+            4, 5, 7, 4, 7, 6, // z = 1, facing +Z
+        ];
+        let n = positions.len();
+        Mesh { positions, normals: vec![[0.0, 1.0, 0.0]; n], uvs: vec![[0.0; 2]; n], colors: None, indices }
+    }
+
+    #[test]
+    fn outward_cube_is_closed_with_volume_one() {
+        let m = cube();
+        assert!(m.check().is_ok());
+        assert!(m.is_closed());
+        assert!((m.signed_volume() - 1.0).abs() < 1e-12);
+        assert_eq!(m.triangle_count(), 12);
+        assert_eq!(m.bounds(), Some(([0.0; 3], [1.0; 3])));
+    }
+
+    #[test]
+    fn cube_missing_a_face_is_open() {
+        let mut m = cube();
+        m.indices.truncate(30);
+        assert!(!m.is_closed());
+    }
+
+    #[test]
+    fn inverted_cube_has_negative_volume() {
+        let mut m = cube();
+        for t in m.indices.chunks_exact_mut(3) {
+            t.swap(1, 2);
+        }
+        assert!(m.is_closed());
+        assert!((m.signed_volume() + 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn check_rejects_out_of_range_index() {
+        let mut m = cube();
+        m.indices[0] = 8;
+        assert!(m.check().unwrap_err().contains("out of range"));
+    }
+}

@@ -1,0 +1,274 @@
+//! `bulldoze`: a heightfield edited by blades swept along paths and by landform primitives,
+//! each combined with the surface by an operator — Ervin & Westort, "Procedural Terrain: A
+//! Virtual Bulldozer".
+//!
+//! Operations apply in order. A primitive is one step; a pass is one step per move (path
+//! segment), its relative path heights resolved against the terrain as the pass starts and
+//! recorded, so a replay repeats the steps without looking anything up.
+
+mod apply;
+mod blade;
+mod combine;
+mod params;
+mod path;
+mod primitives;
+mod sequence;
+
+#[cfg(test)]
+mod test_support;
+#[cfg(test)]
+mod tests;
+
+use rayon::prelude::*;
+use serde_json::{json, Value};
+
+pub use blade::Blade;
+pub use combine::Operator;
+pub use params::{BulldozeParams, Operation, PassOp, PathVertex, PlanPoint, PrimitiveOp, Window};
+pub use path::{MoveStep, PathPoint};
+pub use primitives::{Berm, BoxShape, Cone, HalfCylinder, Mound, Ramp, Shape, Torus};
+pub use sequence::{BulldozeSequence, Step};
+
+use crate::jobs::{Outcome, RunContext, SimError, Simulation};
+use crate::terrain::Heightfield;
+use params::{check_resampled, resampled_dimensions};
+use sequence::Group;
+
+/// The `bulldoze` job kind.
+pub struct Bulldoze;
+
+const STAGE: &str = "bulldoze";
+
+impl Simulation for Bulldoze {
+    const KIND: &'static str = "bulldoze";
+    const SUMMARY: &'static str =
+        "Edit a heightfield with blades swept along paths and landform primitives combined by operators";
+    type Params = BulldozeParams;
+    type Sequence = BulldozeSequence;
+
+    fn job_refs(params: &BulldozeParams) -> Vec<(String, String)> {
+        params.terrain.job_ref().map(|id| ("terrain.job".to_string(), id.to_string())).into_iter().collect()
+    }
+
+    fn run(params: &BulldozeParams, _seed: u64, ctx: &RunContext) -> Result<Outcome<BulldozeSequence>, SimError> {
+        let edit = run_edit(params, ctx)?;
+        Ok(edit.finish())
+    }
+
+    fn replay(
+        _params: &BulldozeParams,
+        sequence: &BulldozeSequence,
+        until_step: Option<u64>,
+        ctx: &RunContext,
+    ) -> Result<Outcome<BulldozeSequence>, SimError> {
+        Ok(replay_edit(sequence, until_step, ctx)?.finish())
+    }
+}
+
+/// A finished edit: the grid before and after, what was applied, and its record.
+struct Edit {
+    initial: Vec<f32>,
+    hf: Heightfield,
+    tally: Tally,
+    sequence: BulldozeSequence,
+}
+
+fn run_edit(params: &BulldozeParams, ctx: &RunContext) -> Result<Edit, SimError> {
+    let terrain = ctx.resolve_terrain(&params.terrain)?;
+    let mut hf = at_resolution(terrain, params.resolution, ctx)?;
+    let initial = hf.heights_m.clone();
+    let mut dozer = Bulldozer::new(&mut hf, params.window, params.step_count(), Some(ctx));
+    let steps = dozer.operations(&params.operations)?;
+    let tally = dozer.tally;
+    let sequence = BulldozeSequence {
+        terrain: params.terrain.clone(),
+        resolution_m: hf.cell_size_m,
+        window: params.window,
+        steps,
+    };
+    Ok(Edit { initial, hf, tally, sequence })
+}
+
+/// Rebuild from a sequence: its terrain at its resolution, then its first `until_step` steps
+/// (all of them when `None`), with no terrain lookups for path heights.
+fn replay_edit(sequence: &BulldozeSequence, until_step: Option<u64>, ctx: &RunContext) -> Result<Edit, SimError> {
+    let k = until_step.map_or(sequence.steps.len(), |k| (k as usize).min(sequence.steps.len()));
+    let steps = &sequence.steps[..k];
+    let terrain = ctx.resolve_terrain(&sequence.terrain)?;
+    let mut hf = at_resolution(terrain, Some(sequence.resolution_m), ctx)?;
+    let initial = hf.heights_m.clone();
+    let mut dozer = Bulldozer::new(&mut hf, sequence.window, k as u64, Some(ctx));
+    for group in sequence::groups(steps) {
+        match group {
+            Group::Primitive(p) => dozer.primitive(p)?,
+            Group::Pass(moves) => dozer.pass(&moves)?,
+        }
+    }
+    let tally = dozer.tally;
+    let sequence = BulldozeSequence { steps: steps.to_vec(), ..sequence.clone() };
+    Ok(Edit { initial, hf, tally, sequence })
+}
+
+/// Apply `operations` to `hf` in place, as a job does but without progress reports or
+/// cancellation, and return the steps it would record.
+pub fn apply_operations(hf: &mut Heightfield, operations: &[Operation], window: Option<&Window>) -> Vec<Step> {
+    let total = operations.len() as u64;
+    match Bulldozer::new(hf, window.copied(), total, None).operations(operations) {
+        Ok(steps) => steps,
+        Err(_) => unreachable!("without a run context nothing can cancel"),
+    }
+}
+
+/// The terrain resampled to `resolution_m` (the paper's sketch mode), unless it is already
+/// at that cell size.
+fn at_resolution(hf: Heightfield, resolution_m: Option<f32>, ctx: &RunContext) -> Result<Heightfield, SimError> {
+    let Some(res) = resolution_m.filter(|&r| r != hf.cell_size_m) else {
+        return Ok(hf);
+    };
+    let (cols, rows) = resampled_dimensions(hf.cols as u64, hf.rows as u64, hf.cell_size_m, res);
+    if let Some((message, _)) = check_resampled(cols, rows, ctx.limits) {
+        return Err(SimError::Invalid { field: "resolution".to_string(), message });
+    }
+    Ok(hf.resampled(res))
+}
+
+/// What has been applied so far.
+#[derive(Clone, Copy, Debug, Default)]
+struct Tally {
+    steps: u64,
+    primitives: u64,
+    passes: u64,
+    moves: u64,
+}
+
+/// The grid being edited, with progress and cancellation between steps when it runs as a job.
+struct Bulldozer<'a> {
+    hf: &'a mut Heightfield,
+    window: Option<Window>,
+    total: u64,
+    tally: Tally,
+    ctx: Option<&'a RunContext<'a>>,
+}
+
+impl<'a> Bulldozer<'a> {
+    fn new(hf: &'a mut Heightfield, window: Option<Window>, total: u64, ctx: Option<&'a RunContext<'a>>) -> Self {
+        Self { hf, window, total, tally: Tally::default(), ctx }
+    }
+
+    fn check_cancelled(&self) -> Result<(), SimError> {
+        self.ctx.map_or(Ok(()), |ctx| ctx.check_cancelled())
+    }
+
+    /// Apply operations in order, resolving each pass's path against the surface as the
+    /// pass starts; returns the steps to record.
+    fn operations(&mut self, operations: &[Operation]) -> Result<Vec<Step>, SimError> {
+        let mut steps = Vec::new();
+        for op in operations {
+            match op {
+                Operation::Primitive(p) => {
+                    self.primitive(p)?;
+                    steps.push(Step::Primitive(p.clone()));
+                }
+                Operation::Pass(p) => {
+                    let moves = path::resolve_pass(self.hf, self.tally.passes as u32, p);
+                    self.pass(&moves)?;
+                    steps.extend(moves.into_iter().map(Step::Move));
+                }
+            }
+        }
+        Ok(steps)
+    }
+
+    fn primitive(&mut self, p: &PrimitiveOp) -> Result<(), SimError> {
+        self.check_cancelled()?;
+        primitives::apply_shape(self.hf, &p.shape, p.operator, self.window.as_ref());
+        self.tally.steps += 1;
+        self.tally.primitives += 1;
+        if let Some(ctx) = self.ctx {
+            let name = primitives::shape_name(&p.shape);
+            let operator = serde_json::to_value(p.operator).ok().and_then(|v| v.as_str().map(str::to_owned));
+            let message = format!("{name} ({})", operator.unwrap_or_default());
+            ctx.report(STAGE, self.tally.steps, self.total, message);
+        }
+        Ok(())
+    }
+
+    fn pass(&mut self, moves: &[MoveStep]) -> Result<(), SimError> {
+        let Some(first) = moves.first() else {
+            return Ok(());
+        };
+        let pass = first.pass;
+        self.check_cancelled()?;
+        let (ctx, total, tally) = (self.ctx, self.total, &mut self.tally);
+        path::apply_pass(self.hf, moves, self.window.as_ref(), |k| {
+            tally.steps += 1;
+            match ctx {
+                Some(ctx) => {
+                    ctx.report(STAGE, tally.steps, total, format!("pass {pass}: move {} of {}", k + 1, moves.len()));
+                    ctx.check_cancelled()
+                }
+                None => Ok(()),
+            }
+        })?;
+        self.tally.passes += 1;
+        self.tally.moves += moves.len() as u64;
+        if let Some(ctx) = self.ctx {
+            let hf = &*self.hf;
+            ctx.report_with_snapshot(STAGE, self.tally.steps, total, format!("pass {pass} done"), || {
+                crate::export::snapshot_png(hf)
+            });
+        }
+        Ok(())
+    }
+}
+
+impl Edit {
+    /// The bulldozer's own figures: counts of what was applied, and how the grid changed.
+    fn figures(&self) -> serde_json::Map<String, Value> {
+        let cell_area = self.hf.cell_size_m as f64 * self.hf.cell_size_m as f64;
+        let (changed, cut, fill) = change_totals(&self.initial, &self.hf);
+        let t = self.tally;
+        [
+            ("operations", json!(t.primitives + t.passes)),
+            ("steps", json!(t.steps)),
+            ("passes", json!(t.passes)),
+            ("primitives", json!(t.primitives)),
+            ("moves", json!(t.moves)),
+            ("changed_samples", json!(changed)),
+            ("cut_volume_m3", json!(cut * cell_area)),
+            ("fill_volume_m3", json!(fill * cell_area)),
+        ]
+        .into_iter()
+        .map(|(name, value)| (name.to_string(), value))
+        .collect()
+    }
+
+    /// The job's outcome: the export summary merged with the bulldozer's figures.
+    fn finish(self) -> Outcome<BulldozeSequence> {
+        let figures = self.figures();
+        let exported = crate::export::heightfield_artifacts(&self.hf);
+        let mut result = match exported.summary {
+            Value::Object(map) => map,
+            other => [("export".to_string(), other)].into_iter().collect(),
+        };
+        result.extend(figures);
+        Outcome { result: Value::Object(result), sequence: self.sequence, artifacts: exported.artifacts }
+    }
+}
+
+/// Samples whose height changed, and the summed height lost (cut) and gained (fill) in
+/// metres; rows are summed in parallel and the row totals in order, so the figures do not
+/// depend on the thread count.
+fn change_totals(initial: &[f32], hf: &Heightfield) -> (u64, f64, f64) {
+    let rows: Vec<(u64, f64, f64)> = initial
+        .par_chunks(hf.cols)
+        .zip(hf.heights_m.par_chunks(hf.cols))
+        .map(|(before, after)| {
+            before.iter().zip(after).fold((0u64, 0.0f64, 0.0f64), |(n, cut, fill), (&b, &a)| {
+                let dz = a as f64 - b as f64;
+                (n + (a != b) as u64, cut + (-dz).max(0.0), fill + dz.max(0.0))
+            })
+        })
+        .collect();
+    rows.into_iter().fold((0, 0.0, 0.0), |(n, c, f), (rn, rc, rf)| (n + rn, c + rc, f + rf))
+}

@@ -1,0 +1,384 @@
+//! The `bulldoze` request: a terrain, an optional window and resolution, and a list of
+//! operations (landform primitives and blade passes) applied in order.
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use super::blade::Blade;
+use super::combine::Operator;
+use super::primitives::Shape;
+use crate::terrain::TerrainSource;
+use crate::validate::{Limits, Validate, Validator};
+
+/// Edit a heightfield with landform primitives and blades swept along paths (Ervin &
+/// Westort, "Procedural Terrain: A Virtual Bulldozer").
+///
+/// Axes: X east, Z along the grid's rows, Y up; all lengths and heights in metres. Every
+/// operation has a *relief* r(x, z) (its own shape's height above its base) and a *base*
+/// b(x, z); the absolute surface it describes is v = b + r. Each operation changes only the
+/// samples inside its footprint (and inside `window`), combining the current height z with
+/// it by its operator: `add` z + r, `subtract` z − r, `max` max(z, v), `min` min(z, v),
+/// `average` (z + v) / 2, `replace` v.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = BulldozeParams)]
+pub struct BulldozeParams {
+    /// The starting terrain.
+    pub terrain: TerrainSource,
+    /// The window of operation: operations change only samples inside it. Absent: the whole grid.
+    #[serde(default)]
+    pub window: Option<Window>,
+    /// Metres between samples of the output grid. The terrain is resampled (bilinear) to it
+    /// over the same extent — coarse for a quick sketch, fine for the final form. Absent: the
+    /// terrain's own cell size.
+    #[serde(default)]
+    #[schema(exclusive_minimum = 0.0)]
+    pub resolution: Option<f32>,
+    /// Primitives and passes, applied in order; each acts on the result of the ones before.
+    pub operations: Vec<Operation>,
+}
+
+/// A plan rectangle in metres (inclusive bounds).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = BulldozeWindow)]
+pub struct Window {
+    /// West edge, metres along X.
+    pub min_x: f32,
+    /// Edge nearest the first row, metres along Z.
+    pub min_z: f32,
+    /// East edge, metres along X.
+    pub max_x: f32,
+    /// Edge nearest the last row, metres along Z.
+    pub max_z: f32,
+}
+
+/// One operation: exactly one of `primitive` or `pass`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+#[schema(as = BulldozeOperation)]
+pub enum Operation {
+    /// A parameterised landform primitive combined with the surface.
+    Primitive(PrimitiveOp),
+    /// A blade swept along a path: one move per path segment.
+    Pass(PassOp),
+}
+
+fn default_primitive_operator() -> Operator {
+    Operator::Add
+}
+
+fn default_pass_operator() -> Operator {
+    Operator::Replace
+}
+
+/// A landform primitive and how it combines with the surface.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = BulldozePrimitive)]
+pub struct PrimitiveOp {
+    pub shape: Shape,
+    /// How the primitive combines with the surface; `add` stacks its relief on the terrain.
+    #[serde(default = "default_primitive_operator")]
+    #[schema(default = "add")]
+    pub operator: Operator,
+}
+
+/// A pass: the blade pushed along the path, one move per segment.
+///
+/// A move covers what the blade sweeps along its segment: base = the path's height where the
+/// blade's centre is, relief = the profile. At each bend the blade also pivots about the
+/// vertex from one heading to the next, filling the outside of the bend (base: the vertex's
+/// height). All moves of a pass act on the surface as it was when the pass began (paper
+/// §2.4); where two moves overlap (inside a bend, or where a spiral's turns meet) the later
+/// move's result stands, so an `add` or `subtract` pass never cuts a sample twice.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = BulldozePass)]
+pub struct PassOp {
+    /// The path: at least 2 vertices, no two consecutive ones at the same place.
+    pub path: Vec<PathVertex>,
+    pub blade: Blade,
+    /// How each move combines with the surface; `replace` leaves the blade's profile, as a
+    /// real bulldozer does. The move's base is the path's height, its relief the profile.
+    #[serde(default = "default_pass_operator")]
+    #[schema(default = "replace")]
+    pub operator: Operator,
+}
+
+/// A path vertex.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = BulldozePathVertex)]
+pub struct PathVertex {
+    /// Metres along X.
+    pub x: f32,
+    /// Metres along Z.
+    pub z: f32,
+    /// Absolute height of the path here, metres. Absent (null): relative — the height of the
+    /// terrain at this vertex as it is when the pass starts (bilinear), as a real bulldozer
+    /// riding on the ground. A path may mix both.
+    #[serde(default)]
+    pub height: Option<f32>,
+}
+
+/// A horizontal position in metres.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = BulldozePoint)]
+pub struct PlanPoint {
+    /// Metres along X.
+    pub x: f32,
+    /// Metres along Z.
+    pub z: f32,
+}
+
+impl BulldozeParams {
+    /// Number of recorded steps the operations make: one per primitive, one per move.
+    pub fn step_count(&self) -> u64 {
+        self.operations
+            .iter()
+            .map(|op| match op {
+                Operation::Primitive(_) => 1,
+                Operation::Pass(p) => p.path.len().saturating_sub(1) as u64,
+            })
+            .sum()
+    }
+}
+
+/// Samples (cols, rows) of a grid resampled to `resolution_m`, computed as
+/// `Heightfield::resampled` does.
+pub(crate) fn resampled_dimensions(cols: u64, rows: u64, cell_size_m: f32, resolution_m: f32) -> (u64, u64) {
+    let along = |n: u64| ((n.saturating_sub(1)) as f32 * cell_size_m / resolution_m).floor() as u64 + 1;
+    (along(cols), along(rows))
+}
+
+/// Why a resampled grid is unusable, if it is: (message, whether it is over the cap).
+pub(crate) fn check_resampled(cols: u64, rows: u64, limits: &Limits) -> Option<(String, bool)> {
+    if cols < 2 || rows < 2 {
+        Some((format!("is coarser than the terrain: the grid would have {cols}×{rows} samples"), false))
+    } else if cols * rows > limits.max_grid_cells {
+        Some((
+            format!(
+                "the resampled grid would have {cols}×{rows} samples, more than the cap of {}",
+                limits.max_grid_cells
+            ),
+            true,
+        ))
+    } else {
+        None
+    }
+}
+
+impl Validate for BulldozeParams {
+    fn validate(&self, v: &mut Validator, limits: &Limits) {
+        v.field("terrain", |v| self.terrain.validate(v, limits));
+        if let Some(w) = &self.window {
+            v.field("window", |v| w.validate(v, limits));
+        }
+        if let Some(res) = self.resolution {
+            v.positive("resolution", res as f64);
+            let dims = self.terrain.known_dimensions().zip(self.terrain.known_cell_size());
+            if let (true, Some(((cols, rows), cell))) = (res.is_finite() && res > 0.0, dims) {
+                if cell.is_finite() && cell > 0.0 {
+                    let (c, r) = resampled_dimensions(cols, rows, cell, res);
+                    match check_resampled(c, r, limits) {
+                        Some((message, true)) => v.too_large("resolution", message),
+                        Some((message, false)) => v.error("resolution", message),
+                        None => {}
+                    }
+                }
+            }
+        }
+        let steps: u64 = self
+            .operations
+            .iter()
+            .map(|op| match op {
+                Operation::Primitive(_) => 1,
+                Operation::Pass(p) => p.path.len() as u64,
+            })
+            .sum();
+        if steps > limits.max_operations {
+            v.too_large(
+                "operations",
+                format!(
+                    "{steps} primitives and path vertices in all is more than the cap of {}",
+                    limits.max_operations
+                ),
+            );
+        }
+        v.field("operations", |v| {
+            for (i, op) in self.operations.iter().enumerate() {
+                v.index(i, |v| op.validate(v, limits));
+            }
+        });
+    }
+}
+
+impl Validate for Window {
+    fn validate(&self, v: &mut Validator, _limits: &Limits) {
+        let ok = [("min_x", self.min_x), ("min_z", self.min_z), ("max_x", self.max_x), ("max_z", self.max_z)]
+            .into_iter()
+            .fold(true, |ok, (name, value)| v.finite(name, value as f64) && ok);
+        if ok {
+            if self.max_x <= self.min_x {
+                v.error("max_x", "must be greater than min_x");
+            }
+            if self.max_z <= self.min_z {
+                v.error("max_z", "must be greater than min_z");
+            }
+        }
+    }
+}
+
+impl Validate for Operation {
+    fn validate(&self, v: &mut Validator, limits: &Limits) {
+        match self {
+            Operation::Primitive(p) => v.field("primitive", |v| v.field("shape", |v| p.shape.validate(v, limits))),
+            Operation::Pass(p) => v.field("pass", |v| p.validate(v, limits)),
+        }
+    }
+}
+
+impl Validate for PassOp {
+    fn validate(&self, v: &mut Validator, limits: &Limits) {
+        v.field("blade", |v| self.blade.validate(v, limits));
+        if self.path.len() < 2 {
+            v.error("path", format!("needs at least 2 points (got {})", self.path.len()));
+        } else if self.path.len() as u64 > limits.max_operations {
+            v.too_large(
+                "path",
+                format!("{} points is more than the cap of {}", self.path.len(), limits.max_operations),
+            );
+        }
+        v.field("path", |v| {
+            for (i, p) in self.path.iter().enumerate() {
+                v.index(i, |v| {
+                    let finite = v.finite("x", p.x as f64) & v.finite("z", p.z as f64);
+                    if let Some(h) = p.height {
+                        v.finite("height", h as f64);
+                    }
+                    if finite && i > 0 {
+                        let prev = self.path[i - 1];
+                        if prev.x == p.x && prev.z == p.z {
+                            v.error("", "is at the same place as the point before it");
+                        }
+                    }
+                });
+            }
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn validate(body: serde_json::Value) -> Validator {
+        let params: BulldozeParams = serde_json::from_value(body).expect("parses");
+        let mut v = Validator::new();
+        params.validate(&mut v, &Limits::default());
+        v
+    }
+
+    fn fields(v: &Validator) -> Vec<&str> {
+        v.errors.iter().map(|e| e.field.as_str()).collect()
+    }
+
+    fn job_terrain() -> serde_json::Value {
+        json!({"job": "0190a0f4-4a9e-7c3e-8000-000000000001"})
+    }
+
+    #[test]
+    fn defaults_are_filled_in_and_shown() {
+        let body = json!({
+            "terrain": job_terrain(),
+            "operations": [
+                {"primitive": {"shape": {"mound": {"center": {"x": 1, "z": 2}, "radius_m": 5, "height_m": 2}}}},
+                {"pass": {"path": [{"x": 0, "z": 0}, {"x": 5, "z": 0, "height": 3}], "blade": {"width_m": 4}}}
+            ]
+        });
+        let params: BulldozeParams = serde_json::from_value(body).unwrap();
+        let shown = serde_json::to_value(&params).unwrap();
+        assert_eq!(shown["operations"][0]["primitive"]["operator"], "add");
+        assert_eq!(shown["operations"][0]["primitive"]["shape"]["mound"]["curvature"], 2.0);
+        assert_eq!(shown["operations"][0]["primitive"]["shape"]["mound"]["base_m"], 0.0);
+        assert_eq!(shown["operations"][1]["pass"]["operator"], "replace");
+        assert_eq!(shown["operations"][1]["pass"]["blade"]["profile"], json!([[-1.0, 0.0], [1.0, 0.0]]));
+        assert_eq!(shown["operations"][1]["pass"]["path"][0]["height"], serde_json::Value::Null);
+        assert_eq!(params.step_count(), 2);
+        let again: BulldozeParams = serde_json::from_value(shown).unwrap();
+        assert_eq!(again, params);
+    }
+
+    #[test]
+    fn unknown_fields_are_refused() {
+        let body = json!({
+            "terrain": job_terrain(),
+            "operations": [{"pass": {"path": [], "blade": {"width_m": 4, "colour": "red"}}}]
+        });
+        assert!(serde_json::from_value::<BulldozeParams>(body).is_err());
+    }
+
+    #[test]
+    fn a_blade_with_no_width_and_a_short_path_name_their_fields() {
+        let v = validate(json!({
+            "terrain": job_terrain(),
+            "operations": [
+                {"primitive": {"shape": {"cone": {"center": {"x": 0, "z": 0}, "radius_m": 5, "height_m": 1}}}},
+                {"pass": {"path": [{"x": 0, "z": 0}], "blade": {"width_m": 0}}}
+            ]
+        }));
+        assert_eq!(fields(&v), vec!["operations[1].pass.blade.width_m", "operations[1].pass.path"]);
+        assert!(!v.too_large);
+    }
+
+    #[test]
+    fn repeated_path_points_and_bad_windows_are_refused() {
+        let v = validate(json!({
+            "terrain": job_terrain(),
+            "window": {"min_x": 5, "min_z": 0, "max_x": 5, "max_z": 1},
+            "operations": [{"pass": {"path": [{"x": 1, "z": 1}, {"x": 1, "z": 1}], "blade": {"width_m": 2}}}]
+        }));
+        assert_eq!(fields(&v), vec!["window.max_x", "operations[0].pass.path[1]"]);
+    }
+
+    #[test]
+    fn too_many_operations_is_too_large() {
+        let path: Vec<_> = (0..20).map(|i| json!({"x": i, "z": 0})).collect();
+        let params: BulldozeParams = serde_json::from_value(json!({
+            "terrain": job_terrain(),
+            "operations": [{"pass": {"path": path, "blade": {"width_m": 2}}}]
+        }))
+        .unwrap();
+        let mut v = Validator::new();
+        params.validate(&mut v, &Limits { max_operations: 10, ..Limits::default() });
+        assert!(v.too_large);
+        assert_eq!(fields(&v), vec!["operations", "operations[0].pass.path"]);
+    }
+
+    #[test]
+    fn resolution_is_checked_against_the_grid_cap() {
+        let body = |res: f32| {
+            json!({
+                "terrain": {"fractal": {"size": 257, "cell_size": 1.0}},
+                "resolution": res,
+                "operations": []
+            })
+        };
+        let params: BulldozeParams = serde_json::from_value(body(0.1)).unwrap();
+        let mut v = Validator::new();
+        params.validate(&mut v, &Limits { max_grid_cells: 1_000_000, ..Limits::default() });
+        assert!(v.too_large);
+        assert_eq!(fields(&v), vec!["resolution"]);
+
+        let v = validate(body(0.5));
+        assert!(v.is_ok(), "{:?}", v.errors);
+        let v = validate(body(300.0));
+        assert_eq!(fields(&v), vec!["resolution"]);
+        assert!(!v.too_large);
+        let v = validate(body(0.0));
+        assert_eq!(fields(&v), vec!["resolution"]);
+    }
+}

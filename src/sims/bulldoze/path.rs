@@ -1,0 +1,480 @@
+//! Paths, moves and passes (paper §2.1): a blade pushed along each segment of a 3-D
+//! polyline. One segment's sweep is a move; the whole path is a pass.
+
+use std::f64::consts::{PI, TAU};
+
+use serde::{Deserialize, Serialize};
+
+use super::apply::{apply, Bounds, Footprint, Frame};
+use super::blade::{Blade, BladeGeometry};
+use super::combine::Operator;
+use super::params::{PassOp, PlanPoint, Window};
+use crate::terrain::Heightfield;
+
+/// A path vertex with its height resolved: what the sequence records, so that a replay needs
+/// no terrain lookups.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PathPoint {
+    pub x: f32,
+    pub z: f32,
+    /// Absolute height of the path here, metres.
+    pub height: f32,
+}
+
+/// One move: the blade pushed along one segment of a pass's path.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MoveStep {
+    /// Which pass (0-based, counting passes only).
+    pub pass: u32,
+    /// Which segment of the pass's path (0-based): from vertex `segment` to `segment + 1`.
+    pub segment: u32,
+    /// The path vertex before `from` (null on a pass's first move): at `from` the blade first
+    /// turns from that segment's heading to this one's.
+    #[serde(default)]
+    pub previous: Option<PlanPoint>,
+    pub from: PathPoint,
+    pub to: PathPoint,
+    pub blade: Blade,
+    pub operator: Operator,
+}
+
+/// The moves of a pass, its relative vertices resolved against `hf` as the pass starts.
+pub fn resolve_pass(hf: &Heightfield, pass_index: u32, pass: &PassOp) -> Vec<MoveStep> {
+    let points: Vec<PathPoint> = pass
+        .path
+        .iter()
+        .map(|v| PathPoint { x: v.x, z: v.z, height: v.height.unwrap_or_else(|| hf.sample(v.x, v.z)) })
+        .collect();
+    points
+        .windows(2)
+        .enumerate()
+        .map(|(k, w)| MoveStep {
+            pass: pass_index,
+            segment: k as u32,
+            previous: k.checked_sub(1).map(|i| PlanPoint { x: points[i].x, z: points[i].z }),
+            from: w[0],
+            to: w[1],
+            blade: pass.blade.clone(),
+            operator: pass.operator,
+        })
+        .collect()
+}
+
+/// A move's sweep in plan. A point with path-local coordinates (s along, d across) meets
+/// the blade at u · w/2 = (d − offset) / cos(angle) when the blade's centre is at
+/// s0 = s − (u · w/2) · sin(angle); it is in the move if |u| ≤ 1 and s0 ∈ [0, L]. Its base
+/// is the path's height interpolated at s0, its relief the blade's profile at u.
+///
+/// A move after a bend also holds the pivot: where the blade, held at the bend's vertex,
+/// turns from the previous segment's heading to this one's. That fills the wedge on the
+/// outside of the bend that neither segment's sweep reaches (base: the vertex's height).
+pub struct MoveGeometry {
+    frame: Frame,
+    length: f64,
+    h0: f64,
+    h1: f64,
+    blade: BladeGeometry,
+    pivot: Option<Pivot>,
+    bounds: Bounds,
+}
+
+/// The blade turning about a path vertex.
+struct Pivot {
+    /// The previous segment's frame, moved to the vertex.
+    frame: Frame,
+    /// Length of the previous segment.
+    previous_length: f64,
+    /// Signed turn from the previous heading to this one, radians, positive to the right.
+    turn: f64,
+    /// Farthest reach of the blade from the vertex.
+    reach: f64,
+}
+
+impl MoveGeometry {
+    pub fn new(step: &MoveStep) -> Self {
+        let from = (step.from.x as f64, step.from.z as f64);
+        let (frame, length) = Frame::between(from, (step.to.x as f64, step.to.z as f64));
+        let blade = BladeGeometry::new(&step.blade);
+        let corners = [(0.0, -1.0), (0.0, 1.0), (length, -1.0), (length, 1.0)].map(|(s0, u)| {
+            let (along, across) = blade.end(u);
+            frame.world(s0 + along, across)
+        });
+        let mut bounds = Bounds::around(corners);
+        let pivot = step.previous.and_then(|p| {
+            let (previous, previous_length) = Frame::between((p.x as f64, p.z as f64), from);
+            // The new heading in the old frame: along its tangent and its right-hand normal.
+            let along = frame.tx * previous.tx + frame.tz * previous.tz;
+            let across = frame.tz * previous.tx - frame.tx * previous.tz;
+            let turn = across.atan2(along);
+            if turn == 0.0 || !previous_length.is_finite() {
+                return None;
+            }
+            let reach = [-1.0, 1.0].map(|u| blade.end(u)).iter().map(|&(a, b)| a.hypot(b)).fold(0.0, f64::max);
+            let square = Bounds::square(from.0, from.1, reach);
+            bounds = Bounds::around([
+                (bounds.min_x, bounds.min_z),
+                (bounds.max_x, bounds.max_z),
+                (square.min_x, square.min_z),
+                (square.max_x, square.max_z),
+            ]);
+            Some(Pivot { frame: Frame { ox: from.0, oz: from.1, ..previous }, previous_length, turn, reach })
+        });
+        Self { frame, length, h0: step.from.height as f64, h1: step.to.height as f64, blade, pivot, bounds }
+    }
+
+    /// The blade coordinate u at which the turning blade passes over a point outside both
+    /// segments' sweeps, if it does.
+    fn pivot_u(&self, pivot: &Pivot, x: f64, z: f64) -> Option<f64> {
+        let b = &self.blade;
+        let (s, d) = pivot.frame.local(x, z);
+        let rho2 = s * s + d * d;
+        if rho2 > pivot.reach * pivot.reach {
+            return None;
+        }
+        if let Some((_, s0)) = b.locate(s, d) {
+            if (-pivot.previous_length..=0.0).contains(&s0) {
+                return None; // in the previous move's sweep
+            }
+        }
+        // Blade points at distance rho from the vertex: |(a sin, offset + a cos)| = rho.
+        let (sin, cos, offset) = (b.sin_angle, b.cos_angle, b.offset_m);
+        let disc = rho2 - offset * offset * sin * sin;
+        if disc < 0.0 {
+            return None;
+        }
+        let root = disc.sqrt();
+        let point_angle = d.atan2(s);
+        let mut best: Option<(f64, f64)> = None;
+        for a in [-offset * cos - root, -offset * cos + root] {
+            if a.abs() > b.half_width_m {
+                continue;
+            }
+            // The turn that carries this blade point onto the point, in (−π, π].
+            let mut turned = point_angle - (offset + a * cos).atan2(a * sin);
+            if turned > PI {
+                turned -= TAU;
+            } else if turned <= -PI {
+                turned += TAU;
+            }
+            let within = if pivot.turn > 0.0 {
+                (0.0..=pivot.turn).contains(&turned)
+            } else {
+                (pivot.turn..=0.0).contains(&turned)
+            };
+            // Where two blade points pass, the one that passes last stands.
+            if within && best.is_none_or(|(t, _)| turned.abs() > t) {
+                best = Some((turned.abs(), a));
+            }
+        }
+        best.map(|(_, a)| a / b.half_width_m)
+    }
+}
+
+impl Footprint for MoveGeometry {
+    fn bounds(&self) -> Bounds {
+        self.bounds
+    }
+
+    #[inline]
+    fn sample(&self, x: f64, z: f64) -> Option<(f64, f64)> {
+        let (s, d) = self.frame.local(x, z);
+        if let Some((u, s0)) = self.blade.locate(s, d) {
+            if (0.0..=self.length).contains(&s0) {
+                let base = self.h0 + (self.h1 - self.h0) * (s0 / self.length);
+                return Some((base, self.blade.profile(u)));
+            }
+        }
+        let pivot = self.pivot.as_ref()?;
+        let u = self.pivot_u(pivot, x, z)?;
+        Some((self.h0, self.blade.profile(u)))
+    }
+}
+
+/// A move restricted to the samples no later move of its pass reaches: each sample takes
+/// the result of the last move that covers it, combined with the surface as the pass found
+/// it — earlier moves leave such samples alone, so they still hold that surface.
+struct OwnedMove<'a> {
+    own: &'a MoveGeometry,
+    later: Vec<&'a MoveGeometry>,
+}
+
+impl Footprint for OwnedMove<'_> {
+    fn bounds(&self) -> Bounds {
+        self.own.bounds
+    }
+
+    #[inline]
+    fn sample(&self, x: f64, z: f64) -> Option<(f64, f64)> {
+        let hit = self.own.sample(x, z)?;
+        let covered_later = self.later.iter().any(|m| m.bounds.contains(x, z) && m.sample(x, z).is_some());
+        (!covered_later).then_some(hit)
+    }
+}
+
+/// For each box, the later boxes (higher index) it intersects, in increasing order.
+fn later_overlaps(bounds: &[Bounds]) -> Vec<Vec<usize>> {
+    let n = bounds.len();
+    if n <= 64 {
+        return (0..n).map(|k| ((k + 1)..n).filter(|&j| bounds[k].intersects(&bounds[j])).collect()).collect();
+    }
+    // A uniform bucket grid sized to a typical box keeps this near-linear for long paths.
+    let all = Bounds::around(bounds.iter().flat_map(|b| [(b.min_x, b.min_z), (b.max_x, b.max_z)]));
+    let mut sizes: Vec<f64> = bounds.iter().map(|b| (b.max_x - b.min_x).max(b.max_z - b.min_z)).collect();
+    sizes.sort_by(f64::total_cmp);
+    let extent = (all.max_x - all.min_x).max(all.max_z - all.min_z);
+    let bucket = sizes[n / 2].max(extent / 512.0).max(1e-6);
+    let nx = ((all.max_x - all.min_x) / bucket) as usize + 1;
+    let nz = ((all.max_z - all.min_z) / bucket) as usize + 1;
+    let cell_range = |b: &Bounds| {
+        let ix = |x: f64| (((x - all.min_x) / bucket) as usize).min(nx - 1);
+        let iz = |z: f64| (((z - all.min_z) / bucket) as usize).min(nz - 1);
+        (ix(b.min_x)..=ix(b.max_x), iz(b.min_z)..=iz(b.max_z))
+    };
+    let mut buckets: Vec<Vec<usize>> = vec![Vec::new(); nx * nz];
+    for (k, b) in bounds.iter().enumerate() {
+        let (xs, zs) = cell_range(b);
+        for iz in zs {
+            for ix in xs.clone() {
+                buckets[iz * nx + ix].push(k);
+            }
+        }
+    }
+    bounds
+        .iter()
+        .enumerate()
+        .map(|(k, b)| {
+            let (xs, zs) = cell_range(b);
+            let mut found = Vec::new();
+            for iz in zs {
+                for ix in xs.clone() {
+                    found.extend(buckets[iz * nx + ix].iter().copied().filter(|&j| j > k && b.intersects(&bounds[j])));
+                }
+            }
+            found.sort_unstable();
+            found.dedup();
+            found
+        })
+        .collect()
+}
+
+/// Apply the moves of one pass (all of it, or its first moves), calling `after_move` with
+/// each move's index once it is done; stops at the first error `after_move` returns.
+pub fn apply_pass<E>(
+    hf: &mut Heightfield,
+    moves: &[MoveStep],
+    window: Option<&Window>,
+    mut after_move: impl FnMut(usize) -> Result<(), E>,
+) -> Result<(), E> {
+    let geometry: Vec<MoveGeometry> = moves.iter().map(MoveGeometry::new).collect();
+    let bounds: Vec<Bounds> = geometry.iter().map(|g| g.bounds).collect();
+    let later = later_overlaps(&bounds);
+    for (k, step) in moves.iter().enumerate() {
+        let owned = OwnedMove { own: &geometry[k], later: later[k].iter().map(|&j| &geometry[j]).collect() };
+        apply(hf, &owned, step.operator, window);
+        after_move(k)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sims::bulldoze::params::PathVertex;
+
+    fn vertex(x: f32, z: f32, height: Option<f32>) -> PathVertex {
+        PathVertex { x, z, height }
+    }
+
+    fn blade(width_m: f32, profile: &[[f32; 2]]) -> Blade {
+        Blade { width_m, profile: profile.to_vec(), offset_m: 0.0, angle_deg: 0.0 }
+    }
+
+    /// Resolve and apply one pass; returns its moves.
+    fn bulldoze(hf: &mut Heightfield, path: Vec<PathVertex>, blade: Blade, operator: Operator) -> Vec<MoveStep> {
+        let moves = resolve_pass(hf, 0, &PassOp { path, blade, operator });
+        apply_pass(hf, &moves, None, |_| Ok::<(), ()>(())).unwrap();
+        moves
+    }
+
+    fn close(a: f32, b: f64, tolerance: f64) -> bool {
+        (a as f64 - b).abs() <= tolerance
+    }
+
+    #[test]
+    fn replace_leaves_the_blade_profile_across_an_absolute_path() {
+        let trapezoid = [[-1.0, 0.0], [-0.5, -2.0], [0.5, -2.0], [1.0, 0.0]];
+        let v_shape = [[-1.0, 1.0], [0.0, -3.0], [1.0, 0.5]];
+        for profile in [&trapezoid[..], &v_shape[..]] {
+            let mut hf = Heightfield::flat(121, 81, 0.5, 0.0);
+            let path = vec![vertex(10.0, 20.0, Some(5.0)), vertex(50.0, 20.0, Some(9.0))];
+            let moves = bulldoze(&mut hf, path, blade(8.0, profile), Operator::Replace);
+            let g = BladeGeometry::new(&moves[0].blade);
+            for x_col in [40, 60, 80] {
+                // Path height interpolated between 5 m at x = 10 and 9 m at x = 50.
+                let x = x_col as f64 * 0.5;
+                let path_height = 5.0 + 4.0 * (x - 10.0) / 40.0;
+                for row in 0..81 {
+                    let d = row as f64 * 0.5 - 20.0;
+                    let got = hf.get(x_col, row);
+                    if d.abs() <= 4.0 {
+                        let want = path_height + g.profile(d / 4.0);
+                        assert!(close(got, want, 1e-4), "x {x} d {d}: {got} vs {want}");
+                    } else {
+                        assert_eq!(got, 0.0, "outside the swath at x {x} d {d}");
+                    }
+                }
+            }
+            // Nothing changes before the path starts or after it ends.
+            for row in 0..81 {
+                assert_eq!(hf.get(19, row), 0.0);
+                assert_eq!(hf.get(101, row), 0.0);
+            }
+        }
+    }
+
+    #[test]
+    fn a_relative_path_follows_a_sloped_plane() {
+        let plane = |x: f32, z: f32| 5.0 + 0.1 * x + 0.05 * z;
+        let start = Heightfield::from_fn(101, 101, 1.0, plane);
+        let cut = [[-1.0, -2.0], [1.0, -2.0]];
+        // A bent path on grid points, with no heights: every vertex rides on the terrain.
+        let path = || {
+            vec![vertex(10.0, 30.0, None), vertex(40.0, 30.0, None), vertex(70.0, 60.0, None), vertex(90.0, 60.0, None)]
+        };
+
+        let mut hf = start.clone();
+        let moves = bulldoze(&mut hf, path(), blade(6.0, &cut), Operator::Replace);
+        for m in &moves {
+            assert!(close(m.from.height, plane(m.from.x, m.from.z) as f64, 1e-4));
+        }
+        // Along the centreline the cut is 2 m deep everywhere.
+        for (col, row) in
+            (10..=40).map(|c| (c, 30)).chain((40..=70).map(|i| (i, i - 10))).chain((70..=90).map(|c| (c, 60)))
+        {
+            let depth = start.get(col, row) - hf.get(col, row);
+            assert!(close(depth, 2.0, 1e-4), "depth {depth} at ({col}, {row})");
+        }
+
+        // With `add`, every sample in the swath drops by exactly 2 m, including where the
+        // moves meet at the bends: no sample is cut twice.
+        let mut hf = start.clone();
+        bulldoze(&mut hf, path(), blade(6.0, &cut), Operator::Add);
+        let mut cut_samples = 0;
+        for (a, b) in start.heights_m.iter().zip(&hf.heights_m) {
+            let dz = b - a;
+            assert!(dz == 0.0 || close(dz, -2.0, 1e-4), "changed by {dz}");
+            cut_samples += (dz != 0.0) as usize;
+        }
+        assert!(cut_samples > 500);
+    }
+
+    #[test]
+    fn the_blade_pivots_round_the_outside_of_a_bend() {
+        // A left turn at (50, 50): heading +X, then −Z. Its outside is the quadrant x > 50,
+        // z > 50, which neither segment's sweep reaches.
+        let path =
+            || vec![vertex(10.0, 50.0, Some(20.0)), vertex(50.0, 50.0, Some(20.0)), vertex(50.0, 10.0, Some(20.0))];
+        let mut hf = Heightfield::flat(101, 101, 1.0, 0.0);
+        bulldoze(&mut hf, path(), blade(10.0, &[[-1.0, 20.0], [1.0, 20.0]]), Operator::Replace);
+        for (dx, dz) in [(3, 3), (1, 4), (4, 1), (0, 5), (5, 0)] {
+            assert_eq!(hf.get(50 + dx, 50 + dz), 40.0, "({dx}, {dz}) from the vertex");
+        }
+        assert_eq!(hf.get(54, 54), 0.0, "beyond the blade's reach");
+
+        // A blade held off to the right (outside the bend), falling away 1 in 2: the pivot
+        // turns it into a conical corner, h − ρ/2 at distance ρ from the vertex.
+        let mut side = blade(30.0, &[[-1.0, 0.0], [1.0, -15.0]]);
+        side.offset_m = 15.0;
+        let mut hf = Heightfield::flat(101, 101, 1.0, 0.0);
+        bulldoze(&mut hf, path(), side, Operator::Replace);
+        for (dx, dz) in [(10, 10), (3, 20), (20, 3), (15, 15), (1, 1)] {
+            let rho = ((dx * dx + dz * dz) as f64).sqrt();
+            let got = hf.get(50 + dx, 50 + dz);
+            assert!(close(got, 20.0 - rho / 2.0, 1e-4), "({dx}, {dz}): {got}");
+        }
+        assert_eq!(hf.get(72, 72), 0.0);
+        // Along the straight parts the slope is as the blade's profile.
+        assert!(close(hf.get(30, 60), 15.0, 1e-4) && close(hf.get(60, 30), 15.0, 1e-4));
+    }
+
+    #[test]
+    fn later_moves_win_where_moves_overlap() {
+        // A hairpin: the second move runs back over the first one's swath.
+        let mut hf = Heightfield::flat(61, 41, 1.0, 0.0);
+        let path = vec![vertex(10.0, 20.0, Some(2.0)), vertex(50.0, 20.0, Some(2.0)), vertex(10.0, 22.0, Some(4.0))];
+        bulldoze(&mut hf, path, blade(6.0, &[[-1.0, 0.0], [1.0, 0.0]]), Operator::Add);
+        // Under both swaths the sample takes the later move's relief once (0 m here), never
+        // twice; the point is that `add` with a flat blade leaves the surface where it was.
+        assert!(hf.heights_m.iter().all(|&h| h == 0.0));
+
+        let mut hf = Heightfield::flat(61, 41, 1.0, 0.0);
+        let path = vec![vertex(10.0, 20.0, Some(2.0)), vertex(50.0, 20.0, Some(2.0)), vertex(10.0, 22.0, Some(4.0))];
+        bulldoze(&mut hf, path, blade(6.0, &[[-1.0, 0.0], [1.0, 0.0]]), Operator::Replace);
+        // (30, 20) lies under both moves: the return move, at height ≈ 3 there, stands.
+        assert!(close(hf.get(30, 20), 3.0, 0.06), "{}", hf.get(30, 20));
+        // (30, 17) only under the first move.
+        assert_eq!(hf.get(30, 17), 2.0);
+    }
+
+    #[test]
+    fn offset_shifts_the_swath_to_the_right_of_travel() {
+        let v_shape = [[-1.0, 0.0], [0.0, -1.0], [1.0, 0.0]];
+        let mut b = blade(8.0, &v_shape);
+        b.offset_m = 3.0;
+        let mut hf = Heightfield::flat(81, 61, 1.0, 10.0);
+        bulldoze(
+            &mut hf,
+            vec![vertex(20.0, 30.0, Some(10.0)), vertex(60.0, 30.0, Some(10.0))],
+            b.clone(),
+            Operator::Replace,
+        );
+        // Travelling +X, right is +Z: the swath spans z 29..37 with its lowest point at z 33.
+        let column: Vec<f32> = (0..61).map(|r| hf.get(40, r)).collect();
+        assert_eq!(column[33], 9.0);
+        assert_eq!(column[28], 10.0);
+        assert!(close(column[29], 10.0, 1e-6) && close(column[37], 10.0, 1e-6));
+        assert!(close(column[31], 9.5, 1e-6) && close(column[35], 9.5, 1e-6));
+
+        // Travelling −X the same offset lands on the other side.
+        let mut hf = Heightfield::flat(81, 61, 1.0, 10.0);
+        bulldoze(&mut hf, vec![vertex(60.0, 30.0, Some(10.0)), vertex(20.0, 30.0, Some(10.0))], b, Operator::Replace);
+        assert_eq!(hf.get(40, 27), 9.0);
+    }
+
+    #[test]
+    fn angle_skews_the_swath_as_documented() {
+        let mut b = blade(10.0, &[[-1.0, 5.0], [1.0, 5.0]]);
+        b.angle_deg = 30.0;
+        let mut hf = Heightfield::flat(81, 61, 1.0, 0.0);
+        bulldoze(&mut hf, vec![vertex(20.0, 30.0, Some(0.0)), vertex(60.0, 30.0, Some(0.0))], b, Operator::Replace);
+        // A point d across lies on the blade at a = d / cos 30°, reached when the centre is at
+        // s0 = s − a sin 30°: at d = +4 (z = 34) the swath covers x ∈ [22.31, 62.31], at
+        // d = −4 (z = 26) x ∈ [17.69, 57.69]; |d| ≤ 5 cos 30° = 4.33.
+        let changed = |x: usize, z: usize| hf.get(x, z) == 5.0;
+        assert!(!changed(22, 34) && changed(23, 34) && changed(62, 34) && !changed(63, 34));
+        assert!(!changed(17, 26) && changed(18, 26) && changed(57, 26) && !changed(58, 26));
+        assert!(changed(40, 34) && !changed(40, 35) && changed(40, 26) && !changed(40, 25));
+    }
+
+    fn boxes(n: usize) -> Vec<Bounds> {
+        // A spiral of small boxes: neighbours overlap, and so do boxes on adjacent turns.
+        (0..n)
+            .map(|i| {
+                let a = i as f64 * 0.2;
+                let r = 5.0 + 0.5 * a;
+                Bounds::square(r * a.cos(), r * a.sin(), 2.0)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn bucketed_overlaps_match_brute_force() {
+        let b = boxes(300);
+        let brute: Vec<Vec<usize>> =
+            (0..b.len()).map(|k| ((k + 1)..b.len()).filter(|&j| b[k].intersects(&b[j])).collect()).collect();
+        assert_eq!(later_overlaps(&b), brute);
+        assert!(brute.iter().enumerate().any(|(k, l)| l.iter().any(|&j| j > k + 5)), "turns overlap");
+    }
+}

@@ -1,0 +1,52 @@
+//! A run context for tests: progress goes nowhere, and every `{"job": …}` terrain resolves
+//! to the one heightfield the test supplies.
+
+use std::sync::atomic::AtomicBool;
+
+use crate::jobs::{Progress, ProgressSink, RunContext};
+use crate::terrain::{Heightfield, TerrainLookup, TerrainSource};
+use crate::validate::Limits;
+
+struct NoProgress;
+
+impl ProgressSink for NoProgress {
+    fn progress(&self, _progress: Progress) {}
+    fn snapshot_due(&self) -> bool {
+        false
+    }
+    fn snapshot(&self, _png: Vec<u8>, _progress: Progress) {}
+}
+
+struct OneTerrain(Heightfield);
+
+impl TerrainLookup for OneTerrain {
+    fn job_heightfield(&self, _job_id: &str) -> Result<Heightfield, String> {
+        Ok(self.0.clone())
+    }
+    fn has_heightfield(&self, _job_id: &str) -> Result<bool, String> {
+        Ok(true)
+    }
+}
+
+/// What a [`RunContext`] borrows.
+pub struct TestContext {
+    pub cancel: AtomicBool,
+    pub limits: Limits,
+    terrain: OneTerrain,
+}
+
+impl TestContext {
+    /// A context in which [`job_terrain`] is `terrain`.
+    pub fn new(terrain: Heightfield) -> Self {
+        Self { cancel: AtomicBool::new(false), limits: Limits::default(), terrain: OneTerrain(terrain) }
+    }
+
+    pub fn ctx(&self) -> RunContext<'_> {
+        RunContext { cancel: &self.cancel, sink: &NoProgress, terrain: &self.terrain, limits: &self.limits }
+    }
+}
+
+/// A terrain source naming an earlier job, which a [`TestContext`] resolves.
+pub fn job_terrain() -> TerrainSource {
+    TerrainSource::Job("0190a0f4-4a9e-7c3e-8000-000000000001".to_string())
+}

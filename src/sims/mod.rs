@@ -1,0 +1,10 @@
+//! One folder per job kind: parameters, algorithm, tests. Pure computation.
+
+pub mod bulldoze;
+
+use crate::jobs::JobKind;
+
+/// Every job kind the service offers. Adding a kind is one line here.
+pub fn registry() -> Vec<Box<dyn JobKind>> {
+    vec![Box::new(crate::jobs::Kind::<bulldoze::Bulldoze>::default())]
+}

@@ -1,0 +1,53 @@
+//! Where jobs live: the `JobStore` trait and its embedded SQLite form.
+
+mod sqlite;
+
+pub use sqlite::SqliteStore;
+
+use crate::jobs::{Artifact, Job, JobStatus};
+
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    #[error("store: {0}")]
+    Backend(String),
+    #[error("store: stored data unreadable: {0}")]
+    Corrupt(String),
+}
+
+/// Which jobs `list` returns: newest first, ids strictly below `before_id` when set.
+#[derive(Clone, Debug, Default)]
+pub struct ListFilter {
+    pub kind: Option<String>,
+    pub status: Option<JobStatus>,
+    pub before_id: Option<String>,
+    pub limit: u32,
+}
+
+/// Outcome of an insert carrying an idempotency key.
+#[derive(Debug)]
+pub enum IdempotentInsert {
+    Inserted,
+    /// The key was used before: the job it created, and whether the body hash matched.
+    Existing { job: Job, same_body: bool },
+}
+
+/// Persistent job storage. Methods are blocking; async callers use `spawn_blocking`.
+pub trait JobStore: Send + Sync + 'static {
+    /// Store a new job. With `idempotency = Some((key, body_sha256))`, the key is recorded with
+    /// it in the same transaction, unless the key already exists (then nothing is written).
+    fn insert(&self, job: &Job, idempotency: Option<(&str, &str)>) -> Result<IdempotentInsert, StoreError>;
+    fn get(&self, id: &str) -> Result<Option<Job>, StoreError>;
+    fn list(&self, filter: &ListFilter) -> Result<Vec<Job>, StoreError>;
+    /// Save a job's status, timestamps, progress, result and error (not its artifacts).
+    fn update(&self, job: &Job) -> Result<(), StoreError>;
+    /// Save a finished job and its artifacts in one transaction; `job.artifacts` is set from them.
+    fn finish(&self, job: &Job, artifacts: &[Artifact]) -> Result<(), StoreError>;
+    /// An artifact's bytes and media type.
+    fn artifact(&self, id: &str, name: &str) -> Result<Option<(String, Vec<u8>)>, StoreError>;
+    /// Remove a job, its artifacts and its idempotency key; false if there was none.
+    fn delete(&self, id: &str) -> Result<bool, StoreError>;
+    /// Jobs queued or running (oldest first): to run again after a restart.
+    fn unfinished(&self) -> Result<Vec<Job>, StoreError>;
+    /// Number of jobs per (kind, status).
+    fn counts(&self) -> Result<Vec<(String, JobStatus, u64)>, StoreError>;
+}

@@ -1,0 +1,11 @@
+//! Heightfields and where they come from.
+
+mod fractal;
+mod heightfield;
+mod heightmap_png;
+mod source;
+
+pub use fractal::generate_fractal;
+pub use heightfield::Heightfield;
+pub use heightmap_png::{decode_heightmap_png, HeightmapDecodeError};
+pub use source::{resolve, FractalParams, HeightmapUpload, TerrainError, TerrainLookup, TerrainSource};

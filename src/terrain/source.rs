@@ -1,0 +1,205 @@
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use super::{decode_heightmap_png, generate_fractal, Heightfield};
+use crate::validate::{Limits, Validate, Validator};
+
+/// Where a heightfield kind's starting terrain comes from: exactly one of the three.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum TerrainSource {
+    /// Seeded fractal (fBm) terrain.
+    Fractal(FractalParams),
+    /// An uploaded 8- or 16-bit grayscale PNG, black = `z_min`, white = `z_max`.
+    Heightmap(HeightmapUpload),
+    /// The heightfield an earlier, succeeded job produced (its id).
+    Job(String),
+}
+
+fn default_size() -> u32 {
+    257
+}
+fn default_cell_size() -> f32 {
+    1.0
+}
+fn default_relief() -> f32 {
+    120.0
+}
+fn default_octaves() -> u32 {
+    8
+}
+fn default_roughness() -> f32 {
+    0.5
+}
+fn default_fractal_seed() -> u64 {
+    7
+}
+fn default_z_max() -> f32 {
+    100.0
+}
+
+/// Fractal Brownian motion terrain: `octaves` layers of gradient noise, each at twice the
+/// frequency and `roughness` times the amplitude of the one before.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FractalParams {
+    /// Samples along each side (the grid is size × size).
+    #[serde(default = "default_size")]
+    #[schema(default = 257, minimum = 2)]
+    pub size: u32,
+    /// Metres between samples.
+    #[serde(default = "default_cell_size")]
+    #[schema(default = 1.0)]
+    pub cell_size: f32,
+    /// Height range in metres from the lowest to the highest possible point.
+    #[serde(default = "default_relief")]
+    #[schema(default = 120.0)]
+    pub relief: f32,
+    #[serde(default = "default_octaves")]
+    #[schema(default = 8, minimum = 1, maximum = 16)]
+    pub octaves: u32,
+    /// Amplitude ratio between successive octaves, in (0, 1].
+    #[serde(default = "default_roughness")]
+    #[schema(default = 0.5)]
+    pub roughness: f32,
+    #[serde(default = "default_fractal_seed")]
+    #[schema(default = 7)]
+    pub seed: u64,
+    /// Shape the terrain into an island: land in the middle, sea (height < 0) at the edges.
+    #[serde(default)]
+    pub island: bool,
+}
+
+impl Default for FractalParams {
+    fn default() -> Self {
+        serde_json::from_str("{}").expect("defaults")
+    }
+}
+
+/// An uploaded heightmap.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct HeightmapUpload {
+    /// The PNG file, base64-encoded (standard alphabet). 8- or 16-bit grayscale.
+    pub png_base64: String,
+    #[serde(default = "default_cell_size")]
+    #[schema(default = 1.0)]
+    pub cell_size: f32,
+    /// Height in metres of a black pixel.
+    #[serde(default)]
+    #[schema(default = 0.0)]
+    pub z_min: f32,
+    /// Height in metres of a white pixel.
+    #[serde(default = "default_z_max")]
+    #[schema(default = 100.0)]
+    pub z_max: f32,
+}
+
+/// Why a terrain source could not give a heightfield.
+#[derive(Debug, thiserror::Error)]
+pub enum TerrainError {
+    #[error("{0}")]
+    Heightmap(#[from] super::HeightmapDecodeError),
+    #[error("terrain job {id}: {reason}")]
+    Job { id: String, reason: String },
+    #[error("the terrain would have {cells} samples, more than the cap of {cap}")]
+    TooLarge { cells: u64, cap: u64 },
+}
+
+/// Access to the heightfields of earlier jobs; the engine provides it from the store.
+pub trait TerrainLookup: Sync {
+    /// The final heightfield of a succeeded job, or why there is none.
+    fn job_heightfield(&self, job_id: &str) -> Result<Heightfield, String>;
+    /// Whether the job exists and has a heightfield, checked when a request is accepted.
+    fn has_heightfield(&self, job_id: &str) -> Result<bool, String>;
+}
+
+/// Build the heightfield a source describes.
+pub fn resolve(source: &TerrainSource, lookup: &dyn TerrainLookup, limits: &Limits) -> Result<Heightfield, TerrainError> {
+    let hf = match source {
+        TerrainSource::Fractal(p) => generate_fractal(p),
+        TerrainSource::Heightmap(u) => decode_heightmap_png(u, limits)?,
+        TerrainSource::Job(id) => {
+            lookup.job_heightfield(id).map_err(|reason| TerrainError::Job { id: id.clone(), reason })?
+        }
+    };
+    let cells = hf.cols as u64 * hf.rows as u64;
+    if cells > limits.max_grid_cells {
+        return Err(TerrainError::TooLarge { cells, cap: limits.max_grid_cells });
+    }
+    Ok(hf)
+}
+
+impl TerrainSource {
+    /// Ids of earlier jobs this source reads, with the JSON path (relative to the source).
+    pub fn job_ref(&self) -> Option<&str> {
+        match self {
+            TerrainSource::Job(id) => Some(id),
+            _ => None,
+        }
+    }
+
+    /// Extent in samples (cols, rows) when it is known without a store, for cap checks.
+    pub fn known_dimensions(&self) -> Option<(u64, u64)> {
+        match self {
+            TerrainSource::Fractal(p) => Some((p.size as u64, p.size as u64)),
+            TerrainSource::Heightmap(u) => super::heightmap_png::png_dimensions(&u.png_base64).ok(),
+            TerrainSource::Job(_) => None,
+        }
+    }
+
+    /// Metres between samples when known without a store.
+    pub fn known_cell_size(&self) -> Option<f32> {
+        match self {
+            TerrainSource::Fractal(p) => Some(p.cell_size),
+            TerrainSource::Heightmap(u) => Some(u.cell_size),
+            TerrainSource::Job(_) => None,
+        }
+    }
+}
+
+impl Validate for TerrainSource {
+    fn validate(&self, v: &mut Validator, limits: &Limits) {
+        match self {
+            TerrainSource::Fractal(p) => v.field("fractal", |v| {
+                if p.size < 2 {
+                    v.error("size", "must be at least 2");
+                } else if (p.size as u64).pow(2) > limits.max_grid_cells {
+                    v.too_large(
+                        "size",
+                        format!("{0}×{0} samples is more than the cap of {1}", p.size, limits.max_grid_cells),
+                    );
+                }
+                v.positive("cell_size", p.cell_size as f64);
+                v.non_negative("relief", p.relief as f64);
+                if !(1..=16).contains(&p.octaves) {
+                    v.error("octaves", "must be between 1 and 16");
+                }
+                v.in_range("roughness", p.roughness as f64, 0.0, 1.0);
+                if p.roughness <= 0.0 {
+                    v.error("roughness", "must be greater than 0");
+                }
+            }),
+            TerrainSource::Heightmap(u) => v.field("heightmap", |v| {
+                v.positive("cell_size", u.cell_size as f64);
+                if v.finite("z_min", u.z_min as f64) && v.finite("z_max", u.z_max as f64) && u.z_max < u.z_min {
+                    v.error("z_max", "must not be below z_min");
+                }
+                match super::heightmap_png::png_dimensions(&u.png_base64) {
+                    Err(e) => v.error("png_base64", e.to_string()),
+                    Ok((w, h)) if w * h > limits.max_grid_cells => v.too_large(
+                        "png_base64",
+                        format!("{w}×{h} pixels is more than the cap of {} samples", limits.max_grid_cells),
+                    ),
+                    Ok((w, h)) if w < 2 || h < 2 => v.error("png_base64", "must be at least 2×2 pixels"),
+                    Ok(_) => {}
+                }
+            }),
+            TerrainSource::Job(id) => {
+                if uuid::Uuid::parse_str(id).is_err() {
+                    v.error("job", "is not a job id");
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,180 @@
+//! The bulldoze job end to end through the real server: submit, stream, download, validate,
+//! replay, restart.
+
+mod common;
+
+use common::bodies::{small_bulldoze, small_bulldoze_first_steps};
+use common::server::{artifact_hashes, example, Options, TestServer};
+use common::sse::read_events;
+
+fn decode_png16(bytes: &[u8]) -> (png::Info<'static>, Vec<u16>) {
+    let decoder = png::Decoder::new(std::io::Cursor::new(bytes.to_vec()));
+    let mut reader = decoder.read_info().expect("png header");
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let frame = reader.next_frame(&mut buf).expect("png frame");
+    let info = reader.info().clone();
+    assert_eq!(frame.bit_depth, png::BitDepth::Sixteen, "heightmap must be 16-bit");
+    assert_eq!(frame.color_type, png::ColorType::Grayscale, "heightmap must be grayscale");
+    let values = buf[..frame.buffer_size()].chunks_exact(2).map(|c| u16::from_be_bytes([c[0], c[1]])).collect();
+    (info.to_owned(), values)
+}
+
+fn text_chunk(info: &png::Info, key: &str) -> Option<f64> {
+    info.uncompressed_latin1_text.iter().find(|t| t.keyword == key).and_then(|t| t.text.trim().parse().ok())
+}
+
+#[tokio::test]
+async fn a_job_streams_to_done_and_its_artifacts_are_valid_and_replayable() {
+    let server = TestServer::start().await;
+    let job = server.submit("bulldoze", &small_bulldoze()).await;
+    let id = job["id"].as_str().unwrap().to_string();
+    assert_eq!(job["kind"], "bulldoze");
+    assert_eq!(job["request"]["seed"], 0, "defaults are filled in");
+    assert_eq!(job["request"]["operations"][0]["primitive"]["shape"]["mound"]["curvature"], 2.0);
+
+    // SSE from the start to `done`.
+    let events = read_events(&server.client, &server.url(&format!("/v1/jobs/{id}/events")), None, 10_000).await;
+    let done = events.last().expect("events");
+    assert_eq!(done.event, "done", "{events:?}");
+    assert_eq!(done.data["status"], "succeeded", "{}", done.data);
+    assert!(events.iter().any(|e| e.event == "status"), "status events");
+    let ids: Vec<u64> = events.iter().filter_map(|e| e.id).collect();
+    assert!(ids.windows(2).all(|w| w[0] < w[1]), "event ids increase: {ids:?}");
+    let job = done.data.clone();
+
+    // The finished job's stream sends `done` at once.
+    let again = read_events(&server.client, &server.url(&format!("/v1/jobs/{id}/events")), None, 10).await;
+    assert_eq!(again.len(), 1);
+    assert_eq!(again[0].event, "done");
+
+    // Artifacts: names, a valid glb, a 16-bit heightmap whose range is in the result.
+    let names: Vec<&str> = job["artifacts"].as_array().unwrap().iter().map(|a| a["name"].as_str().unwrap()).collect();
+    for want in ["mesh.glb", "heightmap.png", "preview.png", "sequence.json"] {
+        assert!(names.contains(&want), "{want} in {names:?}");
+    }
+    let glb = server.artifact(&id, "mesh.glb").await;
+    let gltf = gltf::Gltf::from_slice(&glb).expect("glb parses");
+    let mesh = gltf.meshes().next().expect("a mesh");
+    let prim = mesh.primitives().next().expect("a primitive");
+    let pos = prim.get(&gltf::Semantic::Positions).expect("POSITION");
+    assert_eq!(pos.count(), 129 * 129);
+    assert!(prim.get(&gltf::Semantic::Normals).is_some() && prim.get(&gltf::Semantic::TexCoords(0)).is_some());
+    let report = common::gltf_validator::validate_glb(&glb);
+    assert_eq!(report.errors, 0, "glTF validator: {:?}", report.messages);
+
+    let png_bytes = server.artifact(&id, "heightmap.png").await;
+    let (info, values) = decode_png16(&png_bytes);
+    assert_eq!((info.width, info.height), (129, 129));
+    let z_min = job["result"]["z_min"].as_f64().expect("z_min in result");
+    let z_max = job["result"]["z_max"].as_f64().expect("z_max in result");
+    assert!((text_chunk(&info, "z_min").expect("z_min chunk") - z_min).abs() < 1e-3);
+    assert!((text_chunk(&info, "z_max").expect("z_max chunk") - z_max).abs() < 1e-3);
+    assert!(values.contains(&0) && values.contains(&65535), "the range spans the full 16 bits");
+
+    // The sequence endpoint serves the artifact.
+    let (status, seq) = server.get_json(&format!("/v1/jobs/{id}/sequence")).await;
+    assert_eq!(status, 200);
+    assert_eq!(seq["steps"].as_array().map(Vec::len), Some(5), "{seq}");
+
+    // A full replay gives the same bytes for every artifact.
+    let (status, replay) = server.post(&format!("/v1/jobs/{id}/replay"), &serde_json::json!({})).await;
+    assert_eq!(status, 202, "{replay}");
+    assert_eq!(replay["replay_of"], id.as_str());
+    let replay = server.wait_done(replay["id"].as_str().unwrap()).await;
+    assert_eq!(replay["status"], "succeeded", "{replay}");
+    assert_eq!(artifact_hashes(&replay), artifact_hashes(&job));
+
+    // Replay until step k differs from the whole, and equals a direct run of those k steps.
+    for k in [1u64, 3] {
+        let (status, partial) =
+            server.post(&format!("/v1/jobs/{id}/replay"), &serde_json::json!({ "until_step": k })).await;
+        assert_eq!(status, 202, "{partial}");
+        let partial = server.wait_done(partial["id"].as_str().unwrap()).await;
+        assert_eq!(partial["status"], "succeeded", "{partial}");
+        let direct = server.run("bulldoze", &small_bulldoze_first_steps(k as usize)).await;
+        let hm = |j: &serde_json::Value| {
+            artifact_hashes(j).into_iter().find(|(n, _)| n == "heightmap.png").map(|(_, h)| h).unwrap()
+        };
+        assert_ne!(hm(&partial), hm(&job), "until_step {k} differs from the whole");
+        let hf = |j: &serde_json::Value| {
+            artifact_hashes(j).into_iter().find(|(n, _)| n == "heightfield.npy").map(|(_, h)| h).unwrap()
+        };
+        assert_eq!(hf(&partial), hf(&direct), "until_step {k} equals a run of {k} steps");
+    }
+
+    // until_step beyond the sequence names the field.
+    let (status, problem) = server.post(&format!("/v1/jobs/{id}/replay"), &serde_json::json!({"until_step": 99})).await;
+    assert_eq!(status, 422);
+    assert_eq!(problem["errors"][0]["field"], "until_step");
+}
+
+#[tokio::test]
+async fn every_bulldoze_example_runs_and_its_mesh_passes_the_validator() {
+    let server = TestServer::start().await;
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("api/bulldoze");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok()?.file_name().to_str()?.strip_suffix(".json").map(str::to_string))
+        .collect();
+    names.sort();
+    assert!(names.len() >= 5, "examples: {names:?}");
+    for name in names {
+        let job = server.run("bulldoze", &example("bulldoze", &name)).await;
+        let glb = server.artifact(job["id"].as_str().unwrap(), "mesh.glb").await;
+        let report = common::gltf_validator::validate_glb(&glb);
+        assert_eq!(report.errors, 0, "{name}: {:?}", report.messages);
+    }
+}
+
+#[tokio::test]
+async fn one_and_two_threads_give_identical_artifacts() {
+    let body = example("bulldoze", "ziggurat");
+    let one = TestServer::start_with(Options { workers: 1, ..Options::default() }).await;
+    let a = one.run("bulldoze", &body).await;
+    drop(one);
+    let two = TestServer::start_with(Options { workers: 2, ..Options::default() }).await;
+    let b = two.run("bulldoze", &body).await;
+    assert_eq!(artifact_hashes(&a), artifact_hashes(&b));
+}
+
+#[tokio::test]
+async fn a_restarted_server_keeps_jobs_and_serves_their_artifacts() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("landform.db");
+    let first = TestServer::start_on(&db, &Options::default()).await;
+    let job = first.run("bulldoze", &small_bulldoze()).await;
+    let id = job["id"].as_str().unwrap().to_string();
+    let glb = first.artifact(&id, "mesh.glb").await;
+    first.kill();
+
+    let second = TestServer::start_on(&db, &Options::default()).await;
+    let (status, again) = second.get_json(&format!("/v1/jobs/{id}")).await;
+    assert_eq!(status, 200);
+    assert_eq!(artifact_hashes(&again), artifact_hashes(&job));
+    assert_eq!(second.artifact(&id, "mesh.glb").await, glb);
+}
+
+#[tokio::test]
+async fn jobs_left_running_by_a_crash_run_again_on_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("landform.db");
+    let first = TestServer::start_on(&db, &Options { workers: 1, ..Options::default() }).await;
+    let slow = first.submit("bulldoze", &common::bodies::slow_bulldoze()).await;
+    let queued = first.submit("bulldoze", &small_bulldoze()).await;
+    // Wait until the slow one is running, then crash.
+    let id = slow["id"].as_str().unwrap();
+    for _ in 0..600 {
+        let (_, j) = first.get_json(&format!("/v1/jobs/{id}")).await;
+        if j["status"] == "running" {
+            break;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+    }
+    first.kill();
+
+    let second = TestServer::start_on(&db, &Options::default()).await;
+    for j in [&slow, &queued] {
+        let done = second.wait_done(j["id"].as_str().unwrap()).await;
+        assert_eq!(done["status"], "succeeded", "{done}");
+    }
+}

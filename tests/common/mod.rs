@@ -1,0 +1,6 @@
+#![allow(dead_code)]
+
+pub mod bodies;
+pub mod gltf_validator;
+pub mod server;
+pub mod sse;

@@ -1,0 +1,165 @@
+//! Starts the real `landform` binary on 127.0.0.1:0 with a fresh SQLite file, and talks to it
+//! over HTTP with reqwest.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+/// Flags for one server process.
+#[derive(Clone, Debug)]
+pub struct Options {
+    pub workers: usize,
+    pub queue_capacity: usize,
+    pub job_timeout_secs: u64,
+    pub max_body_bytes: usize,
+    pub max_grid_cells: u64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            workers: 2,
+            queue_capacity: 16,
+            job_timeout_secs: 120,
+            max_body_bytes: 8 * 1024 * 1024,
+            max_grid_cells: 1025 * 1025,
+        }
+    }
+}
+
+pub struct TestServer {
+    pub base: String,
+    pub client: reqwest::Client,
+    pub db: PathBuf,
+    child: Child,
+    _dir: Option<tempfile::TempDir>,
+}
+
+impl TestServer {
+    pub async fn start() -> Self {
+        Self::start_with(Options::default()).await
+    }
+
+    pub async fn start_with(options: Options) -> Self {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let db = dir.path().join("landform.db");
+        let mut s = Self::start_on(&db, &options).await;
+        s._dir = Some(dir);
+        s
+    }
+
+    /// A server on an existing database file (to test restarts); the caller keeps the folder.
+    pub async fn start_on(db: &Path, options: &Options) -> Self {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_landform"))
+            .args(["serve", "--addr", "127.0.0.1:0", "--database"])
+            .arg(db)
+            .args(["--workers", &options.workers.to_string()])
+            .args(["--queue-capacity", &options.queue_capacity.to_string()])
+            .args(["--job-timeout-secs", &options.job_timeout_secs.to_string()])
+            .args(["--max-body-bytes", &options.max_body_bytes.to_string()])
+            .args(["--max-grid-cells", &options.max_grid_cells.to_string()])
+            .env("RUST_LOG", "warn")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("start the landform binary");
+        let stdout = child.stdout.take().expect("stdout");
+        let base = tokio::task::spawn_blocking(move || {
+            let mut lines = BufReader::new(stdout).lines();
+            let line = lines.next().expect("server printed nothing").expect("read stdout");
+            // Keep draining so the child never blocks on a full pipe.
+            std::thread::spawn(move || for _ in lines {});
+            line.trim().strip_prefix("listening on ").expect("listening line").to_string()
+        })
+        .await
+        .expect("read address");
+        let client = reqwest::Client::builder().timeout(Duration::from_secs(120)).build().expect("client");
+        Self { base, client, db: db.to_path_buf(), child, _dir: None }
+    }
+
+    pub fn url(&self, path: &str) -> String {
+        format!("{}{}", self.base, path)
+    }
+
+    /// Stop the process at once (like a crash), leaving the database as it is.
+    pub fn kill(mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+
+    /// POST a body; returns (status, json).
+    pub async fn post(&self, path: &str, body: &Value) -> (u16, Value) {
+        let res = self.client.post(self.url(path)).json(body).send().await.expect("POST");
+        let status = res.status().as_u16();
+        (status, res.json().await.unwrap_or(Value::Null))
+    }
+
+    pub async fn get_json(&self, path: &str) -> (u16, Value) {
+        let res = self.client.get(self.url(path)).send().await.expect("GET");
+        let status = res.status().as_u16();
+        (status, res.json().await.unwrap_or(Value::Null))
+    }
+
+    /// Submit a job and return it (asserting 202).
+    pub async fn submit(&self, kind: &str, body: &Value) -> Value {
+        let (status, job) = self.post(&format!("/v1/jobs/{kind}"), body).await;
+        assert_eq!(status, 202, "submit {kind}: {job}");
+        job
+    }
+
+    /// Poll until the job has ended (at most 5 minutes).
+    pub async fn wait_done(&self, id: &str) -> Value {
+        let start = Instant::now();
+        loop {
+            let (status, job) = self.get_json(&format!("/v1/jobs/{id}")).await;
+            assert_eq!(status, 200, "{job}");
+            if matches!(job["status"].as_str(), Some("succeeded" | "failed" | "cancelled")) {
+                return job;
+            }
+            assert!(start.elapsed() < Duration::from_secs(300), "job {id} did not end: {job}");
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    }
+
+    /// Submit and wait for success.
+    pub async fn run(&self, kind: &str, body: &Value) -> Value {
+        let job = self.submit(kind, body).await;
+        let done = self.wait_done(job["id"].as_str().unwrap()).await;
+        assert_eq!(done["status"], "succeeded", "{done}");
+        done
+    }
+
+    pub async fn artifact(&self, id: &str, name: &str) -> Vec<u8> {
+        let res = self.client.get(self.url(&format!("/v1/jobs/{id}/artifacts/{name}"))).send().await.expect("GET");
+        assert_eq!(res.status(), 200, "artifact {name}");
+        res.bytes().await.expect("bytes").to_vec()
+    }
+}
+
+impl Drop for TestServer {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// sha256 per artifact name of a finished job.
+pub fn artifact_hashes(job: &Value) -> Vec<(String, String)> {
+    let mut v: Vec<_> = job["artifacts"]
+        .as_array()
+        .expect("artifacts")
+        .iter()
+        .map(|a| (a["name"].as_str().unwrap().to_string(), a["sha256"].as_str().unwrap().to_string()))
+        .collect();
+    v.sort();
+    v
+}
+
+/// A body from api/<kind>/<name>.json.
+pub fn example(kind: &str, name: &str) -> Value {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("api").join(kind).join(format!("{name}.json"));
+    serde_json::from_slice(&std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))).expect("json")
+}
