@@ -110,10 +110,9 @@ async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: 
             .map(str::to_string)
             .context("give --kind: the request's folder does not name one")?,
     };
-    let body: serde_json::Value = serde_json::from_slice(
-        &std::fs::read(&request).with_context(|| format!("reading {}", request.display()))?,
-    )
-    .with_context(|| format!("{} is not JSON", request.display()))?;
+    let body: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&request).with_context(|| format!("reading {}", request.display()))?)
+            .with_context(|| format!("{} is not JSON", request.display()))?;
     let scratch = tempfile_db()?;
     if service.database.is_none() && std::env::var("DATABASE_URL").is_err() {
         service.database = Some(scratch.to_string_lossy().into_owned());
@@ -155,7 +154,11 @@ async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: 
     let job = engine.get(&job.id).await?;
     let _ = std::fs::remove_file(&scratch);
     if job.status != JobStatus::Succeeded {
-        anyhow::bail!("job {}: {}", job.status.as_str(), job.error.map(|e| e["detail"].to_string()).unwrap_or_default());
+        anyhow::bail!(
+            "job {}: {}",
+            job.status.as_str(),
+            job.error.map(|e| e["detail"].to_string()).unwrap_or_default()
+        );
     }
     std::fs::create_dir_all(&out)?;
     for a in &job.artifacts {

@@ -50,9 +50,7 @@ struct Case {
 
 fn cases() -> Vec<Case> {
     use Body::*;
-    let mound = |radius: Value| {
-        json!({"primitive": {"shape": {"mound": {"center": {"x": 1, "z": 1}, "radius_m": radius, "height_m": 2}}}})
-    };
+    let mound = |radius: Value| json!({"primitive": {"shape": {"mound": {"center": {"x": 1, "z": 1}, "radius_m": radius, "height_m": 2}}}});
     vec![
         Case { name: "malformed JSON", body: Raw(r#"{"terrain": {"fractal": "#), status: 400, field: None },
         Case { name: "empty body", body: Raw(""), status: 400, field: None },
@@ -121,13 +119,17 @@ fn cases() -> Vec<Case> {
         },
         Case {
             name: "a blade with no width",
-            body: Json(with_op(json!({"pass": {"path": [{"x": 1, "z": 1}, {"x": 9, "z": 9}], "blade": {"width_m": 0}}}))),
+            body: Json(with_op(
+                json!({"pass": {"path": [{"x": 1, "z": 1}, {"x": 9, "z": 9}], "blade": {"width_m": 0}}}),
+            )),
             status: 422,
             field: Some("operations[0].pass.blade.width_m"),
         },
         Case {
             name: "an unknown operator",
-            body: Json(with_op(json!({"primitive": {"shape": {"cone": {"center": {"x": 1, "z": 1}, "radius_m": 3, "height_m": 1}}, "operator": "xor"}}))),
+            body: Json(with_op(
+                json!({"primitive": {"shape": {"cone": {"center": {"x": 1, "z": 1}, "radius_m": 3, "height_m": 1}}, "operator": "xor"}}),
+            )),
             status: 422,
             field: Some("operations[0].primitive.operator"),
         },

@@ -210,13 +210,7 @@ async fn operations_endpoints_answer() {
     let docs = server.client.get(server.url("/docs/")).send().await.unwrap();
     assert_eq!(docs.status(), 200);
     assert!(docs.text().await.unwrap().contains("swagger"));
-    let cors = server
-        .client
-        .get(server.url("/healthz"))
-        .header("origin", "http://example.test")
-        .send()
-        .await
-        .unwrap();
+    let cors = server.client.get(server.url("/healthz")).header("origin", "http://example.test").send().await.unwrap();
     assert_eq!(cors.headers()["access-control-allow-origin"], "*");
 }
 

@@ -101,7 +101,9 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>]) -> OpenApiDoc {
                 ParameterBuilder::new()
                     .name("Idempotency-Key")
                     .parameter_in(ParameterIn::Header)
-                    .description(Some("The same key with the same body returns the existing job; with another body, 409"))
+                    .description(Some(
+                        "The same key with the same body returns the existing job; with another body, 409",
+                    ))
                     .schema(Some(ObjectBuilder::new().schema_type(SchemaType::new(Type::String)))),
             )
             .request_body(Some(

@@ -64,7 +64,10 @@ pub enum EngineError {
 
 impl EngineError {
     fn field(field: &str, message: impl Into<String>) -> Self {
-        EngineError::Invalid { errors: vec![FieldError { field: field.into(), message: message.into() }], too_large: false }
+        EngineError::Invalid {
+            errors: vec![FieldError { field: field.into(), message: message.into() }],
+            too_large: false,
+        }
     }
 }
 
@@ -80,7 +83,7 @@ impl From<RequestError> for EngineError {
 /// Where a job's events come from.
 pub enum EventFeed {
     Live { backlog: Vec<super::JobEvent>, rx: tokio::sync::broadcast::Receiver<super::JobEvent>, live: Arc<LiveJob> },
-    Ended(Job),
+    Ended(Box<Job>),
 }
 
 /// What a submission did.
@@ -112,7 +115,11 @@ const MAX_LABEL_CHARS: usize = 200;
 impl Engine {
     /// Build the engine and re-queue jobs a previous process left queued or running. Call
     /// [`Engine::start`] from inside a tokio runtime to begin running them.
-    pub fn new(store: Arc<dyn JobStore>, kinds: Vec<Box<dyn JobKind>>, config: EngineConfig) -> Result<Self, EngineError> {
+    pub fn new(
+        store: Arc<dyn JobStore>,
+        kinds: Vec<Box<dyn JobKind>>,
+        config: EngineConfig,
+    ) -> Result<Self, EngineError> {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(config.workers.max(1))
             .thread_name(|i| format!("landform-sim-{i}"))
@@ -216,7 +223,8 @@ impl Engine {
         body: Value,
         idempotency: Option<(String, String)>,
     ) -> Result<Submitted, EngineError> {
-        let kind_impl = self.inner.kinds.get(kind).cloned().ok_or_else(|| EngineError::UnknownKind(kind.to_string()))?;
+        let kind_impl =
+            self.inner.kinds.get(kind).cloned().ok_or_else(|| EngineError::UnknownKind(kind.to_string()))?;
         let Value::Object(mut body) = body else {
             return Err(EngineError::field("", "the body must be a JSON object"));
         };
@@ -248,8 +256,12 @@ impl Engine {
                 original.status.as_str()
             )));
         }
-        let kind =
-            self.inner.kinds.get(original.kind.as_str()).cloned().ok_or_else(|| EngineError::UnknownKind(original.kind.clone()))?;
+        let kind = self
+            .inner
+            .kinds
+            .get(original.kind.as_str())
+            .cloned()
+            .ok_or_else(|| EngineError::UnknownKind(original.kind.clone()))?;
         let sid = id.to_string();
         let sequence = self
             .blocking(move |s| s.artifact(&sid, "sequence.json"))
@@ -306,7 +318,7 @@ impl Engine {
             .blocking(move |s| s.insert(&stored, idempotency.as_ref().map(|(k, h)| (k.as_str(), h.as_str()))))
             .await?;
         match outcome {
-            IdempotentInsert::Existing { job, same_body: true } => Ok(Submitted::Existing(job)),
+            IdempotentInsert::Existing { job, same_body: true } => Ok(Submitted::Existing(*job)),
             IdempotentInsert::Existing { job, same_body: false } => Err(EngineError::Conflict(format!(
                 "the Idempotency-Key was already used with a different body (job {})",
                 job.id
@@ -330,7 +342,8 @@ impl Engine {
     /// The job, with live progress when it is running.
     pub async fn get(&self, id: &str) -> Result<Job, EngineError> {
         let sid = id.to_string();
-        let mut job = self.blocking(move |s| s.get(&sid)).await?.ok_or_else(|| EngineError::NotFound(id.to_string()))?;
+        let mut job =
+            self.blocking(move |s| s.get(&sid)).await?.ok_or_else(|| EngineError::NotFound(id.to_string()))?;
         if job.status == JobStatus::Running {
             if let Some(live) = self.live_job(id) {
                 job.progress = live.progress();
@@ -406,7 +419,7 @@ impl Engine {
         }
         let job = self.get(id).await?;
         if job.status.is_terminal() {
-            return Ok(EventFeed::Ended(job));
+            return Ok(EventFeed::Ended(Box::new(job)));
         }
         // Ended between the two looks: the store has its final state by now.
         match self.live_job(id) {
@@ -414,7 +427,7 @@ impl Engine {
                 let (backlog, rx) = live.subscribe(last_event_id);
                 Ok(EventFeed::Live { backlog, rx, live })
             }
-            None => Ok(EventFeed::Ended(self.get(id).await?)),
+            None => Ok(EventFeed::Ended(Box::new(self.get(id).await?))),
         }
     }
 

@@ -169,6 +169,9 @@ pub struct JobOutput {
     pub artifacts: Vec<Artifact>,
 }
 
+/// A request body's schema: its name, the schema, and every schema it refers to by name.
+pub type RequestSchema = (String, RefOr<Schema>, Vec<(String, RefOr<Schema>)>);
+
 /// The object-safe face of a job kind, used by the engine, the HTTP layer and the CLI.
 pub trait JobKind: Send + Sync {
     fn name(&self) -> &'static str;
@@ -186,7 +189,7 @@ pub trait JobKind: Send + Sync {
         ctx: &RunContext,
     ) -> Result<JobOutput, SimError>;
     /// The request body's schema (name, schema) and every schema it refers to.
-    fn request_schema(&self) -> (String, RefOr<Schema>, Vec<(String, RefOr<Schema>)>);
+    fn request_schema(&self) -> RequestSchema;
 }
 
 /// Adapts a [`Simulation`] to [`JobKind`].
@@ -208,14 +211,12 @@ pub fn path_string(path: &serde_path_to_error::Path) -> String {
     }
 }
 
-/// Deserialize with the JSON path of the first bad field (an unknown field's own name included).
+/// Deserialize with the JSON path of the first bad field.
 pub fn parse_params<T: DeserializeOwned>(value: Value) -> Result<T, RequestError> {
     serde_path_to_error::deserialize(value).map_err(|e| {
-        let mut field = path_string(e.path());
+        // serde_path_to_error's path already ends at an unknown field's own name.
+        let field = path_string(e.path());
         let message = e.inner().to_string();
-        if let Some(name) = message.strip_prefix("unknown field `").and_then(|m| m.split('`').next()) {
-            field = if field.is_empty() { name.to_string() } else { format!("{field}.{name}") };
-        }
         RequestError::Invalid { errors: vec![FieldError { field, message }], too_large: false }
     })
 }
@@ -278,7 +279,7 @@ impl<S: Simulation> JobKind for Kind<S> {
         finish(S::replay(&stored_params(params)?, &sequence, until_step, ctx)?)
     }
 
-    fn request_schema(&self) -> (String, RefOr<Schema>, Vec<(String, RefOr<Schema>)>) {
+    fn request_schema(&self) -> RequestSchema {
         let mut refs = Vec::new();
         <S::Params as ToSchema>::schemas(&mut refs);
         (<S::Params as ToSchema>::name().into_owned(), <S::Params as utoipa::PartialSchema>::schema(), refs)

@@ -21,8 +21,9 @@ impl Default for Metrics {
 impl Metrics {
     pub fn new() -> Self {
         let registry = Registry::new();
-        let jobs = IntGaugeVec::new(Opts::new("landform_jobs", "Jobs in the store by kind and status"), &["kind", "status"])
-            .expect("metric");
+        let jobs =
+            IntGaugeVec::new(Opts::new("landform_jobs", "Jobs in the store by kind and status"), &["kind", "status"])
+                .expect("metric");
         let queue_depth = IntGauge::new("landform_queue_depth", "Jobs waiting in the queue").expect("metric");
         let running = IntGauge::new("landform_jobs_running", "Jobs running now").expect("metric");
         let duration = HistogramVec::new(

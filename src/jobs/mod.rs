@@ -4,8 +4,8 @@ mod kind;
 mod model;
 
 pub use kind::{
-    parse_params, path_string, Artifact, JobKind, JobOutput, Kind, Outcome, Prepared, Progress, ProgressSink, RequestError,
-    RunContext, Sequence, SimError, Simulation,
+    parse_params, path_string, Artifact, JobKind, JobOutput, Kind, Outcome, Prepared, Progress, ProgressSink,
+    RequestError, RunContext, Sequence, SimError, Simulation,
 };
 pub use model::{ArtifactMeta, Job, JobStatus, ReplaySpec};
 

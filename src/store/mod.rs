@@ -28,7 +28,10 @@ pub struct ListFilter {
 pub enum IdempotentInsert {
     Inserted,
     /// The key was used before: the job it created, and whether the body hash matched.
-    Existing { job: Job, same_body: bool },
+    Existing {
+        job: Box<Job>,
+        same_body: bool,
+    },
 }
 
 /// Persistent job storage. Methods are blocking; async callers use `spawn_blocking`.

@@ -471,7 +471,7 @@ impl JobStore for SqliteStore {
                 })?;
                 // Dropping `tx` rolls back: nothing was written.
                 return Ok(IdempotentInsert::Existing {
-                    job,
+                    job: Box::new(job),
                     same_body: stored_sha256.eq_ignore_ascii_case(body_sha256),
                 });
             }
@@ -726,7 +726,7 @@ mod tests {
         assert!(matches!(store.insert(&first, key).unwrap(), IdempotentInsert::Inserted));
         match store.insert(&retry, key).unwrap() {
             IdempotentInsert::Existing { job, same_body } => {
-                assert_eq!(job, first);
+                assert_eq!(*job, first);
                 assert!(same_body);
             }
             other => panic!("expected Existing, got {other:?}"),

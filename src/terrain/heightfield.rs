@@ -94,16 +94,10 @@ impl Heightfield {
         let c1 = (col + 1).min(self.cols - 1);
         let r0 = row.saturating_sub(1);
         let r1 = (row + 1).min(self.rows - 1);
-        let dx = if c1 > c0 {
-            (self.get(c1, row) - self.get(c0, row)) / ((c1 - c0) as f32 * self.cell_size_m)
-        } else {
-            0.0
-        };
-        let dz = if r1 > r0 {
-            (self.get(col, r1) - self.get(col, r0)) / ((r1 - r0) as f32 * self.cell_size_m)
-        } else {
-            0.0
-        };
+        let dx =
+            if c1 > c0 { (self.get(c1, row) - self.get(c0, row)) / ((c1 - c0) as f32 * self.cell_size_m) } else { 0.0 };
+        let dz =
+            if r1 > r0 { (self.get(col, r1) - self.get(col, r0)) / ((r1 - r0) as f32 * self.cell_size_m) } else { 0.0 };
         (dx, dz)
     }
 

@@ -115,7 +115,11 @@ pub trait TerrainLookup: Sync {
 }
 
 /// Build the heightfield a source describes.
-pub fn resolve(source: &TerrainSource, lookup: &dyn TerrainLookup, limits: &Limits) -> Result<Heightfield, TerrainError> {
+pub fn resolve(
+    source: &TerrainSource,
+    lookup: &dyn TerrainLookup,
+    limits: &Limits,
+) -> Result<Heightfield, TerrainError> {
     let hf = match source {
         TerrainSource::Fractal(p) => generate_fractal(p),
         TerrainSource::Heightmap(u) => decode_heightmap_png(u, limits)?,

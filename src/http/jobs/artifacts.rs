@@ -53,7 +53,8 @@ pub(super) async fn serve_immutable(
         .artifact(id, name)
         .await?
         .ok_or_else(|| Problem::not_found(format!("job {id} has no artifact named {name}")))?;
-    let content_type = HeaderValue::from_str(&media_type).unwrap_or(HeaderValue::from_static("application/octet-stream"));
+    let content_type =
+        HeaderValue::from_str(&media_type).unwrap_or(HeaderValue::from_static("application/octet-stream"));
     Ok((
         StatusCode::OK,
         [(header::CONTENT_TYPE, content_type), (header::ETAG, etag_value), (header::CACHE_CONTROL, cache)],

@@ -49,9 +49,9 @@ pub async fn job_events(
             let done = Event::default().event("done").id(last.map_or(1, |l| l + 1).to_string()).data(data);
             Sse::new(stream::iter([Ok::<_, Infallible>(done)])).keep_alive(keep_alive).into_response()
         }
-        EventFeed::Live { backlog, rx, live } => Sse::new(live_stream(backlog, rx, live, last.unwrap_or(0)))
-            .keep_alive(keep_alive)
-            .into_response(),
+        EventFeed::Live { backlog, rx, live } => {
+            Sse::new(live_stream(backlog, rx, live, last.unwrap_or(0))).keep_alive(keep_alive).into_response()
+        }
     })
 }
 

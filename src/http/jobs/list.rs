@@ -44,12 +44,13 @@ pub async fn list_jobs(
     query: Result<Query<ListQuery>, axum::extract::rejection::QueryRejection>,
 ) -> Result<Json<JobPage>, Problem> {
     let Query(q) = query.map_err(|e| Problem::field("", e.body_text()))?;
-    let status = match q.status.as_deref() {
-        None | Some("") => None,
-        Some(s) => Some(JobStatus::parse(s).ok_or_else(|| {
-            Problem::field("status", "must be one of queued, running, succeeded, failed, cancelled")
-        })?),
-    };
+    let status =
+        match q.status.as_deref() {
+            None | Some("") => None,
+            Some(s) => Some(JobStatus::parse(s).ok_or_else(|| {
+                Problem::field("status", "must be one of queued, running, succeeded, failed, cancelled")
+            })?),
+        };
     if let Some(k) = q.kind.as_deref() {
         if !k.is_empty() && !state.engine.has_kind(k) {
             return Err(Problem::field("kind", format!("must be one of {}", state.engine.kind_names().join(", "))));

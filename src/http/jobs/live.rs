@@ -12,7 +12,11 @@ use crate::http::{AppState, Problem};
         (status = 404, description = "No such job, or no picture yet", body = Problem, content_type = "application/problem+json"),
     )
 )]
-pub async fn live_png(State(state): State<AppState>, Path(id): Path<String>, headers: HeaderMap) -> Result<Response, Problem> {
+pub async fn live_png(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+) -> Result<Response, Problem> {
     if let Some((_, png)) = state.engine.live_snapshot(&id) {
         return Ok(([(header::CONTENT_TYPE, "image/png"), (header::CACHE_CONTROL, "no-store")], png).into_response());
     }

@@ -22,7 +22,12 @@ use crate::jobs::Job;
 
 /// Answer for a newly accepted job: 202 with its Location, or, after `Prefer: wait`, 200 when
 /// it has ended by then.
-pub(super) async fn accepted(state: &AppState, job: Job, wait: Option<Duration>, replayed: bool) -> Result<Response, Problem> {
+pub(super) async fn accepted(
+    state: &AppState,
+    job: Job,
+    wait: Option<Duration>,
+    replayed: bool,
+) -> Result<Response, Problem> {
     let job = match wait {
         Some(d) if !job.status.is_terminal() => state.engine.wait(&job.id, d).await?,
         _ => job.with_hrefs(),

@@ -21,6 +21,18 @@ pub enum Operator {
 }
 
 impl Operator {
+    /// The operator's name as it appears in requests.
+    pub fn name(self) -> &'static str {
+        match self {
+            Operator::Add => "add",
+            Operator::Subtract => "subtract",
+            Operator::Max => "max",
+            Operator::Min => "min",
+            Operator::Average => "average",
+            Operator::Replace => "replace",
+        }
+    }
+
     /// The new height of a sample at height `z` under an operation with `base` and `relief`.
     #[inline]
     pub fn combine(self, z: f64, base: f64, relief: f64) -> f64 {
@@ -52,7 +64,11 @@ mod tests {
 
     #[test]
     fn operators_are_snake_case_in_json() {
-        assert_eq!(serde_json::to_value(Operator::Replace).unwrap(), "replace");
+        for op in
+            [Operator::Add, Operator::Subtract, Operator::Max, Operator::Min, Operator::Average, Operator::Replace]
+        {
+            assert_eq!(serde_json::to_value(op).unwrap(), op.name());
+        }
         assert_eq!(serde_json::from_str::<Operator>("\"average\"").unwrap(), Operator::Average);
     }
 }

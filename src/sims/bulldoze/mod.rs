@@ -186,9 +186,10 @@ impl<'a> Bulldozer<'a> {
         self.tally.primitives += 1;
         if let Some(ctx) = self.ctx {
             let name = primitives::shape_name(&p.shape);
-            let operator = serde_json::to_value(p.operator).ok().and_then(|v| v.as_str().map(str::to_owned));
-            let message = format!("{name} ({})", operator.unwrap_or_default());
-            ctx.report(STAGE, self.tally.steps, self.total, message);
+            let message = format!("{name} ({})", p.operator.name());
+            // Snapshots are rate-limited by the sink, so offering one per primitive is cheap.
+            let hf = &*self.hf;
+            ctx.report_with_snapshot(STAGE, self.tally.steps, self.total, message, || crate::export::snapshot_png(hf));
         }
         Ok(())
     }

@@ -13,7 +13,7 @@ use crate::validate::{Limits, Validate, Validator};
 /// Edit a heightfield with landform primitives and blades swept along paths (Ervin &
 /// Westort, "Procedural Terrain: A Virtual Bulldozer").
 ///
-/// Axes: X east, Z along the grid's rows, Y up; all lengths and heights in metres. Every
+/// Axes: X along the grid's columns, Z along its rows, Y up; lengths and heights in metres. Every
 /// operation has a *relief* r(x, z) (its own shape's height above its base) and a *base*
 /// b(x, z); the absolute surface it describes is v = b + r. Each operation changes only the
 /// samples inside its footprint (and inside `window`), combining the current height z with
@@ -43,13 +43,13 @@ pub struct BulldozeParams {
 #[serde(deny_unknown_fields)]
 #[schema(as = BulldozeWindow)]
 pub struct Window {
-    /// West edge, metres along X.
+    /// Smallest x, metres.
     pub min_x: f32,
-    /// Edge nearest the first row, metres along Z.
+    /// Smallest z, metres.
     pub min_z: f32,
-    /// East edge, metres along X.
+    /// Largest x, metres.
     pub max_x: f32,
-    /// Edge nearest the last row, metres along Z.
+    /// Largest z, metres.
     pub max_z: f32,
 }
 
@@ -149,7 +149,7 @@ impl BulldozeParams {
 /// Samples (cols, rows) of a grid resampled to `resolution_m`, computed as
 /// `Heightfield::resampled` does.
 pub(crate) fn resampled_dimensions(cols: u64, rows: u64, cell_size_m: f32, resolution_m: f32) -> (u64, u64) {
-    let along = |n: u64| ((n.saturating_sub(1)) as f32 * cell_size_m / resolution_m).floor() as u64 + 1;
+    let along = |n: u64| (((n.saturating_sub(1)) as f32 * cell_size_m / resolution_m).floor() as u64).saturating_add(1);
     (along(cols), along(rows))
 }
 
@@ -157,7 +157,7 @@ pub(crate) fn resampled_dimensions(cols: u64, rows: u64, cell_size_m: f32, resol
 pub(crate) fn check_resampled(cols: u64, rows: u64, limits: &Limits) -> Option<(String, bool)> {
     if cols < 2 || rows < 2 {
         Some((format!("is coarser than the terrain: the grid would have {cols}×{rows} samples"), false))
-    } else if cols * rows > limits.max_grid_cells {
+    } else if cols.saturating_mul(rows) > limits.max_grid_cells {
         Some((
             format!(
                 "the resampled grid would have {cols}×{rows} samples, more than the cap of {}",
@@ -380,5 +380,7 @@ mod tests {
         assert!(!v.too_large);
         let v = validate(body(0.0));
         assert_eq!(fields(&v), vec!["resolution"]);
+        let v = validate(body(1e-30));
+        assert!(v.too_large);
     }
 }

@@ -46,6 +46,7 @@ fn default_mound_curvature() -> f32 {
 #[serde(deny_unknown_fields)]
 #[schema(as = BulldozeMound)]
 pub struct Mound {
+    /// Centre of the footprint.
     pub center: PlanPoint,
     /// Radius of the footprint, metres.
     #[schema(exclusive_minimum = 0.0)]
@@ -119,6 +120,7 @@ pub struct Berm {
 #[serde(deny_unknown_fields)]
 #[schema(as = BulldozeTorus)]
 pub struct Torus {
+    /// Centre of the footprint.
     pub center: PlanPoint,
     /// Radius of the ring's crest line, metres.
     #[schema(exclusive_minimum = 0.0)]
@@ -129,6 +131,7 @@ pub struct Torus {
     /// Height of the crest, metres.
     #[schema(exclusive_minimum = 0.0)]
     pub height_m: f32,
+    /// Height of the ground plane the shape stands on, metres (its base).
     #[serde(default)]
     #[schema(default = 0.0)]
     pub base_m: f32,
@@ -139,6 +142,7 @@ pub struct Torus {
 #[serde(deny_unknown_fields)]
 #[schema(as = BulldozeBox)]
 pub struct BoxShape {
+    /// Centre of the footprint.
     pub center: PlanPoint,
     /// Extent along the box's own X axis, metres.
     #[schema(exclusive_minimum = 0.0)]
@@ -146,12 +150,14 @@ pub struct BoxShape {
     /// Extent along the box's own Z axis, metres.
     #[schema(exclusive_minimum = 0.0)]
     pub size_z_m: f32,
+    /// Height of the top above the base, metres.
     #[schema(exclusive_minimum = 0.0)]
     pub height_m: f32,
     /// Rotation about the vertical, degrees from +X toward +Z.
     #[serde(default)]
     #[schema(default = 0.0)]
     pub rotation_deg: f32,
+    /// Height of the ground plane the shape stands on, metres (its base).
     #[serde(default)]
     #[schema(default = 0.0)]
     pub base_m: f32,
@@ -162,16 +168,19 @@ pub struct BoxShape {
 #[serde(deny_unknown_fields)]
 #[schema(as = BulldozeCone)]
 pub struct Cone {
+    /// Centre of the footprint.
     pub center: PlanPoint,
     /// Radius of the base, metres.
     #[schema(exclusive_minimum = 0.0)]
     pub radius_m: f32,
+    /// Height of the top above the base, metres.
     #[schema(exclusive_minimum = 0.0)]
     pub height_m: f32,
     /// Radius of the flat top, metres, below `radius_m`; 0 a pointed cone.
     #[serde(default)]
     #[schema(default = 0.0, minimum = 0.0)]
     pub top_radius_m: f32,
+    /// Height of the ground plane the shape stands on, metres (its base).
     #[serde(default)]
     #[schema(default = 0.0)]
     pub base_m: f32,
@@ -188,10 +197,13 @@ pub struct HalfCylinder {
     #[serde(default)]
     #[schema(default = 0.0)]
     pub direction_deg: f32,
+    /// Length along the axis, metres.
     #[schema(exclusive_minimum = 0.0)]
     pub length_m: f32,
+    /// Radius, metres.
     #[schema(exclusive_minimum = 0.0)]
     pub radius_m: f32,
+    /// Height of the ground plane the shape stands on, metres (its base).
     #[serde(default)]
     #[schema(default = 0.0)]
     pub base_m: f32,
@@ -210,6 +222,7 @@ pub struct Ramp {
     #[serde(default)]
     #[schema(default = 0.0)]
     pub direction_deg: f32,
+    /// Length along the axis, metres.
     #[schema(exclusive_minimum = 0.0)]
     pub length_m: f32,
     /// Width at the start, metres.
@@ -222,6 +235,7 @@ pub struct Ramp {
     pub start_height_m: f32,
     /// Height of the top above the base at the end, metres.
     pub end_height_m: f32,
+    /// Height of the ground plane the shape stands on, metres (its base).
     #[serde(default)]
     #[schema(default = 0.0)]
     pub base_m: f32,
