@@ -178,3 +178,55 @@ async fn jobs_left_running_by_a_crash_run_again_on_start() {
         assert_eq!(done["status"], "succeeded", "{done}");
     }
 }
+
+/// Heights from a NumPy v1 `<f4` file, row-major.
+fn npy_heights(bytes: &[u8]) -> Vec<f32> {
+    assert_eq!(&bytes[..6], b"\x93NUMPY");
+    let header_len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let header = std::str::from_utf8(&bytes[10..10 + header_len]).unwrap();
+    assert!(header.contains("'descr': '<f4'"), "{header}");
+    bytes[10 + header_len..].chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+}
+
+#[tokio::test]
+async fn an_uploaded_16_bit_heightmap_is_read_exactly_and_jobs_compose() {
+    use base64::Engine as _;
+    let (w, h) = (65u32, 33u32);
+    let value = |c: u32, r: u32| ((c * 1000 + r * 37) % 65536) as u16;
+    let mut png_bytes = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut png_bytes, w, h);
+        enc.set_color(png::ColorType::Grayscale);
+        enc.set_depth(png::BitDepth::Sixteen);
+        let data: Vec<u8> = (0..h).flat_map(|r| (0..w).flat_map(move |c| value(c, r).to_be_bytes())).collect();
+        enc.write_header().unwrap().write_image_data(&data).unwrap();
+    }
+    let (z_min, z_max) = (10.0f32, 75.535f32);
+    let body = serde_json::json!({
+        "terrain": {"heightmap": {
+            "png_base64": base64::engine::general_purpose::STANDARD.encode(&png_bytes),
+            "cell_size": 2.0, "z_min": z_min, "z_max": z_max
+        }},
+        "operations": []
+    });
+    let server = TestServer::start().await;
+    let upload = server.run("bulldoze", &body).await;
+    assert_eq!(upload["result"]["grid"], serde_json::json!({"cols": 65, "rows": 33, "cell_size_m": 2.0}));
+    let heights = npy_heights(&server.artifact(upload["id"].as_str().unwrap(), "heightfield.npy").await);
+    for (i, got) in heights.iter().enumerate() {
+        let (c, r) = (i as u32 % w, i as u32 / w);
+        let want = z_min + (z_max - z_min) * value(c, r) as f32 / 65535.0;
+        assert!((got - want).abs() < 1e-3, "sample ({c}, {r}): {got} vs {want}");
+    }
+
+    // A second job starts from the first one's exact heights.
+    let mound = serde_json::json!({
+        "terrain": {"job": upload["id"]},
+        "operations": [{"primitive": {"shape": {"mound": {"center": {"x": 64, "z": 32}, "radius_m": 10, "height_m": 5}}}}]
+    });
+    let composed = server.run("bulldoze", &mound).await;
+    let after = npy_heights(&server.artifact(composed["id"].as_str().unwrap(), "heightfield.npy").await);
+    let centre = (16 * w + 32) as usize; // x = 64 m, z = 32 m at 2 m cells
+    assert!((after[centre] - heights[centre] - 5.0).abs() < 1e-4, "the mound's top sits on the first job's surface");
+    assert_eq!(after[0], heights[0], "outside the mound nothing changed");
+}

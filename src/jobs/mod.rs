@@ -18,3 +18,6 @@ mod store_terrain;
 pub use engine::{Engine, EngineConfig, EngineError, EventFeed, Submitted};
 pub use live::{JobEvent, LiveJob, StopReason};
 pub use store_terrain::{StoreTerrain, HEIGHTFIELD_ARTIFACT};
+
+#[cfg(test)]
+mod engine_tests;
