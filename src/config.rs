@@ -3,12 +3,13 @@
 use std::sync::Arc;
 use std::time::Duration;
 
+use clap::builder::TypedValueParser;
 use clap::Args;
 
-use crate::http::HttpConfig;
-use crate::jobs::EngineConfig;
+use crate::http::{HttpConfig, DEFAULT_MAX_BODY_BYTES};
+use crate::jobs::{EngineConfig, DEFAULT_JOB_TIMEOUT_S, DEFAULT_QUEUE_CAPACITY};
 use crate::store::{JobStore, SqliteStore};
-use crate::validate::Limits;
+use crate::validate::{Limits, DEFAULT_MAX_GRID_CELLS, DEFAULT_MAX_OPERATIONS, DEFAULT_MAX_VOXELS};
 
 /// Settings shared by `serve` and `run`.
 #[derive(Args, Clone, Debug)]
@@ -20,22 +21,22 @@ pub struct ServiceArgs {
     #[arg(long, env = "LANDFORM_WORKERS")]
     pub workers: Option<usize>,
     /// Jobs that may wait in the queue before submissions get 503.
-    #[arg(long, env = "LANDFORM_QUEUE_CAPACITY", default_value_t = 64)]
+    #[arg(long, env = "LANDFORM_QUEUE_CAPACITY", default_value_t = DEFAULT_QUEUE_CAPACITY, value_parser = clap::value_parser!(u64).range(1..).map(|n| n as usize))]
     pub queue_capacity: usize,
     /// Jobs run at the same time; each uses the whole pool.
-    #[arg(long, env = "LANDFORM_CONCURRENT_JOBS", default_value_t = 1)]
+    #[arg(long, env = "LANDFORM_CONCURRENT_JOBS", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..).map(|n| n as usize))]
     pub concurrent_jobs: usize,
     /// A job running longer than this many seconds is stopped and fails.
-    #[arg(long, env = "LANDFORM_JOB_TIMEOUT_SECS", default_value_t = 600)]
+    #[arg(long, env = "LANDFORM_JOB_TIMEOUT_SECS", default_value_t = DEFAULT_JOB_TIMEOUT_S, value_parser = clap::value_parser!(u64).range(1..))]
     pub job_timeout_secs: u64,
     /// Most samples (cols × rows) a heightfield may have; larger requests get 413.
-    #[arg(long, env = "LANDFORM_MAX_GRID_CELLS", default_value_t = 4097 * 4097)]
+    #[arg(long, env = "LANDFORM_MAX_GRID_CELLS", default_value_t = DEFAULT_MAX_GRID_CELLS)]
     pub max_grid_cells: u64,
     /// Most voxels a volumetric job may use; larger requests get 413.
-    #[arg(long, env = "LANDFORM_MAX_VOXELS", default_value_t = 64 * 1024 * 1024)]
+    #[arg(long, env = "LANDFORM_MAX_VOXELS", default_value_t = DEFAULT_MAX_VOXELS)]
     pub max_voxels: u64,
     /// Most operations one request may carry.
-    #[arg(long, env = "LANDFORM_MAX_OPERATIONS", default_value_t = 100_000)]
+    #[arg(long, env = "LANDFORM_MAX_OPERATIONS", default_value_t = DEFAULT_MAX_OPERATIONS)]
     pub max_operations: u64,
 }
 
@@ -60,8 +61,8 @@ impl ServiceArgs {
         EngineConfig {
             workers: self.workers.filter(|&n| n > 0).unwrap_or_else(|| EngineConfig::default().workers),
             queue_capacity: self.queue_capacity,
-            concurrent_jobs: self.concurrent_jobs.max(1),
-            job_timeout: Duration::from_secs(self.job_timeout_secs.max(1)),
+            concurrent_jobs: self.concurrent_jobs,
+            job_timeout: Duration::from_secs(self.job_timeout_secs),
             limits: Limits {
                 max_grid_cells: self.max_grid_cells,
                 max_operations: self.max_operations,
@@ -78,7 +79,7 @@ pub struct HttpArgs {
     #[arg(long, env = "LANDFORM_ADDR", default_value = "127.0.0.1:8080")]
     pub addr: String,
     /// Largest request body in bytes; larger bodies get 413.
-    #[arg(long, env = "LANDFORM_MAX_BODY_BYTES", default_value_t = 64 * 1024 * 1024)]
+    #[arg(long, env = "LANDFORM_MAX_BODY_BYTES", default_value_t = DEFAULT_MAX_BODY_BYTES)]
     pub max_body_bytes: usize,
     /// Origins allowed by CORS, comma-separated; `*` allows any.
     #[arg(long, env = "LANDFORM_CORS_ORIGINS", value_delimiter = ',', default_value = "*")]

@@ -1,5 +1,6 @@
 //! The `landform` command: `serve`, `run`, `openapi`.
 
+use std::future::IntoFuture;
 use std::io::Write;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -73,6 +74,7 @@ fn engine(service: &ServiceArgs) -> anyhow::Result<Engine> {
 async fn serve(http: HttpArgs, service: ServiceArgs) -> anyhow::Result<()> {
     init_tracing("info,tower_http=info");
     let engine = engine(&service)?;
+    engine.recover()?;
     engine.start();
     let listener = tokio::net::TcpListener::bind(&http.addr).await.with_context(|| format!("binding {}", http.addr))?;
     let addr = listener.local_addr()?;
@@ -80,9 +82,25 @@ async fn serve(http: HttpArgs, service: ServiceArgs) -> anyhow::Result<()> {
     println!("listening on http://{addr}");
     std::io::stdout().flush()?;
     let app = landform::http::app(engine, http.http_config());
-    axum::serve(listener, app).with_graceful_shutdown(shutdown_signal()).await?;
+    let (stopping_tx, stopping_rx) = tokio::sync::oneshot::channel::<()>();
+    let server = axum::serve(listener, app).with_graceful_shutdown(async move {
+        shutdown_signal().await;
+        let _ = stopping_tx.send(());
+    });
+    // Open event streams would hold a graceful shutdown for as long as their jobs run: give
+    // them a few seconds, then stop. Unfinished jobs run again on the next start.
+    let grace = async {
+        let _ = stopping_rx.await;
+        tokio::time::sleep(SHUTDOWN_GRACE).await;
+    };
+    tokio::select! {
+        served = server.into_future() => served?,
+        _ = grace => tracing::info!("shut down with streams still open"),
+    }
     Ok(())
 }
+
+const SHUTDOWN_GRACE: std::time::Duration = std::time::Duration::from_secs(5);
 
 async fn shutdown_signal() {
     let ctrl_c = async {
@@ -113,10 +131,13 @@ async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: 
     let body: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&request).with_context(|| format!("reading {}", request.display()))?)
             .with_context(|| format!("{} is not JSON", request.display()))?;
-    let scratch = tempfile_db()?;
-    if service.database.is_none() && std::env::var("DATABASE_URL").is_err() {
-        service.database = Some(scratch.to_string_lossy().into_owned());
-    }
+    let _scratch = if service.database.is_none() && std::env::var("DATABASE_URL").is_err() {
+        let scratch = ScratchDb::new();
+        service.database = Some(scratch.0.to_string_lossy().into_owned());
+        Some(scratch)
+    } else {
+        None
+    };
     let engine = engine(&service)?;
     engine.start();
     let job = match engine.submit(&kind, body, None).await {
@@ -132,8 +153,17 @@ async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: 
 
     let bar = ProgressBar::new(1000);
     bar.set_style(ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {percent:>3}% {msg}")?);
-    if let EventFeed::Live { mut rx, .. } = engine.events(&job.id, None).await? {
-        while let Ok(ev) = rx.recv().await {
+    if let EventFeed::Live { backlog, mut rx, .. } = engine.events(&job.id, None).await? {
+        let mut backlog = backlog.into_iter();
+        loop {
+            let ev = match backlog.next() {
+                Some(ev) => ev,
+                None => match rx.recv().await {
+                    Ok(ev) => ev,
+                    Err(tokio::sync::broadcast::error::RecvError::Lagged(_)) => continue,
+                    Err(_) => break,
+                },
+            };
             if ev.event == "progress" {
                 let f = ev.data["fraction"].as_f64().unwrap_or(0.0);
                 bar.set_position((f * 1000.0) as u64);
@@ -152,7 +182,6 @@ async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: 
     }
     bar.finish_and_clear();
     let job = engine.get(&job.id).await?;
-    let _ = std::fs::remove_file(&scratch);
     if job.status != JobStatus::Succeeded {
         anyhow::bail!(
             "job {}: {}",
@@ -171,8 +200,21 @@ async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: 
     Ok(())
 }
 
-/// A throwaway store for an offline run.
-fn tempfile_db() -> anyhow::Result<PathBuf> {
-    let dir = std::env::temp_dir();
-    Ok(dir.join(format!("landform-run-{}.db", uuid::Uuid::now_v7())))
+/// A throwaway store for an offline run, removed with its WAL files however the run ends.
+struct ScratchDb(PathBuf);
+
+impl ScratchDb {
+    fn new() -> Self {
+        Self(std::env::temp_dir().join(format!("landform-run-{}.db", uuid::Uuid::now_v7())))
+    }
+}
+
+impl Drop for ScratchDb {
+    fn drop(&mut self) {
+        for suffix in ["", "-wal", "-shm"] {
+            let mut p = self.0.clone().into_os_string();
+            p.push(suffix);
+            let _ = std::fs::remove_file(p);
+        }
+    }
 }

@@ -15,9 +15,17 @@ pub struct Limits {
     pub max_voxels: u64,
 }
 
+pub const DEFAULT_MAX_GRID_CELLS: u64 = 4097 * 4097;
+pub const DEFAULT_MAX_OPERATIONS: u64 = 100_000;
+pub const DEFAULT_MAX_VOXELS: u64 = 64 * 1024 * 1024;
+
 impl Default for Limits {
     fn default() -> Self {
-        Self { max_grid_cells: 4097 * 4097, max_operations: 100_000, max_voxels: 64 * 1024 * 1024 }
+        Self {
+            max_grid_cells: DEFAULT_MAX_GRID_CELLS,
+            max_operations: DEFAULT_MAX_OPERATIONS,
+            max_voxels: DEFAULT_MAX_VOXELS,
+        }
     }
 }
 

@@ -161,18 +161,19 @@ async fn jobs_left_running_by_a_crash_run_again_on_start() {
     let first = TestServer::start_on(&db, &Options { workers: 1, ..Options::default() }).await;
     let slow = first.submit("bulldoze", &common::bodies::slow_bulldoze()).await;
     let queued = first.submit("bulldoze", &small_bulldoze()).await;
-    // Wait until the slow one is running, then crash.
+    // Follow the slow one until it runs, then crash.
     let id = slow["id"].as_str().unwrap();
-    for _ in 0..600 {
-        let (_, j) = first.get_json(&format!("/v1/jobs/{id}")).await;
-        if j["status"] == "running" {
-            break;
-        }
-        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
-    }
+    let events_url = |s: &TestServer| s.url(&format!("/v1/jobs/{id}/events"));
+    let seen = read_events(&first.client, &events_url(&first), None, 3).await;
+    assert!(seen.iter().any(|e| e.data["status"] == "running"), "{seen:?}");
+    let last_seen = seen.last().unwrap().id.unwrap();
     first.kill();
 
     let second = TestServer::start_on(&db, &Options::default()).await;
+    // A client resuming from before the crash sees the re-run to its end.
+    let resumed = read_events(&second.client, &events_url(&second), Some(last_seen), 100_000).await;
+    assert_eq!(resumed.last().unwrap().event, "done", "{resumed:?}");
+    assert!(resumed.iter().all(|e| e.id.unwrap() > last_seen), "ids keep growing across the restart");
     for j in [&slow, &queued] {
         let done = second.wait_done(j["id"].as_str().unwrap()).await;
         assert_eq!(done["status"], "succeeded", "{done}");

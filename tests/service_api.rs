@@ -3,8 +3,6 @@
 
 mod common;
 
-use std::time::Duration;
-
 use common::bodies::{slow_bulldoze, small_bulldoze};
 use common::server::{Options, TestServer};
 use common::sse::read_events;
@@ -48,19 +46,30 @@ async fn an_idempotency_key_returns_the_same_job_and_refuses_another_body() {
     let send = |body: serde_json::Value| {
         server.client.post(server.url("/v1/jobs/bulldoze")).header("idempotency-key", "k-1").json(&body).send()
     };
-    let first = send(small_bulldoze()).await.unwrap();
+    let first = send(slow_bulldoze()).await.unwrap();
     assert_eq!(first.status(), 202);
     let first: serde_json::Value = first.json().await.unwrap();
-    let second = send(small_bulldoze()).await.unwrap();
-    assert_eq!(second.status(), 200);
+    // A retry while the job still runs: the same job, still 202.
+    let second = send(slow_bulldoze()).await.unwrap();
+    assert_eq!(second.status(), 202);
+    assert_eq!(second.headers()["idempotent-replayed"], "true");
     let second: serde_json::Value = second.json().await.unwrap();
     assert_eq!(first["id"], second["id"]);
 
-    let mut other = small_bulldoze();
+    let mut other = slow_bulldoze();
     other["label"] = json!("something else");
     let third = send(other).await.unwrap();
     assert_eq!(third.status(), 409);
     assert_eq!(third.headers()["content-type"], "application/problem+json");
+
+    // Once it has ended, a retry answers 200 with the finished job.
+    let id = first["id"].as_str().unwrap();
+    server.post(&format!("/v1/jobs/{id}/cancel"), &json!({})).await;
+    server.wait_done(id).await;
+    let fourth = send(slow_bulldoze()).await.unwrap();
+    assert_eq!(fourth.status(), 200);
+    let (_, page) = server.get_json("/v1/jobs").await;
+    assert_eq!(page["items"].as_array().unwrap().len(), 1, "one job for one key");
 }
 
 #[tokio::test]
@@ -232,5 +241,26 @@ async fn a_job_over_the_time_limit_fails() {
     let done = server.wait_done(job["id"].as_str().unwrap()).await;
     assert_eq!(done["status"], "failed");
     assert!(done["error"]["detail"].as_str().unwrap().contains("longer than"), "{done}");
-    tokio::time::sleep(Duration::from_millis(10)).await;
+}
+
+#[tokio::test]
+async fn errors_outside_the_job_routes_are_problems_too() {
+    let server = TestServer::start().await;
+    let res = server.client.put(server.url("/v1/jobs")).send().await.unwrap();
+    assert_eq!(res.status(), 405);
+    assert_eq!(res.headers()["content-type"], "application/problem+json");
+    let res = server.client.get(server.url("/nowhere")).send().await.unwrap();
+    assert_eq!(res.status(), 404);
+    assert_eq!(res.headers()["content-type"], "application/problem+json");
+    let (status, p) = server.get_json("/v1/jobs?limit=lots").await;
+    assert_eq!(status, 422);
+    assert_eq!(p["errors"][0]["field"], "limit");
+    let res = server
+        .client
+        .get(server.url("/v1/jobs/01920000-0000-7000-8000-000000000000/events"))
+        .header("last-event-id", u64::MAX.to_string())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), 404);
 }

@@ -1,6 +1,7 @@
 //! File writers every kind uses: glb meshes, 16-bit heightmaps, preview pictures, and the
 //! exact `.npy` heights that let one job's terrain feed the next.
 
+mod artifact;
 mod glb;
 mod heightmap_png;
 mod hypsometric;
@@ -8,6 +9,7 @@ mod npy;
 mod preview_png;
 mod srgb;
 
+pub use artifact::Artifact;
 pub use glb::{write_glb, MAX_U16_INDEXED_VERTICES};
 pub use heightmap_png::heightmap_png16;
 pub use hypsometric::Tint;
@@ -16,7 +18,6 @@ pub use preview_png::preview_png;
 
 use serde_json::{json, Value};
 
-use crate::jobs::Artifact;
 use crate::mesh::{heightfield_mesh, Scene, DEFAULT_MAX_SIDE_SAMPLES};
 use crate::terrain::Heightfield;
 

@@ -31,9 +31,11 @@ pub struct HttpConfig {
     pub cors_origins: Vec<String>,
 }
 
+pub const DEFAULT_MAX_BODY_BYTES: usize = 64 * 1024 * 1024;
+
 impl Default for HttpConfig {
     fn default() -> Self {
-        Self { max_body_bytes: 64 * 1024 * 1024, cors_origins: vec!["*".into()] }
+        Self { max_body_bytes: DEFAULT_MAX_BODY_BYTES, cors_origins: vec!["*".into()] }
     }
 }
 
@@ -76,6 +78,7 @@ pub fn app(engine: Engine, config: HttpConfig) -> Router {
         .route("/metrics", get(ops::metrics))
         .merge(utoipa_swagger_ui::SwaggerUi::new("/docs").url("/openapi.json", doc))
         .fallback(ops::not_found)
+        .method_not_allowed_fallback(ops::method_not_allowed)
         .layer(DefaultBodyLimit::max(max_body))
         .layer(cors)
         .layer(CatchPanicLayer::custom(|_| {

@@ -60,7 +60,9 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>]) -> OpenApiDoc {
                 .schema_type(SchemaType::new(Type::Integer))
                 .format(Some(utoipa::openapi::SchemaFormat::KnownFormat(utoipa::openapi::KnownFormat::Int64)))
                 .minimum(Some(0))
-                .description(Some("Seed of every random choice (default 0): the same request gives the same bytes")),
+                .description(Some(
+                    "Seed of every random choice the kind makes (default 0): the same request gives the same bytes. A fractal terrain source has its own `seed`.",
+                )),
         )
         .property(
             "label",

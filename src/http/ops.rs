@@ -35,6 +35,15 @@ pub async fn metrics(State(state): State<AppState>) -> Result<Response, Problem>
     Ok(([(header::CONTENT_TYPE, "text/plain; version=0.0.4; charset=utf-8")], text).into_response())
 }
 
+pub async fn method_not_allowed() -> Problem {
+    Problem::new(
+        StatusCode::METHOD_NOT_ALLOWED,
+        "method-not-allowed",
+        "Method not allowed",
+        "see /docs for what this path takes",
+    )
+}
+
 pub async fn not_found() -> Problem {
     Problem::not_found("no such route; see /docs")
 }

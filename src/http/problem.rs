@@ -8,8 +8,6 @@ use utoipa::ToSchema;
 use crate::jobs::EngineError;
 use crate::validate::FieldError;
 
-const PROBLEM_BASE: &str = "https://landform.dev/problems";
-
 /// An RFC 9457 problem. Validation problems list each bad field by its JSON path.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct Problem {
@@ -28,7 +26,7 @@ pub struct Problem {
 impl Problem {
     pub fn new(status: StatusCode, slug: &str, title: &str, detail: impl Into<String>) -> Self {
         Self {
-            type_uri: format!("{PROBLEM_BASE}/{slug}"),
+            type_uri: format!("{}/{slug}", crate::jobs::PROBLEM_TYPE_BASE),
             title: title.to_string(),
             status: status.as_u16(),
             detail: detail.into(),

@@ -13,9 +13,17 @@ use tokio::sync::Notify;
 use super::live::{LiveJob, StopReason};
 use super::metrics::Metrics;
 use super::store_terrain::StoreTerrain;
-use super::{Job, JobKind, JobStatus, Progress, RequestError};
+use super::{Job, JobEvent, JobKind, JobStatus, Progress, RequestError};
 use crate::store::{IdempotentInsert, JobStore, ListFilter, StoreError};
 use crate::validate::{FieldError, Limits};
+
+pub const DEFAULT_QUEUE_CAPACITY: usize = 64;
+pub const DEFAULT_JOB_TIMEOUT_S: u64 = 600;
+/// A job interrupted by this many process stops is failed instead of run again, so one job
+/// that brings the process down cannot do so for ever.
+pub const MAX_ATTEMPTS: u32 = 3;
+/// Longest label accepted.
+const MAX_LABEL_CHARS: usize = 200;
 
 #[derive(Clone, Debug)]
 pub struct EngineConfig {
@@ -34,9 +42,9 @@ impl Default for EngineConfig {
     fn default() -> Self {
         Self {
             workers: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(2),
-            queue_capacity: 64,
+            queue_capacity: DEFAULT_QUEUE_CAPACITY,
             concurrent_jobs: 1,
-            job_timeout: Duration::from_secs(600),
+            job_timeout: Duration::from_secs(DEFAULT_JOB_TIMEOUT_S),
             limits: Limits::default(),
         }
     }
@@ -82,7 +90,7 @@ impl From<RequestError> for EngineError {
 
 /// Where a job's events come from.
 pub enum EventFeed {
-    Live { backlog: Vec<super::JobEvent>, rx: tokio::sync::broadcast::Receiver<super::JobEvent>, live: Arc<LiveJob> },
+    Live { backlog: Vec<JobEvent>, rx: tokio::sync::broadcast::Receiver<JobEvent>, live: Arc<LiveJob> },
     Ended(Box<Job>),
 }
 
@@ -93,11 +101,18 @@ pub enum Submitted {
     Existing(Job),
 }
 
+/// Jobs waiting, and places promised to submissions still being stored.
+#[derive(Default)]
+pub(super) struct Queue {
+    pub items: VecDeque<String>,
+    reserved: usize,
+}
+
 pub(super) struct Inner {
     pub store: Arc<dyn JobStore>,
     pub kinds: HashMap<&'static str, Arc<dyn JobKind>>,
     pub pool: rayon::ThreadPool,
-    pub queue: Mutex<VecDeque<String>>,
+    pub queue: Mutex<Queue>,
     pub queue_notify: Notify,
     pub live: Mutex<HashMap<String, Arc<LiveJob>>>,
     pub metrics: Metrics,
@@ -109,12 +124,26 @@ pub struct Engine {
     pub(super) inner: Arc<Inner>,
 }
 
-/// Longest label accepted.
-const MAX_LABEL_CHARS: usize = 200;
+/// A place in the queue held while a submission is stored; given back unless used.
+struct Slot<'a>(Option<&'a Engine>);
+
+impl Slot<'_> {
+    fn used(mut self) {
+        self.0 = None;
+    }
+}
+
+impl Drop for Slot<'_> {
+    fn drop(&mut self) {
+        if let Some(engine) = self.0 {
+            engine.inner.queue.lock().reserved -= 1;
+        }
+    }
+}
 
 impl Engine {
-    /// Build the engine and re-queue jobs a previous process left queued or running. Call
-    /// [`Engine::start`] from inside a tokio runtime to begin running them.
+    /// Build the engine. A server then calls [`Engine::recover`] and, inside a tokio runtime,
+    /// [`Engine::start`].
     pub fn new(
         store: Arc<dyn JobStore>,
         kinds: Vec<Box<dyn JobKind>>,
@@ -126,29 +155,42 @@ impl Engine {
             .build()
             .map_err(|e| EngineError::Internal(e.to_string()))?;
         let kinds = kinds.into_iter().map(|k| (k.name(), Arc::from(k))).collect();
-        let engine = Engine {
+        Ok(Engine {
             inner: Arc::new(Inner {
                 store,
                 kinds,
                 pool,
-                queue: Mutex::new(VecDeque::new()),
+                queue: Mutex::new(Queue::default()),
                 queue_notify: Notify::new(),
                 live: Mutex::new(HashMap::new()),
                 metrics: Metrics::new(),
                 config,
             }),
-        };
-        engine.recover()?;
-        Ok(engine)
+        })
     }
 
-    /// At-least-once: whatever was accepted and not finished runs again.
-    fn recover(&self) -> Result<(), EngineError> {
+    /// At-least-once: whatever a previous process accepted and did not finish runs again,
+    /// unless it has already been interrupted [`MAX_ATTEMPTS`] times.
+    pub fn recover(&self) -> Result<(), EngineError> {
         for mut job in self.inner.store.unfinished()? {
             if job.status == JobStatus::Running {
+                let attempts = self.inner.store.attempts(&job.id)?.unwrap_or(0);
+                if attempts >= MAX_ATTEMPTS {
+                    tracing::warn!(job = %job.id, attempts, "interrupted too often; failing it");
+                    job.status = JobStatus::Failed;
+                    job.finished_at = Some(Utc::now());
+                    job.error = Some(super::runner::problem(
+                        "interrupted",
+                        "Job interrupted repeatedly",
+                        &format!("the service stopped while this job ran, {attempts} times; it is not run again"),
+                        500,
+                    ));
+                    self.inner.store.finish(&job, &[])?;
+                    continue;
+                }
                 job.status = JobStatus::Queued;
                 job.started_at = None;
-                job.progress = Progress::default();
+                job.progress = Progress { stage: "queued".into(), ..Progress::default() };
                 self.inner.store.update(&job)?;
             }
             tracing::info!(job = %job.id, kind = %job.kind, "re-queued after restart");
@@ -186,22 +228,58 @@ impl Engine {
     }
 
     pub fn queue_depth(&self) -> usize {
-        self.inner.queue.lock().len()
+        self.inner.queue.lock().items.len()
     }
 
     pub(super) fn live_job(&self, id: &str) -> Option<Arc<LiveJob>> {
         self.inner.live.lock().get(id).cloned()
     }
 
-    fn enqueue(&self, id: &str) {
-        self.inner.live.lock().entry(id.to_string()).or_insert_with(|| Arc::new(LiveJob::new(id.to_string())));
+    fn reserve_slot(&self) -> Option<Slot<'_>> {
+        let mut q = self.inner.queue.lock();
+        if q.items.len() + q.reserved < self.inner.config.queue_capacity {
+            q.reserved += 1;
+            Some(Slot(Some(self)))
+        } else {
+            None
+        }
+    }
+
+    /// Put a stored job on the queue (using `slot` when one was reserved for it).
+    fn enqueue_with(&self, id: &str, slot: Option<Slot<'_>>) {
+        let live = self
+            .inner
+            .live
+            .lock()
+            .entry(id.to_string())
+            .or_insert_with(|| Arc::new(LiveJob::new(id.to_string())))
+            .clone();
+        live.emit_status(JobStatus::Queued);
         let depth = {
             let mut q = self.inner.queue.lock();
-            q.push_back(id.to_string());
-            q.len()
+            if let Some(slot) = slot {
+                q.reserved -= 1;
+                slot.used();
+            }
+            q.items.push_back(id.to_string());
+            q.items.len()
         };
         self.inner.metrics.set_queue_depth(depth);
         self.inner.queue_notify.notify_one();
+    }
+
+    fn enqueue(&self, id: &str) {
+        self.enqueue_with(id, None);
+    }
+
+    /// Take a job off the queue if it is still there; true when it was.
+    pub(super) fn dequeue(&self, id: &str) -> bool {
+        let mut q = self.inner.queue.lock();
+        let before = q.items.len();
+        q.items.retain(|q| q != id);
+        let removed = before != q.items.len();
+        self.inner.metrics.set_queue_depth(q.items.len());
+        removed
     }
 
     /// Run blocking store work off the async threads.
@@ -233,7 +311,7 @@ impl Engine {
         let prepared = tokio::task::spawn_blocking(move || kind_impl.prepare(Value::Object(body), &limits))
             .await
             .map_err(|e| EngineError::Internal(e.to_string()))??;
-        self.check_job_refs(prepared.job_refs.clone()).await?;
+        self.check_job_refs(prepared.job_refs).await?;
 
         let mut request = match prepared.params {
             Value::Object(m) => m,
@@ -274,6 +352,15 @@ impl Engine {
                 return Err(EngineError::field("until_step", format!("the sequence has {steps} steps (got {k})")));
             }
         }
+        // The earlier jobs the original read must still be there to read again.
+        let prepared = kind.prepare(original.params(), &self.inner.config.limits)?;
+        self.check_job_refs(prepared.job_refs).await.map_err(|e| match e {
+            EngineError::Invalid { errors, .. } => EngineError::Conflict(format!(
+                "job {id} can no longer be replayed: {}",
+                errors.into_iter().map(|e| e.message).collect::<Vec<_>>().join("; ")
+            )),
+            other => other,
+        })?;
         let replay_of = Some((id.to_string(), until_step));
         let job = new_job(&original.kind, original.label.clone(), original.request.clone(), replay_of);
         match self.admit(job, None).await? {
@@ -308,9 +395,9 @@ impl Engine {
 
     async fn admit(&self, job: Job, idempotency: Option<(String, String)>) -> Result<Submitted, EngineError> {
         let capacity = self.inner.config.queue_capacity;
-        // An idempotent retry must still find its job when the queue is full, so only plain
-        // submissions are turned away before touching the store.
-        if idempotency.is_none() && self.queue_depth() >= capacity {
+        let slot = self.reserve_slot();
+        // An idempotent retry must still find its job when the queue is full.
+        if slot.is_none() && idempotency.is_none() {
             return Err(EngineError::QueueFull(capacity));
         }
         let stored = job.clone();
@@ -323,19 +410,17 @@ impl Engine {
                 "the Idempotency-Key was already used with a different body (job {})",
                 job.id
             ))),
-            IdempotentInsert::Inserted => {
-                if self.queue_depth() >= capacity {
-                    // Lost a race for the last places: undo rather than exceed the bound.
+            IdempotentInsert::Inserted => match slot {
+                Some(slot) => {
+                    self.enqueue_with(&job.id, Some(slot));
+                    Ok(Submitted::Created(job))
+                }
+                None => {
                     let id = job.id.clone();
                     self.blocking(move |s| s.delete(&id)).await?;
-                    return Err(EngineError::QueueFull(capacity));
+                    Err(EngineError::QueueFull(capacity))
                 }
-                self.enqueue(&job.id);
-                if let Some(live) = self.live_job(&job.id) {
-                    live.emit_status(JobStatus::Queued);
-                }
-                Ok(Submitted::Created(job))
-            }
+            },
         }
     }
 
@@ -365,22 +450,19 @@ impl Engine {
     /// Stop a queued or running job. Returns the job as it is after the request.
     pub async fn cancel(&self, id: &str) -> Result<Job, EngineError> {
         let job = self.get(id).await?;
+        let ended = || EngineError::Conflict(format!("job {id} has already ended"));
         if job.status.is_terminal() {
-            return Err(EngineError::Conflict(format!("job {id} has already ended ({})", job.status.as_str())));
+            return Err(ended());
         }
-        if let Some(live) = self.live_job(id) {
-            live.stop(StopReason::Cancelled);
-            let was_queued = {
-                let mut q = self.inner.queue.lock();
-                let before = q.len();
-                q.retain(|q| q != id);
-                before != q.len()
-            };
-            if was_queued {
-                // Taken off the queue before a dispatcher saw it: it ends here.
-                self.end(job, &live, Err(super::SimError::Cancelled), 0.0).await?;
-                return self.get(id).await;
-            }
+        let Some(live) = self.live_job(id) else {
+            // It ended between the two looks.
+            return Err(ended());
+        };
+        live.stop(StopReason::Cancelled);
+        if self.dequeue(id) {
+            // Taken off the queue before a dispatcher saw it: it ends here.
+            self.end(job, &live, Err(super::SimError::Cancelled), 0.0).await;
+        } else {
             // A running job stops at its next step; give it a moment so the answer shows it.
             let mut done = live.done_receiver();
             let _ = tokio::time::timeout(Duration::from_secs(5), done.wait_for(|d| *d)).await;
@@ -390,8 +472,12 @@ impl Engine {
 
     /// Cancel if needed, then remove the job and its artifacts.
     pub async fn delete(&self, id: &str) -> Result<(), EngineError> {
+        let job = self.get(id).await?;
         if let Some(live) = self.live_job(id) {
             live.stop(StopReason::Deleted);
+            if self.dequeue(id) {
+                self.end(job, &live, Err(super::SimError::Cancelled), 0.0).await;
+            }
         }
         let sid = id.to_string();
         if self.blocking(move |s| s.delete(&sid)).await? {

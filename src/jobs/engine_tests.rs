@@ -106,3 +106,56 @@ async fn deleting_a_running_job_stops_it_and_leaves_nothing() {
     let next = submit(&engine, json!({ "n": 3 })).await;
     assert_eq!(engine.wait(&next, Duration::from_secs(30)).await.unwrap().status, JobStatus::Succeeded);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn deleting_a_queued_job_ends_its_stream_and_frees_its_place() {
+    let dir = tempfile::tempdir().unwrap();
+    let engine = engine(&dir);
+    let long = submit(&engine, json!({ "steps": 300 })).await;
+    let queued = submit(&engine, json!({ "n": 1 })).await;
+    let super::EventFeed::Live { mut rx, .. } = engine.events(&queued, None).await.unwrap() else {
+        panic!("a queued job has a live feed");
+    };
+    let depth = engine.queue_depth();
+    engine.delete(&queued).await.unwrap();
+    assert_eq!(engine.queue_depth(), depth - 1);
+    let done = tokio::time::timeout(Duration::from_secs(5), async {
+        loop {
+            let ev = rx.recv().await.unwrap();
+            if ev.event == "done" {
+                return ev;
+            }
+        }
+    })
+    .await
+    .expect("the stream ends at once");
+    assert_eq!(done.data["status"], "cancelled");
+    engine.cancel(&long).await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_interrupted_too_often_is_failed_not_run_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("t.db");
+    let store = Arc::new(SqliteStore::open(path.to_str().unwrap()).unwrap());
+    let mut job = {
+        let engine = Engine::new(store.clone(), vec![Box::new(StandIn)], EngineConfig::default()).unwrap();
+        match engine.submit("stand-in", json!({ "n": 1 }), None).await.unwrap() {
+            super::Submitted::Created(j) | super::Submitted::Existing(j) => j,
+        }
+    };
+    use crate::store::JobStore;
+    // Three starts that each ended with the process gone.
+    for _ in 0..super::MAX_ATTEMPTS {
+        job.status = JobStatus::Queued;
+        store.update(&job).unwrap();
+        job.status = JobStatus::Running;
+        store.update(&job).unwrap();
+    }
+    let engine = Engine::new(store.clone(), vec![Box::new(StandIn)], EngineConfig::default()).unwrap();
+    engine.recover().unwrap();
+    let after = engine.get(&job.id).await.unwrap();
+    assert_eq!(after.status, JobStatus::Failed);
+    assert_eq!(after.error.unwrap()["title"], "Job interrupted repeatedly");
+    assert_eq!(engine.queue_depth(), 0);
+}

@@ -7,6 +7,7 @@ use serde_json::Value;
 use utoipa::openapi::{RefOr, Schema};
 use utoipa::ToSchema;
 
+pub use crate::export::Artifact;
 use crate::terrain::{Heightfield, TerrainError, TerrainLookup, TerrainSource};
 use crate::validate::{FieldError, Limits, Validate, Validator};
 
@@ -18,20 +19,6 @@ pub struct Progress {
     pub steps: u64,
     pub stage: String,
     pub message: String,
-}
-
-/// A file a job produced.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Artifact {
-    pub name: String,
-    pub media_type: String,
-    pub bytes: Vec<u8>,
-}
-
-impl Artifact {
-    pub fn new(name: &str, media_type: &str, bytes: Vec<u8>) -> Self {
-        Self { name: name.to_string(), media_type: media_type.to_string(), bytes }
-    }
 }
 
 /// What a run or a replay produced: kind-specific summary figures, the recorded sequence, and

@@ -34,6 +34,13 @@ pub enum StopReason {
     Deleted,
 }
 
+/// Event ids grow across process restarts too (a re-run job's events follow the ones a client
+/// saw before the restart), so they start from the clock in microseconds.
+fn first_event_id() -> u64 {
+    let micros = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_micros());
+    u64::try_from(micros).unwrap_or(u64::MAX / 2).max(1)
+}
+
 #[derive(Default)]
 struct Throttle {
     last_progress: Option<Instant>,
@@ -63,7 +70,7 @@ impl LiveJob {
             cancel: AtomicBool::new(false),
             stop_reason: Mutex::new(None),
             log: Mutex::new(VecDeque::new()),
-            next_event_id: AtomicU64::new(1),
+            next_event_id: AtomicU64::new(first_event_id()),
             tx,
             progress: Mutex::new(Progress::default()),
             throttle: Mutex::new(Throttle::default()),
@@ -120,13 +127,13 @@ impl LiveJob {
     pub fn subscribe(&self, last_event_id: Option<u64>) -> (Vec<JobEvent>, broadcast::Receiver<JobEvent>) {
         let log = self.log.lock();
         let after = last_event_id.unwrap_or(0);
-        let backlog = log.iter().filter(|e| e.id > after).cloned().collect();
+        let backlog = log.iter().filter(|e| e.id > after || e.event == "done").cloned().collect();
         (backlog, self.tx.subscribe())
     }
 
     /// Events after `last_event_id` still in the log (used after a lagging receiver).
     pub fn events_after(&self, last_event_id: u64) -> Vec<JobEvent> {
-        self.log.lock().iter().filter(|e| e.id > last_event_id).cloned().collect()
+        self.log.lock().iter().filter(|e| e.id > last_event_id || e.event == "done").cloned().collect()
     }
 
     pub fn done_receiver(&self) -> watch::Receiver<bool> {
@@ -185,8 +192,9 @@ mod tests {
         let live = LiveJob::new("j".into());
         live.emit_status(JobStatus::Queued);
         live.emit_status(JobStatus::Running);
-        let (backlog, mut rx) = live.subscribe(Some(1));
-        assert_eq!(backlog.iter().map(|e| e.id).collect::<Vec<_>>(), vec![2]);
+        let first = live.subscribe(None).0[0].id;
+        let (backlog, mut rx) = live.subscribe(Some(first));
+        assert_eq!(backlog.iter().map(|e| e.id).collect::<Vec<_>>(), vec![first + 1]);
         live.emit_done(json!({}));
         assert_eq!(rx.try_recv().unwrap().event, "done");
         assert!(live.is_done());

@@ -5,6 +5,8 @@ use prometheus::{Encoder, HistogramOpts, HistogramVec, IntGauge, IntGaugeVec, Op
 use super::JobStatus;
 
 pub struct Metrics {
+    /// Scrapes refill the job gauges from the store; one at a time, so none reads a half-filled set.
+    render_lock: parking_lot::Mutex<()>,
     registry: Registry,
     jobs: IntGaugeVec,
     queue_depth: IntGauge,
@@ -40,7 +42,7 @@ impl Metrics {
         ] {
             registry.register(c).expect("register metric");
         }
-        Self { registry, jobs, queue_depth, running, duration }
+        Self { render_lock: parking_lot::Mutex::new(()), registry, jobs, queue_depth, running, duration }
     }
 
     pub fn set_queue_depth(&self, n: usize) {
@@ -57,6 +59,7 @@ impl Metrics {
 
     /// Prometheus text exposition, with job counts refreshed from `counts`.
     pub fn render(&self, kinds: &[&str], counts: &[(String, JobStatus, u64)]) -> String {
+        let _one_at_a_time = self.render_lock.lock();
         for kind in kinds {
             for st in JobStatus::ALL {
                 self.jobs.with_label_values(&[kind, st.as_str()]).set(0);

@@ -15,8 +15,12 @@ mod metrics;
 mod runner;
 mod store_terrain;
 
-pub use engine::{Engine, EngineConfig, EngineError, EventFeed, Submitted};
+pub use engine::{
+    Engine, EngineConfig, EngineError, EventFeed, Submitted, DEFAULT_JOB_TIMEOUT_S, DEFAULT_QUEUE_CAPACITY,
+    MAX_ATTEMPTS,
+};
 pub use live::{JobEvent, LiveJob, StopReason};
+pub use runner::{problem, PROBLEM_TYPE_BASE};
 pub use store_terrain::{StoreTerrain, HEIGHTFIELD_ARTIFACT};
 
 #[cfg(test)]

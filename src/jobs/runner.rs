@@ -1,6 +1,7 @@
 //! Taking jobs off the queue and running them on the Rayon pool.
 
 use std::panic::AssertUnwindSafe;
+use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -10,43 +11,56 @@ use serde_json::{json, Value};
 use super::engine::Engine;
 use super::live::{LiveJob, StopReason};
 use super::store_terrain::StoreTerrain;
-use super::{Job, JobOutput, JobStatus, RunContext, SimError};
+use super::{Artifact, Job, JobOutput, JobStatus, RunContext, SimError};
 
-/// Problem `type` URIs of job failures.
-const PROBLEM_BASE: &str = "https://landform.dev/problems";
+/// Base of the `type` URI of every problem this service reports.
+pub const PROBLEM_TYPE_BASE: &str = "https://landform.dev/problems";
+
+/// An RFC 9457 problem object, for a job's `error`.
+pub fn problem(slug: &str, title: &str, detail: &str, status: u16) -> Value {
+    json!({ "type": format!("{PROBLEM_TYPE_BASE}/{slug}"), "title": title, "status": status, "detail": detail })
+}
 
 impl Engine {
     pub(super) async fn dispatch_loop(&self) {
         loop {
             let next = {
                 let mut q = self.inner.queue.lock();
-                let id = q.pop_front();
-                self.inner.metrics.set_queue_depth(q.len());
+                let id = q.items.pop_front();
+                self.inner.metrics.set_queue_depth(q.items.len());
+                // Notify keeps one permit however many jobs arrived: pass the word on so
+                // another dispatcher takes the next job.
+                if id.is_some() && !q.items.is_empty() {
+                    self.inner.queue_notify.notify_one();
+                }
                 id
             };
             match next {
-                Some(id) => {
-                    if let Err(e) = self.run_job(&id).await {
-                        tracing::error!(job = %id, error = %e, "job bookkeeping failed");
-                    }
-                }
+                Some(id) => self.run_job(&id).await,
                 None => self.inner.queue_notify.notified().await,
             }
         }
     }
 
-    async fn run_job(&self, id: &str) -> Result<(), super::engine::EngineError> {
-        let Some(live) = self.live_job(id) else { return Ok(()) };
+    async fn run_job(&self, id: &str) {
+        let Some(live) = self.live_job(id) else { return };
         let sid = id.to_string();
-        let Some(mut job) = self.blocking(move |s| s.get(&sid)).await? else {
-            self.forget(id);
-            return Ok(());
+        let mut job = match self.blocking(move |s| s.get(&sid)).await {
+            Ok(Some(job)) if job.status == JobStatus::Queued => job,
+            Ok(_) => {
+                // Deleted, or ended by someone else, while it waited.
+                self.forget(id);
+                live.emit_done(json!({ "id": id, "status": JobStatus::Cancelled }));
+                return;
+            }
+            Err(e) => {
+                tracing::error!(job = %id, error = %e, "could not load a queued job");
+                self.forget(id);
+                live.emit_done(json!({ "id": id, "status": JobStatus::Failed }));
+                return;
+            }
         };
-        if job.status != JobStatus::Queued {
-            self.forget(id);
-            return Ok(());
-        }
-        if live.cancel.load(std::sync::atomic::Ordering::Relaxed) {
+        if live.cancel.load(Ordering::Relaxed) {
             return self.end(job, &live, Err(SimError::Cancelled), 0.0).await;
         }
 
@@ -54,7 +68,10 @@ impl Engine {
         job.started_at = Some(Utc::now());
         job.progress.stage = "running".into();
         let stored = job.clone();
-        self.blocking(move |s| s.update(&stored)).await?;
+        if let Err(e) = self.blocking(move |s| s.update(&stored)).await {
+            tracing::error!(job = %id, error = %e, "could not mark a job running");
+            return self.end(job, &live, Err(SimError::Failed(STORE_FAILED.into())), 0.0).await;
+        }
         live.emit_status(JobStatus::Running);
         self.inner.metrics.running_delta(1);
 
@@ -110,84 +127,109 @@ impl Engine {
         match job.replay_spec() {
             None => kind.run(&params, job.seed(), &ctx),
             Some(spec) => {
-                let (_, sequence) = self
-                    .inner
-                    .store
-                    .artifact(&spec.of, "sequence.json")
-                    .map_err(|e| SimError::Failed(e.to_string()))?
-                    .ok_or_else(|| SimError::Failed(format!("job {} and its sequence are gone", spec.of)))?;
+                let sequence = self.inner.store.artifact(&spec.of, "sequence.json").map_err(|e| {
+                    tracing::error!(job = %job.id, error = %e, "could not read the sequence to replay");
+                    SimError::Failed(STORE_FAILED.into())
+                })?;
+                let (_, sequence) =
+                    sequence.ok_or_else(|| SimError::Failed(format!("job {} and its sequence are gone", spec.of)))?;
                 kind.replay(&params, &sequence, spec.until_step, &ctx)
             }
         }
     }
 
-    /// Record how a job ended and tell everyone waiting.
+    /// Record how a job ended and tell everyone waiting. Whatever the store does, the job's
+    /// stream gets its `done` and the engine lets go of it.
     pub(super) async fn end(
         &self,
         mut job: Job,
         live: &Arc<LiveJob>,
         outcome: Result<JobOutput, SimError>,
         seconds: f64,
-    ) -> Result<(), super::engine::EngineError> {
+    ) {
         if live.stop_reason() == Some(StopReason::Deleted) {
             self.forget(&job.id);
-            live.emit_done(json!({ "id": job.id, "status": "cancelled", "deleted": true }));
-            return Ok(());
+            job.status = JobStatus::Cancelled;
+            job.error = Some(problem("deleted", "Job deleted", "the job was deleted", 410));
+            live.emit_done(serde_json::to_value(job.with_hrefs()).unwrap_or(Value::Null));
+            return;
         }
-        job.finished_at = Some(Utc::now());
-        let mut artifacts = Vec::new();
-        match outcome {
-            Ok(out) => {
-                job.status = JobStatus::Succeeded;
-                job.result = Some(out.result);
-                job.progress.fraction = 1.0;
-                job.progress.stage = "done".into();
-                artifacts = out.artifacts;
-            }
-            Err(SimError::Cancelled) if live.stop_reason() == Some(StopReason::TimedOut) => {
-                job.status = JobStatus::Failed;
-                job.error = Some(problem(
-                    "timeout",
-                    "Job time limit exceeded",
-                    &format!("the job ran longer than {} s", self.inner.config.job_timeout.as_secs()),
-                ));
-            }
-            Err(SimError::Cancelled) => {
-                job.status = JobStatus::Cancelled;
-                job.error = Some(problem("cancelled", "Job cancelled", "the job was cancelled on request"));
+        let artifacts = settle(&mut job, outcome, live.stop_reason(), self.inner.config.job_timeout.as_secs());
+        let stored = job.clone();
+        let finished = match self.blocking(move |s| s.finish(&stored, &artifacts)).await {
+            Ok(()) => {
+                let id = job.id.clone();
+                match self.blocking(move |s| s.get(&id)).await {
+                    Ok(Some(j)) => j,
+                    _ => job,
+                }
             }
             Err(e) => {
+                tracing::error!(job = %job.id, error = %e, "could not record how a job ended");
                 job.status = JobStatus::Failed;
-                let mut p = problem("job-failed", "Job failed", &e.to_string());
-                if let SimError::Invalid { field, message } = &e {
-                    p["errors"] = json!([{ "field": field, "message": message }]);
+                job.result = None;
+                job.error = Some(problem("store-failed", "Job not recorded", STORE_FAILED, 500));
+                let stored = job.clone();
+                if let Err(e) = self.blocking(move |s| s.finish(&stored, &[])).await {
+                    tracing::error!(job = %job.id, error = %e, "could not record the failure either");
                 }
-                job.error = Some(p);
+                job
             }
-        }
-        job.progress.message = job.status.as_str().to_string();
-        let stored = job.clone();
-        self.blocking(move |s| s.finish(&stored, &artifacts)).await?;
+        };
         if seconds > 0.0 {
-            self.inner.metrics.observe_duration(&job.kind, job.status, seconds);
+            self.inner.metrics.observe_duration(&finished.kind, finished.status, seconds);
         }
-        let id = job.id.clone();
-        let finished = self.blocking(move |s| s.get(&id)).await?.map(Job::with_hrefs).unwrap_or(job);
+        tracing::info!(job = %finished.id, kind = %finished.kind, status = finished.status.as_str(), seconds, "job ended");
+        let finished = finished.with_hrefs();
         live.emit_status(finished.status);
         live.emit_done(serde_json::to_value(&finished).unwrap_or(Value::Null));
         self.forget(&finished.id);
-        tracing::info!(job = %finished.id, kind = %finished.kind, status = finished.status.as_str(), seconds, "job ended");
-        Ok(())
     }
 
     /// Drop the in-memory state of a job that has ended.
     fn forget(&self, id: &str) {
         self.inner.live.lock().remove(id);
-        self.inner.queue.lock().retain(|q| q != id);
+        self.dequeue(id);
     }
 }
 
-/// An RFC 9457 problem object for a job's `error`.
-pub fn problem(kind: &str, title: &str, detail: &str) -> Value {
-    json!({ "type": format!("{PROBLEM_BASE}/{kind}"), "title": title, "status": 422, "detail": detail })
+const STORE_FAILED: &str = "the job store failed; the server's log has the details";
+
+/// Fill in the job's final status, result and error; returns the artifacts to store.
+fn settle(
+    job: &mut Job,
+    outcome: Result<JobOutput, SimError>,
+    stop: Option<StopReason>,
+    timeout_s: u64,
+) -> Vec<Artifact> {
+    job.finished_at = Some(Utc::now());
+    let mut artifacts = Vec::new();
+    match outcome {
+        Ok(out) => {
+            job.status = JobStatus::Succeeded;
+            job.result = Some(out.result);
+            job.progress.fraction = 1.0;
+            job.progress.stage = "done".into();
+            artifacts = out.artifacts;
+        }
+        Err(SimError::Cancelled) if stop == Some(StopReason::TimedOut) => {
+            job.status = JobStatus::Failed;
+            let detail = format!("the job ran longer than {timeout_s} s");
+            job.error = Some(problem("timeout", "Job time limit exceeded", &detail, 504));
+        }
+        Err(SimError::Cancelled) => {
+            job.status = JobStatus::Cancelled;
+            job.error = Some(problem("cancelled", "Job cancelled", "the job was cancelled on request", 409));
+        }
+        Err(e) => {
+            job.status = JobStatus::Failed;
+            let mut p = problem("job-failed", "Job failed", &e.to_string(), 422);
+            if let SimError::Invalid { field, message } = &e {
+                p["errors"] = json!([{ "field": field, "message": message }]);
+            }
+            job.error = Some(p);
+        }
+    }
+    job.progress.message = job.status.as_str().to_string();
+    artifacts
 }

@@ -3,39 +3,46 @@
 use std::sync::Arc;
 
 use crate::export::read_heightfield_npy;
-use crate::store::JobStore;
+use crate::store::{JobStore, StoreError};
 use crate::terrain::{Heightfield, TerrainLookup};
 
-use super::JobStatus;
+use super::{Job, JobStatus};
 
 /// The artifact holding a heightfield job's exact heights.
 pub const HEIGHTFIELD_ARTIFACT: &str = "heightfield.npy";
 
 pub struct StoreTerrain(pub Arc<dyn JobStore>);
 
+/// Store failures are logged; the job or the client hears only that the store failed.
+fn store_failed(e: StoreError) -> String {
+    tracing::error!(error = %e, "store failure while reading an earlier job's terrain");
+    "the job store failed; the server's log has the details".to_string()
+}
+
 impl StoreTerrain {
-    /// Why the job can't serve as terrain, or None when it can.
-    pub fn unusable_reason(&self, job_id: &str) -> Result<Option<String>, String> {
-        let job = self.0.get(job_id).map_err(|e| e.to_string())?;
-        Ok(match job {
-            None => Some(format!("no job with id {job_id}")),
+    /// The job, when it can serve as terrain; otherwise why not.
+    fn usable(&self, job_id: &str) -> Result<Result<Job, String>, String> {
+        Ok(match self.0.get(job_id).map_err(store_failed)? {
+            None => Err(format!("no job with id {job_id}")),
             Some(j) if j.status != JobStatus::Succeeded => {
-                Some(format!("job {job_id} has not succeeded (it is {})", j.status.as_str()))
+                Err(format!("job {job_id} has not succeeded (it is {})", j.status.as_str()))
             }
             Some(j) if !j.artifacts.iter().any(|a| a.name == HEIGHTFIELD_ARTIFACT) => {
-                Some(format!("job {job_id} ({}) produced no heightfield", j.kind))
+                Err(format!("job {job_id} ({}) produced no heightfield", j.kind))
             }
-            Some(_) => None,
+            Some(j) => Ok(j),
         })
+    }
+
+    /// Why the job can't serve as terrain, or None when it can.
+    pub fn unusable_reason(&self, job_id: &str) -> Result<Option<String>, String> {
+        Ok(self.usable(job_id)?.err())
     }
 }
 
 impl TerrainLookup for StoreTerrain {
     fn job_heightfield(&self, job_id: &str) -> Result<Heightfield, String> {
-        if let Some(reason) = self.unusable_reason(job_id)? {
-            return Err(reason);
-        }
-        let job = self.0.get(job_id).map_err(|e| e.to_string())?.ok_or("job vanished")?;
+        let job = self.usable(job_id)??;
         let cell_size = job
             .result
             .as_ref()
@@ -45,12 +52,12 @@ impl TerrainLookup for StoreTerrain {
         let (_, bytes) = self
             .0
             .artifact(job_id, HEIGHTFIELD_ARTIFACT)
-            .map_err(|e| e.to_string())?
+            .map_err(store_failed)?
             .ok_or_else(|| format!("job {job_id} has no {HEIGHTFIELD_ARTIFACT}"))?;
         read_heightfield_npy(&bytes, cell_size as f32)
     }
 
     fn has_heightfield(&self, job_id: &str) -> Result<bool, String> {
-        Ok(self.unusable_reason(job_id)?.is_none())
+        Ok(self.usable(job_id)?.is_ok())
     }
 }

@@ -14,7 +14,8 @@ pub enum StoreError {
     Corrupt(String),
 }
 
-/// Which jobs `list` returns: newest first, ids strictly below `before_id` when set.
+/// Which jobs `list` returns: newest first, ids strictly below `before_id` when set; a
+/// `limit` of 0 means no limit.
 #[derive(Clone, Debug, Default)]
 pub struct ListFilter {
     pub kind: Option<String>,
@@ -51,6 +52,8 @@ pub trait JobStore: Send + Sync + 'static {
     fn delete(&self, id: &str) -> Result<bool, StoreError>;
     /// Jobs queued or running (oldest first): to run again after a restart.
     fn unfinished(&self) -> Result<Vec<Job>, StoreError>;
+    /// How many times the job has entered `running` (0 if it never ran); None if there is none.
+    fn attempts(&self, id: &str) -> Result<Option<u32>, StoreError>;
     /// Number of jobs per (kind, status).
     fn counts(&self) -> Result<Vec<(String, JobStatus, u64)>, StoreError>;
 }

@@ -114,7 +114,7 @@ impl SqliteStore {
 
     /// How many times the job has entered `running` (0 if it never ran); `None` if there is
     /// no such job.
-    pub fn attempts(&self, id: &str) -> Result<Option<u32>, StoreError> {
+    fn attempts_count(&self, id: &str) -> Result<Option<u32>, StoreError> {
         let conn = self.reader();
         let attempts: Option<i64> =
             conn.query_row("SELECT attempts FROM jobs WHERE id = ?1", [id], |r| r.get(0)).optional().map_err(db)?;
@@ -454,6 +454,10 @@ fn describe(artifacts: &[Artifact]) -> Result<Vec<ArtifactMeta>, StoreError> {
 }
 
 impl JobStore for SqliteStore {
+    fn attempts(&self, id: &str) -> Result<Option<u32>, StoreError> {
+        self.attempts_count(id)
+    }
+
     fn insert(&self, job: &Job, idempotency: Option<(&str, &str)>) -> Result<IdempotentInsert, StoreError> {
         let row = JobRow::encode(job)?;
         let mut conn = self.writer.lock();

@@ -162,6 +162,21 @@ impl TerrainSource {
     }
 }
 
+/// Largest `cell_size`, metres: a 4097-sample side then spans 41 km.
+const MAX_CELL_SIZE_M: f32 = 10_000.0;
+/// Largest fractal `relief`, metres.
+const MAX_RELIEF_M: f32 = 100_000.0;
+/// Largest magnitude of a heightmap's `z_min` and `z_max`, metres.
+const MAX_HEIGHTMAP_Z_M: f32 = 1e6;
+
+/// Refuse a finite value above `max_m`: such inputs pass the finite checks but overflow to
+/// non-finite geometry downstream.
+fn at_most(v: &mut Validator, leaf: &str, value: f32, max_m: f32) {
+    if value.is_finite() && value > max_m {
+        v.error(leaf, format!("must be at most {max_m} m (got {value})"));
+    }
+}
+
 impl Validate for TerrainSource {
     fn validate(&self, v: &mut Validator, limits: &Limits) {
         match self {
@@ -175,7 +190,9 @@ impl Validate for TerrainSource {
                     );
                 }
                 v.positive("cell_size", p.cell_size as f64);
+                at_most(v, "cell_size", p.cell_size, MAX_CELL_SIZE_M);
                 v.non_negative("relief", p.relief as f64);
+                at_most(v, "relief", p.relief, MAX_RELIEF_M);
                 if !(1..=16).contains(&p.octaves) {
                     v.error("octaves", "must be between 1 and 16");
                 }
@@ -186,7 +203,11 @@ impl Validate for TerrainSource {
             }),
             TerrainSource::Heightmap(u) => v.field("heightmap", |v| {
                 v.positive("cell_size", u.cell_size as f64);
-                if v.finite("z_min", u.z_min as f64) && v.finite("z_max", u.z_max as f64) && u.z_max < u.z_min {
+                at_most(v, "cell_size", u.cell_size, MAX_CELL_SIZE_M);
+                let max_z = MAX_HEIGHTMAP_Z_M as f64;
+                v.in_range("z_min", u.z_min as f64, -max_z, max_z);
+                v.in_range("z_max", u.z_max as f64, -max_z, max_z);
+                if u.z_min.is_finite() && u.z_max.is_finite() && u.z_max < u.z_min {
                     v.error("z_max", "must not be below z_min");
                 }
                 match super::heightmap_png::png_dimensions(&u.png_base64) {
@@ -205,5 +226,61 @@ impl Validate for TerrainSource {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use base64::Engine;
+    use serde_json::json;
+
+    use super::*;
+
+    /// A 2 × 2 8-bit grayscale PNG, base64-encoded.
+    fn tiny_png() -> String {
+        let mut out = Vec::new();
+        {
+            let mut encoder = png::Encoder::new(&mut out, 2, 2);
+            encoder.set_color(png::ColorType::Grayscale);
+            encoder.set_depth(png::BitDepth::Eight);
+            encoder.write_header().unwrap().write_image_data(&[0, 64, 128, 255]).unwrap();
+        }
+        base64::engine::general_purpose::STANDARD.encode(out)
+    }
+
+    fn errors(source: serde_json::Value) -> Vec<(String, String)> {
+        let source: TerrainSource = serde_json::from_value(source).expect("parses");
+        let mut v = Validator::new();
+        source.validate(&mut v, &Limits::default());
+        v.errors.into_iter().map(|e| (e.field, e.message)).collect()
+    }
+
+    fn fields(source: serde_json::Value) -> Vec<String> {
+        errors(source).into_iter().map(|(field, _)| field).collect()
+    }
+
+    #[test]
+    fn fractal_sizes_that_would_overflow_the_geometry_are_refused() {
+        let fractal =
+            |cell_size: f32, relief: f32| json!({"fractal": {"size": 33, "cell_size": cell_size, "relief": relief}});
+        assert_eq!(fields(fractal(10_000.0, 100_000.0)), Vec::<String>::new());
+        assert_eq!(
+            errors(fractal(1e38, 120.0)),
+            vec![("fractal.cell_size".to_string(), format!("must be at most 10000 m (got {})", 1e38f32))]
+        );
+        assert_eq!(fields(fractal(10_001.0, 1e38)), vec!["fractal.cell_size", "fractal.relief"]);
+        // Below zero is one error, not two.
+        assert_eq!(errors(fractal(-1e38, 1.0)).len(), 1);
+    }
+
+    #[test]
+    fn heightmap_sizes_that_would_overflow_the_geometry_are_refused() {
+        let heightmap = |cell_size: f32, z_min: f32, z_max: f32| json!({"heightmap": {"png_base64": tiny_png(), "cell_size": cell_size, "z_min": z_min, "z_max": z_max}});
+        assert_eq!(fields(heightmap(10_000.0, -1e6, 1e6)), Vec::<String>::new());
+        assert_eq!(fields(heightmap(2e4, 0.0, 10.0)), vec!["heightmap.cell_size"]);
+        assert_eq!(fields(heightmap(1.0, -3e38, 3e38)), vec!["heightmap.z_min", "heightmap.z_max"]);
+        assert_eq!(fields(heightmap(1.0, 0.0, 2e6)), vec!["heightmap.z_max"]);
+        let (_, message) = &errors(heightmap(1.0, -2e6, 0.0))[0];
+        assert!(message.contains("between -1000000 and 1000000"), "{message}");
     }
 }

@@ -3,6 +3,7 @@ use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 
 use crate::http::{AppState, Problem};
+use crate::jobs::Job;
 
 #[utoipa::path(
     get, path = "/v1/jobs/{id}/artifacts/{name}", tag = "jobs",
@@ -23,16 +24,24 @@ pub async fn get_artifact(
     headers: HeaderMap,
 ) -> Result<Response, Problem> {
     let job = state.engine.get(&id).await?;
-    let meta = job
-        .artifacts
-        .iter()
-        .find(|a| a.name == name)
-        .ok_or_else(|| Problem::not_found(format!("job {id} has no artifact named {name}")))?;
-    serve_immutable(&state, &id, &meta.name, &meta.sha256, &headers).await
+    serve_artifact(&state, &job, &name, &headers)
+        .await
+        .unwrap_or_else(|| Err(Problem::not_found(format!("job {id} has no artifact named {name}"))))
 }
 
-/// Artifact bytes with their sha256 as ETag, cached for ever, 304 on a matching If-None-Match.
-pub(super) async fn serve_immutable(
+/// A job's artifact with its sha256 as ETag, cached for ever, 304 on a matching If-None-Match;
+/// None when the job has no artifact of that name.
+pub(super) async fn serve_artifact(
+    state: &AppState,
+    job: &Job,
+    name: &str,
+    headers: &HeaderMap,
+) -> Option<Result<Response, Problem>> {
+    let meta = job.artifacts.iter().find(|a| a.name == name)?;
+    Some(serve_immutable(state, &job.id, name, &meta.sha256, headers).await)
+}
+
+async fn serve_immutable(
     state: &AppState,
     id: &str,
     name: &str,

@@ -34,9 +34,10 @@ pub struct EventsQuery {
 pub async fn job_events(
     State(state): State<AppState>,
     Path(id): Path<String>,
-    Query(q): Query<EventsQuery>,
+    query: Result<Query<EventsQuery>, axum::extract::rejection::QueryRejection>,
     headers: HeaderMap,
 ) -> Result<Response, Problem> {
+    let Query(q) = query.map_err(|_| Problem::field("last_event_id", "must be an event id (an unsigned integer)"))?;
     let last = headers
         .get("last-event-id")
         .and_then(|v| v.to_str().ok())
@@ -46,7 +47,8 @@ pub async fn job_events(
     Ok(match state.engine.events(&id, last).await? {
         EventFeed::Ended(job) => {
             let data = serde_json::to_string(&job).unwrap_or_default();
-            let done = Event::default().event("done").id(last.map_or(1, |l| l + 1).to_string()).data(data);
+            let done =
+                Event::default().event("done").id(last.map_or(1, |l| l.saturating_add(1)).to_string()).data(data);
             Sse::new(stream::iter([Ok::<_, Infallible>(done)])).keep_alive(keep_alive).into_response()
         }
         EventFeed::Live { backlog, rx, live } => {
@@ -77,10 +79,12 @@ fn live_stream(
                 return None;
             }
             if let Some(ev) = f.pending.pop_front() {
-                if ev.id <= f.last_id {
+                // `done` always goes out: a client resuming with an id from before a restart
+                // must still see the job end.
+                if ev.id <= f.last_id && ev.event != "done" {
                     continue;
                 }
-                f.last_id = ev.id;
+                f.last_id = f.last_id.max(ev.id);
                 f.ended = ev.event == "done";
                 return Some((ev, f));
             }

@@ -18,7 +18,8 @@ pub struct ListQuery {
     /// Only jobs in this status.
     status: Option<String>,
     /// Page size, 1 to 100 (default 20).
-    limit: Option<u32>,
+    #[param(value_type = Option<u32>)]
+    limit: Option<String>,
     /// `next_cursor` of the previous page.
     cursor: Option<String>,
 }
@@ -43,7 +44,8 @@ pub async fn list_jobs(
     State(state): State<AppState>,
     query: Result<Query<ListQuery>, axum::extract::rejection::QueryRejection>,
 ) -> Result<Json<JobPage>, Problem> {
-    let Query(q) = query.map_err(|e| Problem::field("", e.body_text()))?;
+    // Every parameter is read as text, so a bad one is reported by its own name.
+    let Query(q) = query.map_err(|e| Problem::bad_request(e.body_text()))?;
     let status =
         match q.status.as_deref() {
             None | Some("") => None,
@@ -56,10 +58,14 @@ pub async fn list_jobs(
             return Err(Problem::field("kind", format!("must be one of {}", state.engine.kind_names().join(", "))));
         }
     }
-    let limit = q.limit.unwrap_or(DEFAULT_LIMIT);
-    if !(1..=MAX_LIMIT).contains(&limit) {
-        return Err(Problem::field("limit", format!("must be between 1 and {MAX_LIMIT}")));
-    }
+    let limit = match q.limit.as_deref() {
+        None | Some("") => DEFAULT_LIMIT,
+        Some(s) => s
+            .parse()
+            .ok()
+            .filter(|n| (1..=MAX_LIMIT).contains(n))
+            .ok_or_else(|| Problem::field("limit", format!("must be a whole number between 1 and {MAX_LIMIT}")))?,
+    };
     if let Some(c) = q.cursor.as_deref() {
         if uuid::Uuid::parse_str(c).is_err() {
             return Err(Problem::field("cursor", "is not a cursor this server gave"));

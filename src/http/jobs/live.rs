@@ -21,8 +21,7 @@ pub async fn live_png(
         return Ok(([(header::CONTENT_TYPE, "image/png"), (header::CACHE_CONTROL, "no-store")], png).into_response());
     }
     let job = state.engine.get(&id).await?;
-    match job.artifacts.iter().find(|a| a.name == "preview.png") {
-        Some(meta) => super::artifacts::serve_immutable(&state, &id, &meta.name, &meta.sha256, &headers).await,
-        None => Err(Problem::not_found(format!("job {id} has no picture yet (it is {})", job.status.as_str()))),
-    }
+    super::artifacts::serve_artifact(&state, &job, "preview.png", &headers).await.unwrap_or_else(|| {
+        Err(Problem::not_found(format!("job {id} has no picture yet (it is {})", job.status.as_str())))
+    })
 }

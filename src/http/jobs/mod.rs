@@ -32,8 +32,9 @@ pub(super) async fn accepted(
         Some(d) if !job.status.is_terminal() => state.engine.wait(&job.id, d).await?,
         _ => job.with_hrefs(),
     };
+    // 200 only for a job that has ended; one still queued or running is 202 whoever asks.
     let status =
-        if replayed || (wait.is_some() && job.status.is_terminal()) { StatusCode::OK } else { StatusCode::ACCEPTED };
+        if job.status.is_terminal() && (replayed || wait.is_some()) { StatusCode::OK } else { StatusCode::ACCEPTED };
     let location = format!("/v1/jobs/{}", job.id);
     let mut res = (status, Json(job)).into_response();
     if let Ok(v) = HeaderValue::from_str(&location) {

@@ -19,12 +19,11 @@ pub async fn get_sequence(
     headers: HeaderMap,
 ) -> Result<Response, Problem> {
     let job = state.engine.get(&id).await?;
-    let Some(meta) = job.artifacts.iter().find(|a| a.name == "sequence.json") else {
-        return Err(crate::jobs::EngineError::Conflict(format!(
+    super::artifacts::serve_artifact(&state, &job, "sequence.json", &headers).await.unwrap_or_else(|| {
+        Err(crate::jobs::EngineError::Conflict(format!(
             "job {id} has no recorded sequence (it is {})",
             job.status.as_str()
         ))
-        .into());
-    };
-    super::artifacts::serve_immutable(&state, &id, &meta.name, &meta.sha256, &headers).await
+        .into())
+    })
 }

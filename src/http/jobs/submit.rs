@@ -25,16 +25,24 @@ pub async fn submit_job(
             state.engine.kind_names().join(", ")
         )));
     }
-    let body = json_body(body)?.ok_or_else(|| Problem::bad_request("the body is empty; send the job's parameters"))?;
-    let idempotency = match headers.get("idempotency-key") {
+    let key = match headers.get("idempotency-key") {
         None => None,
         Some(v) => {
-            let key = v.to_str().ok().filter(|k| !k.is_empty() && k.len() <= MAX_KEY_LEN).ok_or_else(|| {
-                Problem::bad_request(format!("Idempotency-Key must be 1 to {MAX_KEY_LEN} visible ASCII characters"))
-            })?;
-            Some((format!("{kind}:{key}"), canonical_sha256(&body)))
+            Some(v.to_str().ok().filter(|k| !k.is_empty() && k.len() <= MAX_KEY_LEN).map(str::to_string).ok_or_else(
+                || Problem::bad_request(format!("Idempotency-Key must be 1 to {MAX_KEY_LEN} visible ASCII characters")),
+            )?)
         }
     };
+    // Parsing and hashing a body of many megabytes is CPU work: off the async threads.
+    let scope = kind.clone();
+    let (body, idempotency) = tokio::task::spawn_blocking(move || {
+        let body =
+            json_body(body)?.ok_or_else(|| Problem::bad_request("the body is empty; send the job's parameters"))?;
+        let idempotency = key.map(|k| (format!("{scope}:{k}"), canonical_sha256(&body)));
+        Ok::<_, Problem>((body, idempotency))
+    })
+    .await
+    .map_err(|_| crate::http::problem::internal())??;
     let wait = prefer_wait(&headers);
     match state.engine.submit(&kind, body, idempotency).await? {
         Submitted::Created(job) => super::accepted(&state, job, wait, false).await,

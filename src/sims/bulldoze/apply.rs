@@ -35,11 +35,17 @@ impl Bounds {
         Bounds { min_x: cx - r, min_z: cz - r, max_x: cx + r, max_z: cz + r }
     }
 
-    pub fn intersects(&self, o: &Bounds) -> bool {
-        self.min_x <= o.max_x && o.min_x <= self.max_x && self.min_z <= o.max_z && o.min_z <= self.max_z
+    /// The smallest rectangle holding both.
+    pub fn union(&self, o: &Bounds) -> Bounds {
+        Bounds {
+            min_x: self.min_x.min(o.min_x),
+            min_z: self.min_z.min(o.min_z),
+            max_x: self.max_x.max(o.max_x),
+            max_z: self.max_z.max(o.max_z),
+        }
     }
 
-    #[inline]
+    #[cfg(test)]
     pub fn contains(&self, x: f64, z: f64) -> bool {
         x >= self.min_x && x <= self.max_x && z >= self.min_z && z <= self.max_z
     }
@@ -124,12 +130,11 @@ fn index_range(min: f64, max: f64, cell: f64, n: usize) -> Option<(usize, usize)
     (lo <= hi).then_some((lo as usize, hi as usize))
 }
 
+/// Grid cells `((first col, last col), (first row, last row))`, inclusive.
+pub type Cells = ((usize, usize), (usize, usize));
+
 /// The grid rows and columns an operation may touch: its bounds clipped to window and grid.
-pub fn affected_cells(
-    hf: &Heightfield,
-    bounds: Bounds,
-    window: Option<&Window>,
-) -> Option<((usize, usize), (usize, usize))> {
+pub fn affected_cells(hf: &Heightfield, bounds: Bounds, window: Option<&Window>) -> Option<Cells> {
     let b = match window {
         Some(w) => bounds.clip(w),
         None => bounds,
@@ -140,10 +145,54 @@ pub fn affected_cells(
     Some((cols, rows))
 }
 
+/// A copy of a rectangle of the grid's heights: the surface a group of operations reads
+/// while they write the grid.
+pub struct Patch {
+    cells: Cells,
+    heights_m: Vec<f32>,
+}
+
+impl Patch {
+    pub fn copy(hf: &Heightfield, cells: Cells) -> Self {
+        let ((c0, c1), (r0, r1)) = cells;
+        let heights_m = (r0..=r1).flat_map(|r| &hf.heights_m[r * hf.cols + c0..=r * hf.cols + c1]).copied().collect();
+        Self { cells, heights_m }
+    }
+
+    /// Row `row`'s heights over columns `c0..=c1`, which must lie inside the patch.
+    fn span(&self, row: usize, c0: usize, c1: usize) -> &[f32] {
+        let ((p0, p1), (r0, _)) = self.cells;
+        let start = (row - r0) * (p1 - p0 + 1) + (c0 - p0);
+        &self.heights_m[start..=start + (c1 - c0)]
+    }
+}
+
 /// Combine `shape` with the surface by `operator` at every sample of its footprint inside
 /// the window. Each sample depends only on its own previous height, so the result does not
 /// depend on how rows are split among threads.
-pub fn apply(hf: &mut Heightfield, shape: &impl Footprint, operator: Operator, window: Option<&Window>) {
+pub fn apply(hf: &mut Heightfield, shape: &(impl Footprint + ?Sized), operator: Operator, window: Option<&Window>) {
+    rasterise(hf, None, shape, operator, window);
+}
+
+/// As [`apply`], but combining `shape` with the heights in `before` rather than the grid's
+/// own; `before` must hold every cell the shape may touch.
+pub fn apply_over(
+    hf: &mut Heightfield,
+    before: &Patch,
+    shape: &(impl Footprint + ?Sized),
+    operator: Operator,
+    window: Option<&Window>,
+) {
+    rasterise(hf, Some(before), shape, operator, window);
+}
+
+fn rasterise(
+    hf: &mut Heightfield,
+    before: Option<&Patch>,
+    shape: &(impl Footprint + ?Sized),
+    operator: Operator,
+    window: Option<&Window>,
+) {
     let Some(((c0, c1), (r0, r1))) = affected_cells(hf, shape.bounds(), window) else {
         return;
     };
@@ -151,9 +200,12 @@ pub fn apply(hf: &mut Heightfield, shape: &impl Footprint, operator: Operator, w
     let cell = hf.cell_size_m as f64;
     hf.heights_m[r0 * cols..(r1 + 1) * cols].par_chunks_mut(cols).enumerate().for_each(|(i, row)| {
         let z = (r0 + i) as f64 * cell;
-        for (h, c) in row[c0..=c1].iter_mut().zip(c0..) {
+        let row = &mut row[c0..=c1];
+        let from = before.map(|p| p.span(r0 + i, c0, c1));
+        for (k, (h, c)) in row.iter_mut().zip(c0..).enumerate() {
             if let Some((base, relief)) = shape.sample(c as f64 * cell, z) {
-                *h = operator.combine(*h as f64, base, relief) as f32;
+                let prior = from.map_or(*h, |from| from[k]);
+                *h = operator.combine(prior as f64, base, relief) as f32;
             }
         }
     });

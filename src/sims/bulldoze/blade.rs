@@ -3,6 +3,7 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use super::params::{metres, Sign};
 use crate::validate::{Limits, Validate, Validator};
 
 fn default_profile() -> Vec<[f32; 2]> {
@@ -45,8 +46,8 @@ pub struct Blade {
 
 impl Validate for Blade {
     fn validate(&self, v: &mut Validator, _limits: &Limits) {
-        v.positive("width_m", self.width_m as f64);
-        v.finite("offset_m", self.offset_m as f64);
+        metres(v, "width_m", self.width_m, Sign::Positive);
+        metres(v, "offset_m", self.offset_m, Sign::Any);
         if v.finite("angle_deg", self.angle_deg as f64) && self.angle_deg.abs() >= MAX_ANGLE_DEG {
             v.error(
                 "angle_deg",
@@ -62,7 +63,7 @@ impl Validate for Blade {
             let mut all_finite = true;
             for (i, [u, h]) in p.iter().enumerate() {
                 v.index(i, |v| {
-                    all_finite &= v.finite("[0]", *u as f64) & v.finite("[1]", *h as f64);
+                    all_finite &= v.finite("[0]", *u as f64) & metres(v, "[1]", *h, Sign::Any);
                 });
             }
             if !all_finite {

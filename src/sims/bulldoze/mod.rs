@@ -19,6 +19,8 @@ mod test_support;
 #[cfg(test)]
 mod tests;
 
+use std::convert::Infallible;
+
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
@@ -77,9 +79,10 @@ fn run_edit(params: &BulldozeParams, ctx: &RunContext) -> Result<Edit, SimError>
     let terrain = ctx.resolve_terrain(&params.terrain)?;
     let mut hf = at_resolution(terrain, params.resolution, ctx)?;
     let initial = hf.heights_m.clone();
-    let mut dozer = Bulldozer::new(&mut hf, params.window, params.step_count(), Some(ctx));
+    let mut dozer = Bulldozer::new(&mut hf, params.window, params.step_count(), ctx);
     let steps = dozer.operations(&params.operations)?;
     let tally = dozer.tally;
+    check_heights(&hf)?;
     let sequence = BulldozeSequence {
         terrain: params.terrain.clone(),
         resolution_m: hf.cell_size_m,
@@ -97,7 +100,7 @@ fn replay_edit(sequence: &BulldozeSequence, until_step: Option<u64>, ctx: &RunCo
     let terrain = ctx.resolve_terrain(&sequence.terrain)?;
     let mut hf = at_resolution(terrain, Some(sequence.resolution_m), ctx)?;
     let initial = hf.heights_m.clone();
-    let mut dozer = Bulldozer::new(&mut hf, sequence.window, k as u64, Some(ctx));
+    let mut dozer = Bulldozer::new(&mut hf, sequence.window, k as u64, ctx);
     for group in sequence::groups(steps) {
         match group {
             Group::Primitive(p) => dozer.primitive(p)?,
@@ -105,6 +108,7 @@ fn replay_edit(sequence: &BulldozeSequence, until_step: Option<u64>, ctx: &RunCo
         }
     }
     let tally = dozer.tally;
+    check_heights(&hf)?;
     let sequence = BulldozeSequence { steps: steps.to_vec(), ..sequence.clone() };
     Ok(Edit { initial, hf, tally, sequence })
 }
@@ -113,10 +117,25 @@ fn replay_edit(sequence: &BulldozeSequence, until_step: Option<u64>, ctx: &RunCo
 /// cancellation, and return the steps it would record.
 pub fn apply_operations(hf: &mut Heightfield, operations: &[Operation], window: Option<&Window>) -> Vec<Step> {
     let total = operations.len() as u64;
-    match Bulldozer::new(hf, window.copied(), total, None).operations(operations) {
-        Ok(steps) => steps,
-        Err(_) => unreachable!("without a run context nothing can cancel"),
-    }
+    let Ok(steps) = Bulldozer::new(hf, window.copied(), total, &Unwatched).operations(operations);
+    steps
+}
+
+/// Refuse a grid that the exports cannot represent. Validation caps every length and height,
+/// so this is a last guard: a height that overflowed is the request's doing, not a fault.
+fn check_heights(hf: &Heightfield) -> Result<(), SimError> {
+    let Some(i) = hf.heights_m.par_iter().position_first(|h| !h.is_finite()) else {
+        return Ok(());
+    };
+    let (x, z) = ((i % hf.cols) as f32 * hf.cell_size_m, (i / hf.cols) as f32 * hf.cell_size_m);
+    Err(SimError::Invalid {
+        field: "operations".to_string(),
+        message: format!(
+            "the operations drive the height at x = {x} m, z = {z} m out of range ({}); use smaller heights or \
+             fewer operations",
+            hf.heights_m[i]
+        ),
+    })
 }
 
 /// The terrain resampled to `resolution_m` (the paper's sketch mode), unless it is already
@@ -141,27 +160,62 @@ struct Tally {
     moves: u64,
 }
 
-/// The grid being edited, with progress and cancellation between steps when it runs as a job.
-struct Bulldozer<'a> {
+/// Who follows an edit between its steps: a job's run context, or nobody.
+trait Watcher {
+    /// Why the edit stopped early.
+    type Stop;
+    fn check_cancelled(&self) -> Result<(), Self::Stop>;
+    /// Progress after `step` of `total` steps, with a live snapshot of `hf` if one is given
+    /// and due; `message` is built only when someone listens.
+    fn progress(&self, step: u64, total: u64, message: impl FnOnce() -> String, hf: Option<&Heightfield>);
+}
+
+impl Watcher for RunContext<'_> {
+    type Stop = SimError;
+
+    fn check_cancelled(&self) -> Result<(), SimError> {
+        RunContext::check_cancelled(self)
+    }
+
+    fn progress(&self, step: u64, total: u64, message: impl FnOnce() -> String, hf: Option<&Heightfield>) {
+        match hf {
+            // Snapshots are rate-limited by the sink, so offering one per step is cheap.
+            Some(hf) => self.report_with_snapshot(STAGE, step, total, message(), || crate::export::snapshot_png(hf)),
+            None => self.report(STAGE, step, total, message()),
+        }
+    }
+}
+
+/// Nobody: nothing is reported, and nothing can stop the edit.
+struct Unwatched;
+
+impl Watcher for Unwatched {
+    type Stop = Infallible;
+
+    fn check_cancelled(&self) -> Result<(), Infallible> {
+        Ok(())
+    }
+
+    fn progress(&self, _step: u64, _total: u64, _message: impl FnOnce() -> String, _hf: Option<&Heightfield>) {}
+}
+
+/// The grid being edited, reporting to its watcher between steps.
+struct Bulldozer<'a, W: Watcher> {
     hf: &'a mut Heightfield,
     window: Option<Window>,
     total: u64,
     tally: Tally,
-    ctx: Option<&'a RunContext<'a>>,
+    watcher: &'a W,
 }
 
-impl<'a> Bulldozer<'a> {
-    fn new(hf: &'a mut Heightfield, window: Option<Window>, total: u64, ctx: Option<&'a RunContext<'a>>) -> Self {
-        Self { hf, window, total, tally: Tally::default(), ctx }
-    }
-
-    fn check_cancelled(&self) -> Result<(), SimError> {
-        self.ctx.map_or(Ok(()), |ctx| ctx.check_cancelled())
+impl<'a, W: Watcher> Bulldozer<'a, W> {
+    fn new(hf: &'a mut Heightfield, window: Option<Window>, total: u64, watcher: &'a W) -> Self {
+        Self { hf, window, total, tally: Tally::default(), watcher }
     }
 
     /// Apply operations in order, resolving each pass's path against the surface as the
     /// pass starts; returns the steps to record.
-    fn operations(&mut self, operations: &[Operation]) -> Result<Vec<Step>, SimError> {
+    fn operations(&mut self, operations: &[Operation]) -> Result<Vec<Step>, W::Stop> {
         let mut steps = Vec::new();
         for op in operations {
             match op {
@@ -179,46 +233,31 @@ impl<'a> Bulldozer<'a> {
         Ok(steps)
     }
 
-    fn primitive(&mut self, p: &PrimitiveOp) -> Result<(), SimError> {
-        self.check_cancelled()?;
+    fn primitive(&mut self, p: &PrimitiveOp) -> Result<(), W::Stop> {
+        self.watcher.check_cancelled()?;
         primitives::apply_shape(self.hf, &p.shape, p.operator, self.window.as_ref());
         self.tally.steps += 1;
         self.tally.primitives += 1;
-        if let Some(ctx) = self.ctx {
-            let name = primitives::shape_name(&p.shape);
-            let message = format!("{name} ({})", p.operator.name());
-            // Snapshots are rate-limited by the sink, so offering one per primitive is cheap.
-            let hf = &*self.hf;
-            ctx.report_with_snapshot(STAGE, self.tally.steps, self.total, message, || crate::export::snapshot_png(hf));
-        }
+        let message = || format!("{} ({})", primitives::shape_name(&p.shape), p.operator.name());
+        self.watcher.progress(self.tally.steps, self.total, message, Some(self.hf));
         Ok(())
     }
 
-    fn pass(&mut self, moves: &[MoveStep]) -> Result<(), SimError> {
+    fn pass(&mut self, moves: &[MoveStep]) -> Result<(), W::Stop> {
         let Some(first) = moves.first() else {
             return Ok(());
         };
         let pass = first.pass;
-        self.check_cancelled()?;
-        let (ctx, total, tally) = (self.ctx, self.total, &mut self.tally);
+        self.watcher.check_cancelled()?;
+        let (watcher, total, tally) = (self.watcher, self.total, &mut self.tally);
         path::apply_pass(self.hf, moves, self.window.as_ref(), |k| {
             tally.steps += 1;
-            match ctx {
-                Some(ctx) => {
-                    ctx.report(STAGE, tally.steps, total, format!("pass {pass}: move {} of {}", k + 1, moves.len()));
-                    ctx.check_cancelled()
-                }
-                None => Ok(()),
-            }
+            watcher.progress(tally.steps, total, || format!("pass {pass}: move {} of {}", k + 1, moves.len()), None);
+            watcher.check_cancelled()
         })?;
         self.tally.passes += 1;
         self.tally.moves += moves.len() as u64;
-        if let Some(ctx) = self.ctx {
-            let hf = &*self.hf;
-            ctx.report_with_snapshot(STAGE, self.tally.steps, total, format!("pass {pass} done"), || {
-                crate::export::snapshot_png(hf)
-            });
-        }
+        self.watcher.progress(self.tally.steps, total, || format!("pass {pass} done"), Some(self.hf));
         Ok(())
     }
 }

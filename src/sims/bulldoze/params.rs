@@ -133,6 +133,40 @@ pub struct PlanPoint {
     pub z: f32,
 }
 
+/// Largest magnitude of any length, height or coordinate in a request, metres: far beyond
+/// any real terrain, and small enough that heights summed over every operation a request
+/// may carry stay finite.
+pub const MAX_METRES: f32 = 1e6;
+
+/// The sign a value in metres must have.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Sign {
+    Any,
+    Positive,
+    NonNegative,
+}
+
+/// Check a length, height or coordinate: finite, of `sign`, and at most [`MAX_METRES`] in
+/// magnitude. Reports the first thing wrong under `leaf`; returns whether it is fine.
+pub(super) fn metres(v: &mut Validator, leaf: &str, value: f32, sign: Sign) -> bool {
+    let problem = if !value.is_finite() {
+        "must be a finite number".to_string()
+    } else if sign == Sign::Positive && value <= 0.0 {
+        format!("must be greater than 0 (got {value})")
+    } else if sign == Sign::NonNegative && value < 0.0 {
+        format!("must not be negative (got {value})")
+    } else if value.abs() > MAX_METRES {
+        match sign {
+            Sign::Any => format!("must be between -{MAX_METRES} and {MAX_METRES} m (got {value})"),
+            _ => format!("must be at most {MAX_METRES} m (got {value})"),
+        }
+    } else {
+        return true;
+    };
+    v.error(leaf, problem);
+    false
+}
+
 impl BulldozeParams {
     /// Number of recorded steps the operations make: one per primitive, one per move.
     pub fn step_count(&self) -> u64 {
@@ -177,9 +211,9 @@ impl Validate for BulldozeParams {
             v.field("window", |v| w.validate(v, limits));
         }
         if let Some(res) = self.resolution {
-            v.positive("resolution", res as f64);
+            let fine = metres(v, "resolution", res, Sign::Positive);
             let dims = self.terrain.known_dimensions().zip(self.terrain.known_cell_size());
-            if let (true, Some(((cols, rows), cell))) = (res.is_finite() && res > 0.0, dims) {
+            if let (true, Some(((cols, rows), cell))) = (fine, dims) {
                 if cell.is_finite() && cell > 0.0 {
                     let (c, r) = resampled_dimensions(cols, rows, cell, res);
                     match check_resampled(c, r, limits) {
@@ -219,7 +253,7 @@ impl Validate for Window {
     fn validate(&self, v: &mut Validator, _limits: &Limits) {
         let ok = [("min_x", self.min_x), ("min_z", self.min_z), ("max_x", self.max_x), ("max_z", self.max_z)]
             .into_iter()
-            .fold(true, |ok, (name, value)| v.finite(name, value as f64) && ok);
+            .fold(true, |ok, (name, value)| metres(v, name, value, Sign::Any) && ok);
         if ok {
             if self.max_x <= self.min_x {
                 v.error("max_x", "must be greater than min_x");
@@ -254,9 +288,9 @@ impl Validate for PassOp {
         v.field("path", |v| {
             for (i, p) in self.path.iter().enumerate() {
                 v.index(i, |v| {
-                    let finite = v.finite("x", p.x as f64) & v.finite("z", p.z as f64);
+                    let finite = metres(v, "x", p.x, Sign::Any) & metres(v, "z", p.z, Sign::Any);
                     if let Some(h) = p.height {
-                        v.finite("height", h as f64);
+                        metres(v, "height", h, Sign::Any);
                     }
                     if finite && i > 0 {
                         let prev = self.path[i - 1];
@@ -382,5 +416,51 @@ mod tests {
         assert_eq!(fields(&v), vec!["resolution"]);
         let v = validate(body(1e-30));
         assert!(v.too_large);
+    }
+
+    #[test]
+    fn lengths_heights_and_coordinates_beyond_a_million_metres_are_refused() {
+        let v = validate(json!({
+            "terrain": job_terrain(),
+            "window": {"min_x": -2e6, "min_z": 0, "max_x": 10, "max_z": 10},
+            "resolution": 2e6,
+            "operations": [
+                {"primitive": {"shape": {"mound": {
+                    "center": {"x": 1e30, "z": 0}, "radius_m": 1e38, "height_m": 3e38, "base_m": -1e7}}}},
+                {"primitive": {"shape": {"ramp": {"start": {"x": 0, "z": 0}, "length_m": 10, "width_m": 4,
+                    "end_width_m": 2e6, "start_height_m": -3e38, "end_height_m": 1}}}},
+                {"pass": {"path": [{"x": 0, "z": 1e30}, {"x": 5, "z": 0, "height": 3e38}],
+                          "blade": {"width_m": 1e7, "offset_m": -1e7, "profile": [[-1, 0], [1, 3e38]]}}}
+            ]
+        }));
+        let shape = |leaf: &str| format!("operations[0].primitive.shape.mound.{leaf}");
+        let ramp = |leaf: &str| format!("operations[1].primitive.shape.ramp.{leaf}");
+        let pass = |leaf: &str| format!("operations[2].pass.{leaf}");
+        let want = [
+            "window.min_x".to_string(),
+            "resolution".to_string(),
+            shape("center.x"),
+            shape("radius_m"),
+            shape("height_m"),
+            shape("base_m"),
+            ramp("end_width_m"),
+            ramp("start_height_m"),
+            pass("blade.width_m"),
+            pass("blade.offset_m"),
+            pass("blade.profile[1][1]"),
+            pass("path[0].z"),
+            pass("path[1].height"),
+        ];
+        assert_eq!(fields(&v), want);
+        assert!(v.errors.iter().all(|e| e.message.contains("1000000 m")), "{:?}", v.errors);
+        assert!(!v.too_large);
+
+        // A million metres itself is allowed.
+        let v = validate(json!({
+            "terrain": job_terrain(),
+            "operations": [{"primitive": {"shape": {"mound": {
+                "center": {"x": -1e6, "z": 1e6}, "radius_m": 1e6, "height_m": 1e6, "base_m": -1e6}}}}]
+        }));
+        assert!(v.is_ok(), "{:?}", v.errors);
     }
 }

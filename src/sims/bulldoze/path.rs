@@ -5,7 +5,7 @@ use std::f64::consts::{PI, TAU};
 
 use serde::{Deserialize, Serialize};
 
-use super::apply::{apply, Bounds, Footprint, Frame};
+use super::apply::{affected_cells, apply_over, Bounds, Footprint, Frame, Patch};
 use super::blade::{Blade, BladeGeometry};
 use super::combine::Operator;
 use super::params::{PassOp, PlanPoint, Window};
@@ -192,75 +192,14 @@ impl Footprint for MoveGeometry {
     }
 }
 
-/// A move restricted to the samples no later move of its pass reaches: each sample takes
-/// the result of the last move that covers it, combined with the surface as the pass found
-/// it — earlier moves leave such samples alone, so they still hold that surface.
-struct OwnedMove<'a> {
-    own: &'a MoveGeometry,
-    later: Vec<&'a MoveGeometry>,
-}
-
-impl Footprint for OwnedMove<'_> {
-    fn bounds(&self) -> Bounds {
-        self.own.bounds
-    }
-
-    #[inline]
-    fn sample(&self, x: f64, z: f64) -> Option<(f64, f64)> {
-        let hit = self.own.sample(x, z)?;
-        let covered_later = self.later.iter().any(|m| m.bounds.contains(x, z) && m.sample(x, z).is_some());
-        (!covered_later).then_some(hit)
-    }
-}
-
-/// For each box, the later boxes (higher index) it intersects, in increasing order.
-fn later_overlaps(bounds: &[Bounds]) -> Vec<Vec<usize>> {
-    let n = bounds.len();
-    if n <= 64 {
-        return (0..n).map(|k| ((k + 1)..n).filter(|&j| bounds[k].intersects(&bounds[j])).collect()).collect();
-    }
-    // A uniform bucket grid sized to a typical box keeps this near-linear for long paths.
-    let all = Bounds::around(bounds.iter().flat_map(|b| [(b.min_x, b.min_z), (b.max_x, b.max_z)]));
-    let mut sizes: Vec<f64> = bounds.iter().map(|b| (b.max_x - b.min_x).max(b.max_z - b.min_z)).collect();
-    sizes.sort_by(f64::total_cmp);
-    let extent = (all.max_x - all.min_x).max(all.max_z - all.min_z);
-    let bucket = sizes[n / 2].max(extent / 512.0).max(1e-6);
-    let nx = ((all.max_x - all.min_x) / bucket) as usize + 1;
-    let nz = ((all.max_z - all.min_z) / bucket) as usize + 1;
-    let cell_range = |b: &Bounds| {
-        let ix = |x: f64| (((x - all.min_x) / bucket) as usize).min(nx - 1);
-        let iz = |z: f64| (((z - all.min_z) / bucket) as usize).min(nz - 1);
-        (ix(b.min_x)..=ix(b.max_x), iz(b.min_z)..=iz(b.max_z))
-    };
-    let mut buckets: Vec<Vec<usize>> = vec![Vec::new(); nx * nz];
-    for (k, b) in bounds.iter().enumerate() {
-        let (xs, zs) = cell_range(b);
-        for iz in zs {
-            for ix in xs.clone() {
-                buckets[iz * nx + ix].push(k);
-            }
-        }
-    }
-    bounds
-        .iter()
-        .enumerate()
-        .map(|(k, b)| {
-            let (xs, zs) = cell_range(b);
-            let mut found = Vec::new();
-            for iz in zs {
-                for ix in xs.clone() {
-                    found.extend(buckets[iz * nx + ix].iter().copied().filter(|&j| j > k && b.intersects(&bounds[j])));
-                }
-            }
-            found.sort_unstable();
-            found.dedup();
-            found
-        })
-        .collect()
-}
-
 /// Apply the moves of one pass (all of it, or its first moves), calling `after_move` with
 /// each move's index once it is done; stops at the first error `after_move` returns.
+///
+/// Every move combines its shape with the surface as the pass found it (paper §2.4), kept
+/// in a copy of the region the pass can reach, and writes the grid; where moves overlap the
+/// later one's result overwrites the earlier's. So each sample ends as the last move that
+/// covers it made it, and the grid after move k is the grid a pass cut short after move k
+/// leaves.
 pub fn apply_pass<E>(
     hf: &mut Heightfield,
     moves: &[MoveStep],
@@ -268,11 +207,14 @@ pub fn apply_pass<E>(
     mut after_move: impl FnMut(usize) -> Result<(), E>,
 ) -> Result<(), E> {
     let geometry: Vec<MoveGeometry> = moves.iter().map(MoveGeometry::new).collect();
-    let bounds: Vec<Bounds> = geometry.iter().map(|g| g.bounds).collect();
-    let later = later_overlaps(&bounds);
-    for (k, step) in moves.iter().enumerate() {
-        let owned = OwnedMove { own: &geometry[k], later: later[k].iter().map(|&j| &geometry[j]).collect() };
-        apply(hf, &owned, step.operator, window);
+    let reach = geometry.iter().map(|g| g.bounds).reduce(|a, b| a.union(&b));
+    let Some(cells) = reach.and_then(|reach| affected_cells(hf, reach, window)) else {
+        // Nothing of the grid in reach: every move leaves it as it is.
+        return (0..moves.len()).try_for_each(after_move);
+    };
+    let pass_start = Patch::copy(hf, cells);
+    for (k, (step, g)) in moves.iter().zip(&geometry).enumerate() {
+        apply_over(hf, &pass_start, g, step.operator, window);
         after_move(k)?;
     }
     Ok(())
@@ -458,23 +400,72 @@ mod tests {
         assert!(changed(40, 34) && !changed(40, 35) && changed(40, 26) && !changed(40, 25));
     }
 
-    fn boxes(n: usize) -> Vec<Bounds> {
-        // A spiral of small boxes: neighbours overlap, and so do boxes on adjacent turns.
-        (0..n)
-            .map(|i| {
-                let a = i as f64 * 0.2;
-                let r = 5.0 + 0.5 * a;
-                Bounds::square(r * a.cos(), r * a.sin(), 2.0)
+    /// The pass as §2.4 states it, sample by sample: each move in turn writes its
+    /// combination with the pass-start surface over its bounds.
+    fn naive_pass(start: &Heightfield, moves: &[MoveStep], window: Option<&Window>) -> Heightfield {
+        let mut out = start.clone();
+        let cell = start.cell_size_m as f64;
+        let in_window = |x: f64, z: f64| {
+            window.is_none_or(|w| {
+                x >= w.min_x as f64 && x <= w.max_x as f64 && z >= w.min_z as f64 && z <= w.max_z as f64
             })
-            .collect()
+        };
+        for step in moves {
+            let g = MoveGeometry::new(step);
+            for row in 0..start.rows {
+                for col in 0..start.cols {
+                    let (x, z) = (col as f64 * cell, row as f64 * cell);
+                    if !in_window(x, z) || !g.bounds.contains(x, z) {
+                        continue;
+                    }
+                    if let Some((base, relief)) = g.sample(x, z) {
+                        let h = step.operator.combine(start.get(col, row) as f64, base, relief);
+                        out.heights_m[row * start.cols + col] = h as f32;
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// A path `n` vertices long running back and forth between x = 8 and x = 32 around z = 20.
+    fn zig_zag(n: usize, height: Option<f32>) -> Vec<PathVertex> {
+        (0..n).map(|i| vertex(if i % 2 == 0 { 8.0 } else { 32.0 }, 19.0 + (i % 3) as f32, height)).collect()
     }
 
     #[test]
-    fn bucketed_overlaps_match_brute_force() {
-        let b = boxes(300);
-        let brute: Vec<Vec<usize>> =
-            (0..b.len()).map(|k| ((k + 1)..b.len()).filter(|&j| b[k].intersects(&b[j])).collect()).collect();
-        assert_eq!(later_overlaps(&b), brute);
-        assert!(brute.iter().enumerate().any(|(k, l)| l.iter().any(|&j| j > k + 5)), "turns overlap");
+    fn a_zig_zag_pass_matches_the_move_by_move_reference() {
+        let start = Heightfield::from_fn(41, 41, 1.0, |x, z| 3.0 + 2.0 * (x * 0.2).sin() + 0.1 * z);
+        let mut b = blade(7.0, &[[-1.0, 0.5], [-0.3, -1.5], [0.4, -1.0], [1.0, 0.8]]);
+        b.offset_m = 0.7;
+        b.angle_deg = 15.0;
+        let window = Window { min_x: 5.0, min_z: 12.0, max_x: 30.5, max_z: 40.0 };
+        for operator in [Operator::Replace, Operator::Add, Operator::Average, Operator::Max] {
+            for window in [None, Some(&window)] {
+                let moves = resolve_pass(&start, 0, &PassOp { path: zig_zag(9, None), blade: b.clone(), operator });
+                let mut hf = start.clone();
+                apply_pass(&mut hf, &moves, window, |_| Ok::<(), ()>(())).unwrap();
+                let want = naive_pass(&start, &moves, window);
+                let bits = |hf: &Heightfield| hf.heights_m.iter().map(|h| h.to_bits()).collect::<Vec<_>>();
+                assert!(bits(&hf) == bits(&want), "{operator:?}, window {window:?}");
+                assert!(hf != start, "{operator:?}, window {window:?}: the pass changes the terrain");
+            }
+        }
+    }
+
+    #[test]
+    fn a_long_zig_zag_over_one_spot_cuts_each_sample_once() {
+        // 20 000 moves over the same few hundred samples: each overlaps all the others.
+        let start = Heightfield::flat(41, 41, 1.0, 5.0);
+        let mut hf = start.clone();
+        let cut = blade(6.0, &[[-1.0, -1.0], [1.0, -1.0]]);
+        let moves = bulldoze(&mut hf, zig_zag(20_001, Some(5.0)), cut, Operator::Add);
+        assert_eq!(moves.len(), 20_000);
+        let mut cut_samples = 0;
+        for (a, b) in start.heights_m.iter().zip(&hf.heights_m) {
+            assert!(b == a || b - a == -1.0, "changed by {}", b - a);
+            cut_samples += (b != a) as usize;
+        }
+        assert!(cut_samples > 200, "{cut_samples}");
     }
 }

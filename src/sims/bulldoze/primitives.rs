@@ -8,7 +8,7 @@ use utoipa::ToSchema;
 
 use super::apply::{apply, Bounds, Footprint, Frame};
 use super::combine::Operator;
-use super::params::{PlanPoint, Window};
+use super::params::{metres, PlanPoint, Sign, Window};
 use crate::terrain::Heightfield;
 use crate::validate::{Limits, Validate, Validator};
 
@@ -241,10 +241,10 @@ pub struct Ramp {
     pub base_m: f32,
 }
 
-fn finite_point(v: &mut Validator, name: &str, p: &PlanPoint) {
+fn plan_point(v: &mut Validator, name: &str, p: &PlanPoint) {
     v.field(name, |v| {
-        v.finite("x", p.x as f64);
-        v.finite("z", p.z as f64);
+        metres(v, "x", p.x, Sign::Any);
+        metres(v, "z", p.z, Sign::Any);
     });
 }
 
@@ -252,57 +252,57 @@ impl Validate for Shape {
     fn validate(&self, v: &mut Validator, _limits: &Limits) {
         match self {
             Shape::Mound(m) => v.field("mound", |v| {
-                finite_point(v, "center", &m.center);
-                v.positive("radius_m", m.radius_m as f64);
-                v.positive("height_m", m.height_m as f64);
+                plan_point(v, "center", &m.center);
+                metres(v, "radius_m", m.radius_m, Sign::Positive);
+                metres(v, "height_m", m.height_m, Sign::Positive);
                 v.positive("curvature", m.curvature as f64);
-                v.finite("base_m", m.base_m as f64);
+                metres(v, "base_m", m.base_m, Sign::Any);
             }),
             Shape::Berm(b) => v.field("berm", |v| b.validate(v)),
             Shape::Swale(b) => v.field("swale", |v| b.validate(v)),
             Shape::Torus(t) => v.field("torus", |v| {
-                finite_point(v, "center", &t.center);
-                v.positive("major_radius_m", t.major_radius_m as f64);
-                v.positive("minor_radius_m", t.minor_radius_m as f64);
-                v.positive("height_m", t.height_m as f64);
-                v.finite("base_m", t.base_m as f64);
+                plan_point(v, "center", &t.center);
+                metres(v, "major_radius_m", t.major_radius_m, Sign::Positive);
+                metres(v, "minor_radius_m", t.minor_radius_m, Sign::Positive);
+                metres(v, "height_m", t.height_m, Sign::Positive);
+                metres(v, "base_m", t.base_m, Sign::Any);
             }),
             Shape::Box(b) => v.field("box", |v| {
-                finite_point(v, "center", &b.center);
-                v.positive("size_x_m", b.size_x_m as f64);
-                v.positive("size_z_m", b.size_z_m as f64);
-                v.positive("height_m", b.height_m as f64);
+                plan_point(v, "center", &b.center);
+                metres(v, "size_x_m", b.size_x_m, Sign::Positive);
+                metres(v, "size_z_m", b.size_z_m, Sign::Positive);
+                metres(v, "height_m", b.height_m, Sign::Positive);
                 v.finite("rotation_deg", b.rotation_deg as f64);
-                v.finite("base_m", b.base_m as f64);
+                metres(v, "base_m", b.base_m, Sign::Any);
             }),
             Shape::Cone(c) => v.field("cone", |v| {
-                finite_point(v, "center", &c.center);
-                v.positive("radius_m", c.radius_m as f64);
-                v.positive("height_m", c.height_m as f64);
-                v.non_negative("top_radius_m", c.top_radius_m as f64);
+                plan_point(v, "center", &c.center);
+                metres(v, "radius_m", c.radius_m, Sign::Positive);
+                metres(v, "height_m", c.height_m, Sign::Positive);
+                metres(v, "top_radius_m", c.top_radius_m, Sign::NonNegative);
                 if c.top_radius_m >= c.radius_m && c.radius_m > 0.0 {
                     v.error("top_radius_m", "must be smaller than radius_m");
                 }
-                v.finite("base_m", c.base_m as f64);
+                metres(v, "base_m", c.base_m, Sign::Any);
             }),
             Shape::HalfCylinder(h) => v.field("half_cylinder", |v| {
-                finite_point(v, "start", &h.start);
+                plan_point(v, "start", &h.start);
                 v.finite("direction_deg", h.direction_deg as f64);
-                v.positive("length_m", h.length_m as f64);
-                v.positive("radius_m", h.radius_m as f64);
-                v.finite("base_m", h.base_m as f64);
+                metres(v, "length_m", h.length_m, Sign::Positive);
+                metres(v, "radius_m", h.radius_m, Sign::Positive);
+                metres(v, "base_m", h.base_m, Sign::Any);
             }),
             Shape::Ramp(r) => v.field("ramp", |v| {
-                finite_point(v, "start", &r.start);
+                plan_point(v, "start", &r.start);
                 v.finite("direction_deg", r.direction_deg as f64);
-                v.positive("length_m", r.length_m as f64);
-                v.positive("width_m", r.width_m as f64);
+                metres(v, "length_m", r.length_m, Sign::Positive);
+                metres(v, "width_m", r.width_m, Sign::Positive);
                 if let Some(w) = r.end_width_m {
-                    v.positive("end_width_m", w as f64);
+                    metres(v, "end_width_m", w, Sign::Positive);
                 }
-                v.finite("start_height_m", r.start_height_m as f64);
-                v.finite("end_height_m", r.end_height_m as f64);
-                v.finite("base_m", r.base_m as f64);
+                metres(v, "start_height_m", r.start_height_m, Sign::Any);
+                metres(v, "end_height_m", r.end_height_m, Sign::Any);
+                metres(v, "base_m", r.base_m, Sign::Any);
             }),
         }
     }
@@ -310,13 +310,13 @@ impl Validate for Shape {
 
 impl Berm {
     fn validate(&self, v: &mut Validator) {
-        finite_point(v, "start", &self.start);
+        plan_point(v, "start", &self.start);
         v.finite("direction_deg", self.direction_deg as f64);
-        v.positive("l", self.l as f64);
-        v.non_negative("h1", self.h1 as f64);
-        v.non_negative("r1", self.r1 as f64);
-        v.non_negative("h2", self.h2 as f64);
-        v.non_negative("r2", self.r2 as f64);
+        metres(v, "l", self.l, Sign::Positive);
+        metres(v, "h1", self.h1, Sign::NonNegative);
+        metres(v, "r1", self.r1, Sign::NonNegative);
+        metres(v, "h2", self.h2, Sign::NonNegative);
+        metres(v, "r2", self.r2, Sign::NonNegative);
         if self.h1 == 0.0 && self.h2 == 0.0 {
             v.error("h2", "h1 or h2 must be greater than 0");
         }
@@ -641,88 +641,128 @@ fn frame_at(p: &PlanPoint, direction_deg: f32) -> Frame {
     Frame::heading(p.x as f64, p.z as f64, (direction_deg as f64).to_radians())
 }
 
+impl From<&Mound> for MoundGeometry {
+    fn from(m: &Mound) -> Self {
+        MoundGeometry {
+            cx: m.center.x as f64,
+            cz: m.center.z as f64,
+            radius: m.radius_m as f64,
+            height: m.height_m as f64,
+            c: m.curvature as f64,
+            base: m.base_m as f64,
+        }
+    }
+}
+
+impl From<&Torus> for TorusGeometry {
+    fn from(t: &Torus) -> Self {
+        TorusGeometry {
+            cx: t.center.x as f64,
+            cz: t.center.z as f64,
+            major: t.major_radius_m as f64,
+            minor: t.minor_radius_m as f64,
+            height: t.height_m as f64,
+            base: t.base_m as f64,
+        }
+    }
+}
+
+impl From<&BoxShape> for BoxGeometry {
+    fn from(b: &BoxShape) -> Self {
+        BoxGeometry {
+            frame: frame_at(&b.center, b.rotation_deg),
+            half_x: b.size_x_m as f64 / 2.0,
+            half_z: b.size_z_m as f64 / 2.0,
+            height: b.height_m as f64,
+            base: b.base_m as f64,
+        }
+    }
+}
+
+impl From<&Cone> for ConeGeometry {
+    fn from(c: &Cone) -> Self {
+        ConeGeometry {
+            cx: c.center.x as f64,
+            cz: c.center.z as f64,
+            radius: c.radius_m as f64,
+            top: c.top_radius_m as f64,
+            height: c.height_m as f64,
+            base: c.base_m as f64,
+        }
+    }
+}
+
+impl From<&HalfCylinder> for HalfCylinderGeometry {
+    fn from(h: &HalfCylinder) -> Self {
+        HalfCylinderGeometry {
+            frame: frame_at(&h.start, h.direction_deg),
+            length: h.length_m as f64,
+            radius: h.radius_m as f64,
+            base: h.base_m as f64,
+        }
+    }
+}
+
+impl From<&Ramp> for RampGeometry {
+    fn from(r: &Ramp) -> Self {
+        RampGeometry {
+            frame: frame_at(&r.start, r.direction_deg),
+            length: r.length_m as f64,
+            w0: r.width_m as f64,
+            w1: r.end_width_m.unwrap_or(r.width_m) as f64,
+            h0: r.start_height_m as f64,
+            h1: r.end_height_m as f64,
+            base: r.base_m as f64,
+        }
+    }
+}
+
+/// Any shape's footprint, ready to rasterise.
+enum ShapeGeometry {
+    Mound(MoundGeometry),
+    /// A berm, or a swale (a berm downwards).
+    Berm(BermGeometry),
+    Torus(TorusGeometry),
+    Box(BoxGeometry),
+    Cone(ConeGeometry),
+    HalfCylinder(HalfCylinderGeometry),
+    Ramp(RampGeometry),
+}
+
+impl From<&Shape> for ShapeGeometry {
+    fn from(shape: &Shape) -> Self {
+        match shape {
+            Shape::Mound(m) => Self::Mound(m.into()),
+            Shape::Berm(b) => Self::Berm(BermGeometry::new(b, 1.0)),
+            Shape::Swale(b) => Self::Berm(BermGeometry::new(b, -1.0)),
+            Shape::Torus(t) => Self::Torus(t.into()),
+            Shape::Box(b) => Self::Box(b.into()),
+            Shape::Cone(c) => Self::Cone(c.into()),
+            Shape::HalfCylinder(h) => Self::HalfCylinder(h.into()),
+            Shape::Ramp(r) => Self::Ramp(r.into()),
+        }
+    }
+}
+
+impl ShapeGeometry {
+    /// The footprint inside, as the trait object the rasteriser calls. One dynamic call
+    /// a sample costs little beside the shape's own arithmetic.
+    fn footprint(&self) -> &dyn Footprint {
+        match self {
+            Self::Mound(g) => g,
+            Self::Berm(g) => g,
+            Self::Torus(g) => g,
+            Self::Box(g) => g,
+            Self::Cone(g) => g,
+            Self::HalfCylinder(g) => g,
+            Self::Ramp(g) => g,
+        }
+    }
+}
+
 /// Combine a primitive with the surface (one step).
 pub fn apply_shape(hf: &mut Heightfield, shape: &Shape, operator: Operator, window: Option<&Window>) {
-    match shape {
-        Shape::Mound(m) => apply(
-            hf,
-            &MoundGeometry {
-                cx: m.center.x as f64,
-                cz: m.center.z as f64,
-                radius: m.radius_m as f64,
-                height: m.height_m as f64,
-                c: m.curvature as f64,
-                base: m.base_m as f64,
-            },
-            operator,
-            window,
-        ),
-        Shape::Berm(b) => apply(hf, &BermGeometry::new(b, 1.0), operator, window),
-        Shape::Swale(b) => apply(hf, &BermGeometry::new(b, -1.0), operator, window),
-        Shape::Torus(t) => apply(
-            hf,
-            &TorusGeometry {
-                cx: t.center.x as f64,
-                cz: t.center.z as f64,
-                major: t.major_radius_m as f64,
-                minor: t.minor_radius_m as f64,
-                height: t.height_m as f64,
-                base: t.base_m as f64,
-            },
-            operator,
-            window,
-        ),
-        Shape::Box(b) => apply(
-            hf,
-            &BoxGeometry {
-                frame: frame_at(&b.center, b.rotation_deg),
-                half_x: b.size_x_m as f64 / 2.0,
-                half_z: b.size_z_m as f64 / 2.0,
-                height: b.height_m as f64,
-                base: b.base_m as f64,
-            },
-            operator,
-            window,
-        ),
-        Shape::Cone(c) => apply(
-            hf,
-            &ConeGeometry {
-                cx: c.center.x as f64,
-                cz: c.center.z as f64,
-                radius: c.radius_m as f64,
-                top: c.top_radius_m as f64,
-                height: c.height_m as f64,
-                base: c.base_m as f64,
-            },
-            operator,
-            window,
-        ),
-        Shape::HalfCylinder(h) => apply(
-            hf,
-            &HalfCylinderGeometry {
-                frame: frame_at(&h.start, h.direction_deg),
-                length: h.length_m as f64,
-                radius: h.radius_m as f64,
-                base: h.base_m as f64,
-            },
-            operator,
-            window,
-        ),
-        Shape::Ramp(r) => apply(
-            hf,
-            &RampGeometry {
-                frame: frame_at(&r.start, r.direction_deg),
-                length: r.length_m as f64,
-                w0: r.width_m as f64,
-                w1: r.end_width_m.unwrap_or(r.width_m) as f64,
-                h0: r.start_height_m as f64,
-                h1: r.end_height_m as f64,
-                base: r.base_m as f64,
-            },
-            operator,
-            window,
-        ),
-    }
+    apply(hf, ShapeGeometry::from(shape).footprint(), operator, window);
 }
 
 /// The shape's name as it appears in requests, for progress messages.

@@ -298,25 +298,41 @@ fn every_example_runs() {
 
 #[test]
 fn every_example_request_parses_and_validates() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("api/bulldoze");
     let mut seen = Vec::new();
-    for entry in std::fs::read_dir(&dir).expect("api/bulldoze exists") {
-        let path = entry.unwrap().path();
-        if path.extension().and_then(|e| e.to_str()) != Some("json") {
-            continue;
-        }
-        let mut body: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
-        let fields = body.as_object_mut().unwrap();
-        fields.remove("seed");
-        fields.remove("label");
+    for (name, body) in examples() {
         let prepared = Kind::<Bulldoze>::default().prepare(body, &Limits::default());
-        assert!(prepared.is_ok(), "{}: {:?}", path.display(), prepared.err());
-        seen.push(path.file_name().unwrap().to_string_lossy().into_owned());
+        assert!(prepared.is_ok(), "{name}: {:?}", prepared.err());
+        seen.push(name);
     }
-    seen.sort();
     for expected in
         ["hillside-road.json", "mound-box-add.json", "mound-box-subtract.json", "ramp-7-percent.json", "ziggurat.json"]
     {
         assert!(seen.iter().any(|s| s == expected), "{expected} in {seen:?}");
     }
+}
+
+/// Two boxes 3e38 m high stacked with `add`: each is finite, their sum is not.
+fn overflowing_boxes() -> Vec<Value> {
+    let block = json!({"primitive": {"shape": {"box": {"center": {"x": 20, "z": 20}, "size_x_m": 10,
+        "size_z_m": 10, "height_m": 3e38}}, "operator": "add"}});
+    vec![block.clone(), block]
+}
+
+#[test]
+fn heights_that_overflow_fail_as_invalid_operations_in_a_run_and_a_replay() {
+    let t = TestContext::new(hills(41, 1.0));
+    let refused = |result: Result<Edit, SimError>| match result {
+        Err(SimError::Invalid { field, message }) => {
+            assert_eq!(field, "operations");
+            assert!(message.contains("x = 15 m, z = 15 m"), "{message}");
+        }
+        other => panic!("expected a refusal, got {:?}", other.map(|e| e.tally)),
+    };
+    // Unvalidated on purpose: validation caps heights, and this is the guard behind it.
+    refused(run_edit(&params(json!({"operations": overflowing_boxes()})), &t.ctx()));
+
+    let steps: Vec<Step> = serde_json::from_value(Value::Array(overflowing_boxes())).unwrap();
+    let sequence = BulldozeSequence { terrain: job_terrain(), resolution_m: 1.0, window: None, steps };
+    refused(replay_edit(&sequence, None, &t.ctx()));
+    assert!(replay_edit(&sequence, Some(1), &t.ctx()).is_ok(), "one box alone is finite");
 }
