@@ -153,9 +153,13 @@ pub struct Patch {
 }
 
 impl Patch {
+    /// The grid's heights over `cells`, rows copied in parallel.
     pub fn copy(hf: &Heightfield, cells: Cells) -> Self {
         let ((c0, c1), (r0, r1)) = cells;
-        let heights_m = (r0..=r1).flat_map(|r| &hf.heights_m[r * hf.cols + c0..=r * hf.cols + c1]).copied().collect();
+        let width = c1 - c0 + 1;
+        let mut heights_m = vec![0.0; width * (r1 - r0 + 1)];
+        let rows = hf.heights_m[r0 * hf.cols..(r1 + 1) * hf.cols].par_chunks(hf.cols);
+        heights_m.par_chunks_mut(width).zip(rows).for_each(|(copy, row)| copy.copy_from_slice(&row[c0..=c1]));
         Self { cells, heights_m }
     }
 

@@ -350,6 +350,10 @@ fn superellipse(q: f64, c: f64) -> f64 {
     }
 }
 
+fn frame_at(p: &PlanPoint, direction_deg: f32) -> Frame {
+    Frame::heading(p.x as f64, p.z as f64, (direction_deg as f64).to_radians())
+}
+
 struct MoundGeometry {
     cx: f64,
     cz: f64,
@@ -357,6 +361,19 @@ struct MoundGeometry {
     height: f64,
     c: f64,
     base: f64,
+}
+
+impl From<&Mound> for MoundGeometry {
+    fn from(m: &Mound) -> Self {
+        MoundGeometry {
+            cx: m.center.x as f64,
+            cz: m.center.z as f64,
+            radius: m.radius_m as f64,
+            height: m.height_m as f64,
+            c: m.curvature as f64,
+            base: m.base_m as f64,
+        }
+    }
 }
 
 impl Footprint for MoundGeometry {
@@ -517,6 +534,19 @@ struct TorusGeometry {
     base: f64,
 }
 
+impl From<&Torus> for TorusGeometry {
+    fn from(t: &Torus) -> Self {
+        TorusGeometry {
+            cx: t.center.x as f64,
+            cz: t.center.z as f64,
+            major: t.major_radius_m as f64,
+            minor: t.minor_radius_m as f64,
+            height: t.height_m as f64,
+            base: t.base_m as f64,
+        }
+    }
+}
+
 impl Footprint for TorusGeometry {
     fn bounds(&self) -> Bounds {
         Bounds::square(self.cx, self.cz, self.major + self.minor)
@@ -539,6 +569,18 @@ struct BoxGeometry {
     half_z: f64,
     height: f64,
     base: f64,
+}
+
+impl From<&BoxShape> for BoxGeometry {
+    fn from(b: &BoxShape) -> Self {
+        BoxGeometry {
+            frame: frame_at(&b.center, b.rotation_deg),
+            half_x: b.size_x_m as f64 / 2.0,
+            half_z: b.size_z_m as f64 / 2.0,
+            height: b.height_m as f64,
+            base: b.base_m as f64,
+        }
+    }
 }
 
 impl Footprint for BoxGeometry {
@@ -566,6 +608,19 @@ struct ConeGeometry {
     base: f64,
 }
 
+impl From<&Cone> for ConeGeometry {
+    fn from(c: &Cone) -> Self {
+        ConeGeometry {
+            cx: c.center.x as f64,
+            cz: c.center.z as f64,
+            radius: c.radius_m as f64,
+            top: c.top_radius_m as f64,
+            height: c.height_m as f64,
+            base: c.base_m as f64,
+        }
+    }
+}
+
 impl Footprint for ConeGeometry {
     fn bounds(&self) -> Bounds {
         Bounds::square(self.cx, self.cz, self.radius)
@@ -588,6 +643,17 @@ struct HalfCylinderGeometry {
     length: f64,
     radius: f64,
     base: f64,
+}
+
+impl From<&HalfCylinder> for HalfCylinderGeometry {
+    fn from(h: &HalfCylinder) -> Self {
+        HalfCylinderGeometry {
+            frame: frame_at(&h.start, h.direction_deg),
+            length: h.length_m as f64,
+            radius: h.radius_m as f64,
+            base: h.base_m as f64,
+        }
+    }
 }
 
 impl Footprint for HalfCylinderGeometry {
@@ -616,6 +682,20 @@ struct RampGeometry {
     base: f64,
 }
 
+impl From<&Ramp> for RampGeometry {
+    fn from(r: &Ramp) -> Self {
+        RampGeometry {
+            frame: frame_at(&r.start, r.direction_deg),
+            length: r.length_m as f64,
+            w0: r.width_m as f64,
+            w1: r.end_width_m.unwrap_or(r.width_m) as f64,
+            h0: r.start_height_m as f64,
+            h1: r.end_height_m as f64,
+            base: r.base_m as f64,
+        }
+    }
+}
+
 impl Footprint for RampGeometry {
     fn bounds(&self) -> Bounds {
         let (f, l) = (&self.frame, self.length);
@@ -637,132 +717,24 @@ impl Footprint for RampGeometry {
     }
 }
 
-fn frame_at(p: &PlanPoint, direction_deg: f32) -> Frame {
-    Frame::heading(p.x as f64, p.z as f64, (direction_deg as f64).to_radians())
-}
-
-impl From<&Mound> for MoundGeometry {
-    fn from(m: &Mound) -> Self {
-        MoundGeometry {
-            cx: m.center.x as f64,
-            cz: m.center.z as f64,
-            radius: m.radius_m as f64,
-            height: m.height_m as f64,
-            c: m.curvature as f64,
-            base: m.base_m as f64,
-        }
-    }
-}
-
-impl From<&Torus> for TorusGeometry {
-    fn from(t: &Torus) -> Self {
-        TorusGeometry {
-            cx: t.center.x as f64,
-            cz: t.center.z as f64,
-            major: t.major_radius_m as f64,
-            minor: t.minor_radius_m as f64,
-            height: t.height_m as f64,
-            base: t.base_m as f64,
-        }
-    }
-}
-
-impl From<&BoxShape> for BoxGeometry {
-    fn from(b: &BoxShape) -> Self {
-        BoxGeometry {
-            frame: frame_at(&b.center, b.rotation_deg),
-            half_x: b.size_x_m as f64 / 2.0,
-            half_z: b.size_z_m as f64 / 2.0,
-            height: b.height_m as f64,
-            base: b.base_m as f64,
-        }
-    }
-}
-
-impl From<&Cone> for ConeGeometry {
-    fn from(c: &Cone) -> Self {
-        ConeGeometry {
-            cx: c.center.x as f64,
-            cz: c.center.z as f64,
-            radius: c.radius_m as f64,
-            top: c.top_radius_m as f64,
-            height: c.height_m as f64,
-            base: c.base_m as f64,
-        }
-    }
-}
-
-impl From<&HalfCylinder> for HalfCylinderGeometry {
-    fn from(h: &HalfCylinder) -> Self {
-        HalfCylinderGeometry {
-            frame: frame_at(&h.start, h.direction_deg),
-            length: h.length_m as f64,
-            radius: h.radius_m as f64,
-            base: h.base_m as f64,
-        }
-    }
-}
-
-impl From<&Ramp> for RampGeometry {
-    fn from(r: &Ramp) -> Self {
-        RampGeometry {
-            frame: frame_at(&r.start, r.direction_deg),
-            length: r.length_m as f64,
-            w0: r.width_m as f64,
-            w1: r.end_width_m.unwrap_or(r.width_m) as f64,
-            h0: r.start_height_m as f64,
-            h1: r.end_height_m as f64,
-            base: r.base_m as f64,
-        }
-    }
-}
-
-/// Any shape's footprint, ready to rasterise.
-enum ShapeGeometry {
-    Mound(MoundGeometry),
-    /// A berm, or a swale (a berm downwards).
-    Berm(BermGeometry),
-    Torus(TorusGeometry),
-    Box(BoxGeometry),
-    Cone(ConeGeometry),
-    HalfCylinder(HalfCylinderGeometry),
-    Ramp(RampGeometry),
-}
-
-impl From<&Shape> for ShapeGeometry {
-    fn from(shape: &Shape) -> Self {
-        match shape {
-            Shape::Mound(m) => Self::Mound(m.into()),
-            Shape::Berm(b) => Self::Berm(BermGeometry::new(b, 1.0)),
-            Shape::Swale(b) => Self::Berm(BermGeometry::new(b, -1.0)),
-            Shape::Torus(t) => Self::Torus(t.into()),
-            Shape::Box(b) => Self::Box(b.into()),
-            Shape::Cone(c) => Self::Cone(c.into()),
-            Shape::HalfCylinder(h) => Self::HalfCylinder(h.into()),
-            Shape::Ramp(r) => Self::Ramp(r.into()),
-        }
-    }
-}
-
-impl ShapeGeometry {
-    /// The footprint inside, as the trait object the rasteriser calls. One dynamic call
-    /// a sample costs little beside the shape's own arithmetic.
-    fn footprint(&self) -> &dyn Footprint {
-        match self {
-            Self::Mound(g) => g,
-            Self::Berm(g) => g,
-            Self::Torus(g) => g,
-            Self::Box(g) => g,
-            Self::Cone(g) => g,
-            Self::HalfCylinder(g) => g,
-            Self::Ramp(g) => g,
-        }
+/// A shape's footprint, ready to rasterise. (Dispatching once a sample costs nothing
+/// measurable beside the shapes' own arithmetic.)
+fn geometry(shape: &Shape) -> Box<dyn Footprint> {
+    match shape {
+        Shape::Mound(m) => Box::new(MoundGeometry::from(m)),
+        Shape::Berm(b) => Box::new(BermGeometry::new(b, 1.0)),
+        Shape::Swale(b) => Box::new(BermGeometry::new(b, -1.0)),
+        Shape::Torus(t) => Box::new(TorusGeometry::from(t)),
+        Shape::Box(b) => Box::new(BoxGeometry::from(b)),
+        Shape::Cone(c) => Box::new(ConeGeometry::from(c)),
+        Shape::HalfCylinder(h) => Box::new(HalfCylinderGeometry::from(h)),
+        Shape::Ramp(r) => Box::new(RampGeometry::from(r)),
     }
 }
 
 /// Combine a primitive with the surface (one step).
 pub fn apply_shape(hf: &mut Heightfield, shape: &Shape, operator: Operator, window: Option<&Window>) {
-    apply(hf, ShapeGeometry::from(shape).footprint(), operator, window);
+    apply(hf, geometry(shape).as_ref(), operator, window);
 }
 
 /// The shape's name as it appears in requests, for progress messages.
