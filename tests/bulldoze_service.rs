@@ -220,6 +220,28 @@ async fn an_uploaded_16_bit_heightmap_is_read_exactly_and_jobs_compose() {
         assert!((got - want).abs() < 1e-3, "sample ({c}, {r}): {got} vs {want}");
     }
 
+    // The upload was stored once: the request and the sequence name it by sha256.
+    use sha2::Digest;
+    let sha = hex::encode(sha2::Sha256::digest(&png_bytes));
+    let stored = &upload["request"]["terrain"]["heightmap"];
+    assert_eq!(stored["png_sha256"], sha.as_str(), "{stored}");
+    assert!(stored.get("png_base64").is_none(), "the file is not repeated in the job");
+    let sequence = server.artifact(upload["id"].as_str().unwrap(), "sequence.json").await;
+    assert!(sequence.len() < 1024, "the sequence is a few hundred bytes, not the file: {}", sequence.len());
+    // Naming it again by sha256 reads the same heights without sending the file.
+    let mut by_sha = body.clone();
+    by_sha["terrain"]["heightmap"] =
+        serde_json::json!({"png_sha256": sha, "cell_size": 2.0, "z_min": z_min, "z_max": z_max});
+    let again = server.run("bulldoze", &by_sha).await;
+    assert_eq!(
+        server.artifact(again["id"].as_str().unwrap(), "heightfield.npy").await,
+        server.artifact(upload["id"].as_str().unwrap(), "heightfield.npy").await
+    );
+    by_sha["terrain"]["heightmap"]["png_sha256"] = serde_json::json!("0".repeat(64));
+    let (status, problem) = server.post("/v1/jobs/bulldoze", &by_sha).await;
+    assert_eq!(status, 422);
+    assert_eq!(problem["errors"][0]["field"], "terrain.heightmap.png_sha256", "{problem}");
+
     // A second job starts from the first one's exact heights.
     let mound = serde_json::json!({
         "terrain": {"job": upload["id"]},

@@ -311,7 +311,8 @@ impl Engine {
         let prepared = tokio::task::spawn_blocking(move || kind_impl.prepare(Value::Object(body), &limits))
             .await
             .map_err(|e| EngineError::Internal(e.to_string()))??;
-        self.check_job_refs(prepared.job_refs).await?;
+        self.check_references(&prepared.references).await?;
+        self.store_uploads(prepared.references.uploads).await?;
 
         let mut request = match prepared.params {
             Value::Object(m) => m,
@@ -354,7 +355,7 @@ impl Engine {
         }
         // The earlier jobs the original read must still be there to read again.
         let prepared = kind.prepare(original.params(), &self.inner.config.limits)?;
-        self.check_job_refs(prepared.job_refs).await.map_err(|e| match e {
+        self.check_references(&prepared.references).await.map_err(|e| match e {
             EngineError::Invalid { errors, .. } => EngineError::Conflict(format!(
                 "job {id} can no longer be replayed: {}",
                 errors.into_iter().map(|e| e.message).collect::<Vec<_>>().join("; ")
@@ -368,15 +369,27 @@ impl Engine {
         }
     }
 
-    async fn check_job_refs(&self, refs: Vec<(String, String)>) -> Result<(), EngineError> {
-        if refs.is_empty() {
+    /// Every earlier job and upload the request names must be there.
+    async fn check_references(&self, refs: &super::References) -> Result<(), EngineError> {
+        if refs.jobs.is_empty() && refs.inputs.is_empty() {
             return Ok(());
         }
         let store = self.inner.store.clone();
+        let (jobs, inputs) = (refs.jobs.clone(), refs.inputs.clone());
         let errors = tokio::task::spawn_blocking(move || {
-            let lookup = StoreTerrain(store);
             let mut errors = Vec::new();
-            for (field, id) in refs {
+            for (field, sha) in inputs {
+                match store.has_input(&sha) {
+                    Ok(true) => {}
+                    Ok(false) => errors.push(FieldError { field, message: format!("no upload with sha256 {sha}") }),
+                    Err(e) => {
+                        tracing::error!(error = %e, "store failure while checking an upload");
+                        errors.push(FieldError { field, message: "the job store failed".into() })
+                    }
+                }
+            }
+            let lookup = StoreTerrain(store);
+            for (field, id) in jobs {
                 match lookup.unusable_reason(&id) {
                     Ok(None) => {}
                     Ok(Some(message)) | Err(message) => errors.push(FieldError { field, message }),
@@ -391,6 +404,13 @@ impl Engine {
         } else {
             Err(EngineError::Invalid { errors, too_large: false })
         }
+    }
+
+    async fn store_uploads(&self, uploads: Vec<(String, Vec<u8>)>) -> Result<(), EngineError> {
+        if uploads.is_empty() {
+            return Ok(());
+        }
+        self.blocking(move |s| uploads.iter().try_for_each(|(sha, png)| s.put_input(sha, png))).await
     }
 
     async fn admit(&self, job: Job, idempotency: Option<(String, String)>) -> Result<Submitted, EngineError> {

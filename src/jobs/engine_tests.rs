@@ -22,7 +22,7 @@ impl JobKind for StandIn {
         "test kind"
     }
     fn prepare(&self, params: Value, _: &Limits) -> Result<Prepared, RequestError> {
-        Ok(Prepared { params, job_refs: Vec::new() })
+        Ok(Prepared { params, references: Default::default() })
     }
     fn run(&self, params: &Value, _seed: u64, ctx: &RunContext) -> Result<JobOutput, SimError> {
         if params["panic"].as_bool() == Some(true) {

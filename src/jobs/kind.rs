@@ -117,8 +117,9 @@ pub trait Simulation: Send + Sync + 'static {
     type Params: Serialize + DeserializeOwned + ToSchema + Validate + Send + Sync;
     type Sequence: Sequence;
 
-    /// Earlier jobs the parameters read, with each reference's JSON path.
-    fn job_refs(params: &Self::Params) -> Vec<(String, String)>;
+    /// The terrain sources in the parameters, each with its JSON path. The adapter reads the
+    /// earlier jobs and uploads they name from them, and moves inline uploads into the store.
+    fn terrain_sources(params: &mut Self::Params) -> Vec<(&'static str, &mut TerrainSource)>;
 
     fn run(params: &Self::Params, seed: u64, ctx: &RunContext) -> Result<Outcome<Self::Sequence>, SimError>;
 
@@ -135,9 +136,21 @@ pub trait Simulation: Send + Sync + 'static {
 /// A request that passed validation.
 #[derive(Debug)]
 pub struct Prepared {
-    /// The kind's parameters with every default filled in (without `seed` and `label`).
+    /// The kind's parameters with every default filled in (without `seed` and `label`), inline
+    /// uploads replaced by their sha256.
     pub params: Value,
-    pub job_refs: Vec<(String, String)>,
+    pub references: References,
+}
+
+/// What a request reads besides itself, each with the JSON path it came from.
+#[derive(Debug, Default, PartialEq)]
+pub struct References {
+    /// (field, job id): earlier jobs whose heightfields it starts from.
+    pub jobs: Vec<(String, String)>,
+    /// (field, sha256): uploads it names without sending.
+    pub inputs: Vec<(String, String)>,
+    /// (sha256, bytes): uploads it sent inline, to store before the job.
+    pub uploads: Vec<(String, Vec<u8>)>,
 }
 
 /// Why a request body was refused.
@@ -237,14 +250,28 @@ impl<S: Simulation> JobKind for Kind<S> {
     }
 
     fn prepare(&self, params: Value, limits: &Limits) -> Result<Prepared, RequestError> {
-        let typed: S::Params = parse_params(params)?;
+        let mut typed: S::Params = parse_params(params)?;
         let mut v = Validator::new();
         typed.validate(&mut v, limits);
         if !v.is_ok() {
             return Err(RequestError::Invalid { errors: v.errors, too_large: v.too_large });
         }
+        let mut references = References::default();
+        for (path, source) in S::terrain_sources(&mut typed) {
+            if let Some(id) = source.job_ref() {
+                references.jobs.push((format!("{path}.job"), id.to_string()));
+            }
+            if let Some(sha) = source.input_ref() {
+                references.inputs.push((format!("{path}.heightmap.png_sha256"), sha.to_string()));
+            }
+            let upload = source.take_upload().map_err(|e| RequestError::Invalid {
+                errors: vec![FieldError { field: format!("{path}.heightmap.png_base64"), message: e.to_string() }],
+                too_large: false,
+            })?;
+            references.uploads.extend(upload);
+        }
         let params = serde_json::to_value(&typed).map_err(|e| RequestError::Malformed(e.to_string()))?;
-        Ok(Prepared { params, job_refs: S::job_refs(&typed) })
+        Ok(Prepared { params, references })
     }
 
     fn run(&self, params: &Value, seed: u64, ctx: &RunContext) -> Result<JobOutput, SimError> {

@@ -57,7 +57,7 @@ impl TerrainLookup for StoreTerrain {
         read_heightfield_npy(&bytes, cell_size as f32)
     }
 
-    fn has_heightfield(&self, job_id: &str) -> Result<bool, String> {
-        Ok(self.usable(job_id)?.is_ok())
+    fn input(&self, sha256: &str) -> Result<Vec<u8>, String> {
+        self.0.input(sha256).map_err(store_failed)?.ok_or_else(|| format!("no upload with sha256 {sha256}"))
     }
 }

@@ -52,6 +52,10 @@ pub trait JobStore: Send + Sync + 'static {
     fn delete(&self, id: &str) -> Result<bool, StoreError>;
     /// Jobs queued or running (oldest first): to run again after a restart.
     fn unfinished(&self) -> Result<Vec<Job>, StoreError>;
+    /// Keep an uploaded file under its sha256 (hex); storing the same file again does nothing.
+    fn put_input(&self, sha256: &str, data: &[u8]) -> Result<(), StoreError>;
+    fn input(&self, sha256: &str) -> Result<Option<Vec<u8>>, StoreError>;
+    fn has_input(&self, sha256: &str) -> Result<bool, StoreError>;
     /// How many times the job has entered `running` (0 if it never ran); None if there is none.
     fn attempts(&self, id: &str) -> Result<Option<u32>, StoreError>;
     /// Number of jobs per (kind, status).

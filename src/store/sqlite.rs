@@ -20,10 +20,11 @@ use super::{IdempotentInsert, JobStore, ListFilter, StoreError};
 use crate::jobs::{Artifact, ArtifactMeta, Job, JobStatus, Progress};
 
 /// The schema version this build writes (`PRAGMA user_version`).
-pub const SCHEMA_VERSION: i64 = 1;
+pub const SCHEMA_VERSION: i64 = 2;
 
 /// Migrations in order: `MIGRATIONS[n]` takes the schema from version `n` to `n + 1`.
-const MIGRATIONS: [&str; SCHEMA_VERSION as usize] = [r#"
+const MIGRATIONS: [&str; SCHEMA_VERSION as usize] = [
+    r#"
 CREATE TABLE jobs (
     id                TEXT PRIMARY KEY NOT NULL,  -- UUIDv7: text order is creation order
     kind              TEXT NOT NULL,
@@ -62,7 +63,18 @@ CREATE TABLE idempotency_keys (
     job_id      TEXT NOT NULL REFERENCES jobs (id) ON DELETE CASCADE
 );
 CREATE INDEX idempotency_keys_by_job ON idempotency_keys (job_id);
-"#];
+"#,
+    r#"
+-- Uploaded files (heightmap PNGs), stored once by content and named by their sha256, so a
+-- request and its recorded sequence carry a reference instead of the file.
+CREATE TABLE inputs (
+    sha256      TEXT PRIMARY KEY NOT NULL,
+    bytes       INTEGER NOT NULL,
+    created_at  TEXT NOT NULL,
+    data        BLOB NOT NULL
+);
+"#,
+];
 
 /// Read connections opened beside the writer (none for an in-memory database, whose
 /// connections would each see a different database).
@@ -583,6 +595,28 @@ impl JobStore for SqliteStore {
     fn unfinished(&self) -> Result<Vec<Job>, StoreError> {
         let sql = format!("SELECT {JOB_COLUMNS} FROM jobs WHERE status IN ('queued', 'running') ORDER BY id ASC");
         read_snapshot(&mut self.reader(), |c| load_jobs(c, &sql, []))
+    }
+
+    fn put_input(&self, sha256: &str, data: &[u8]) -> Result<(), StoreError> {
+        let conn = self.writer.lock();
+        conn.prepare_cached(
+            "INSERT INTO inputs (sha256, bytes, created_at, data) VALUES (?1, ?2, ?3, ?4) ON CONFLICT DO NOTHING",
+        )
+        .and_then(|mut s| s.execute(rusqlite::params![sha256, data.len() as i64, Utc::now().to_rfc3339(), data]))
+        .map_err(db)?;
+        Ok(())
+    }
+
+    fn input(&self, sha256: &str) -> Result<Option<Vec<u8>>, StoreError> {
+        let conn = self.reader();
+        conn.prepare_cached("SELECT data FROM inputs WHERE sha256 = ?1")
+            .and_then(|mut s| s.query_row([sha256], |r| r.get(0)).optional())
+            .map_err(db)
+    }
+
+    fn has_input(&self, sha256: &str) -> Result<bool, StoreError> {
+        let conn = self.reader();
+        conn.prepare_cached("SELECT 1 FROM inputs WHERE sha256 = ?1").and_then(|mut s| s.exists([sha256])).map_err(db)
     }
 
     fn counts(&self) -> Result<Vec<(String, JobStatus, u64)>, StoreError> {

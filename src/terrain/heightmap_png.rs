@@ -66,9 +66,12 @@ const BASE64: GeneralPurpose = GeneralPurpose::new(
 ///
 /// The size is checked against `limits.max_grid_cells` from the PNG header, before the pixel
 /// buffer is allocated. `z_min`/`z_max`/`cell_size` are used as given (validation checks them).
-pub fn decode_heightmap_png(u: &HeightmapUpload, limits: &Limits) -> Result<Heightfield, HeightmapDecodeError> {
-    let bytes = decode_base64(&u.png_base64)?;
-    let header = read_header(&bytes)?;
+pub fn decode_heightmap_png(
+    u: &HeightmapUpload,
+    bytes: &[u8],
+    limits: &Limits,
+) -> Result<Heightfield, HeightmapDecodeError> {
+    let header = read_header(bytes)?;
     let cells = header.width * header.height;
     if cells > limits.max_grid_cells {
         return Err(HeightmapDecodeError::TooLarge {
@@ -80,7 +83,7 @@ pub fn decode_heightmap_png(u: &HeightmapUpload, limits: &Limits) -> Result<Heig
 
     let decoder_bytes = limits.max_grid_cells.saturating_mul(2).saturating_add(DECODER_SLACK_BYTES);
     let mut decoder = png::Decoder::new_with_limits(
-        Cursor::new(&bytes),
+        Cursor::new(bytes),
         png::Limits { bytes: usize::try_from(decoder_bytes).unwrap_or(usize::MAX) },
     );
     decoder.set_ignore_text_chunk(true);
@@ -216,7 +219,7 @@ fn sample(line: &[u8], c: usize, bits: u32) -> u32 {
 }
 
 /// The upload's bytes.
-fn decode_base64(text: &str) -> Result<Vec<u8>, HeightmapDecodeError> {
+pub(super) fn decode_base64(text: &str) -> Result<Vec<u8>, HeightmapDecodeError> {
     let mut bytes = Vec::with_capacity(text.len() / 4 * 3 + 3);
     stream_base64(text, |piece| {
         bytes.extend_from_slice(piece);
@@ -324,6 +327,11 @@ mod tests {
 
     use super::*;
 
+    /// The whole path from an inline upload, as `terrain::resolve` takes it.
+    fn decode_heightmap_png(u: &HeightmapUpload, limits: &Limits) -> Result<Heightfield, HeightmapDecodeError> {
+        super::decode_heightmap_png(u, &decode_base64(u.png_base64.as_deref().unwrap_or(""))?, limits)
+    }
+
     fn encode_png(width: u32, height: u32, color: ColorType, depth: BitDepth, data: &[u8]) -> Vec<u8> {
         let mut out = Vec::new();
         {
@@ -338,7 +346,8 @@ mod tests {
 
     fn upload(png: &[u8], z_min: f32, z_max: f32) -> HeightmapUpload {
         HeightmapUpload {
-            png_base64: base64::engine::general_purpose::STANDARD.encode(png),
+            png_base64: Some(base64::engine::general_purpose::STANDARD.encode(png)),
+            png_sha256: None,
             cell_size: 2.5,
             z_min,
             z_max,
@@ -356,7 +365,7 @@ mod tests {
         let hf = decode_heightmap_png(&upload(&png, -10.0, 40.0), &limits()).unwrap();
         assert_eq!((hf.cols, hf.rows, hf.cell_size_m), (3, 2, 2.5));
         assert_eq!(hf.heights_m, vec![-10.0, 0.0, 40.0, 40.0, 10.0, -10.0]);
-        assert_eq!(png_dimensions(&upload(&png, 0.0, 1.0).png_base64).unwrap(), (3, 2));
+        assert_eq!(png_dimensions(upload(&png, 0.0, 1.0).png_base64.as_deref().unwrap()).unwrap(), (3, 2));
     }
 
     #[test]
@@ -393,7 +402,7 @@ mod tests {
             let err = decode_heightmap_png(&u, &limits()).unwrap_err();
             assert!(matches!(err, HeightmapDecodeError::NotGrayscale(_)), "{err}");
             assert!(err.to_string().starts_with("must be grayscale") && err.to_string().contains(word), "{err}");
-            assert_eq!(png_dimensions(&u.png_base64).unwrap_err(), err);
+            assert_eq!(png_dimensions(u.png_base64.as_deref().unwrap()).unwrap_err(), err);
         }
         let mut out = Vec::new();
         {
@@ -418,7 +427,13 @@ mod tests {
         assert_eq!(png_dimensions(" \n\t").unwrap_err(), HeightmapDecodeError::Empty);
         assert!(matches!(png_dimensions("QQ==QUJD").unwrap_err(), HeightmapDecodeError::NotBase64(_)));
         assert!(matches!(png_dimensions("QUJDR").unwrap_err(), HeightmapDecodeError::NotBase64(_)));
-        let u = HeightmapUpload { png_base64: "%%%".into(), cell_size: 1.0, z_min: 0.0, z_max: 1.0 };
+        let u = HeightmapUpload {
+            png_base64: Some("%%%".into()),
+            png_sha256: None,
+            cell_size: 1.0,
+            z_min: 0.0,
+            z_max: 1.0,
+        };
         assert!(matches!(decode_heightmap_png(&u, &limits()), Err(HeightmapDecodeError::NotBase64(_))));
     }
 
@@ -429,16 +444,19 @@ mod tests {
         let cut = &png[..png.len() / 2];
         let u = upload(cut, 0.0, 1.0);
         // The header alone is intact: dimensions are known, the pixels are not.
-        assert_eq!(png_dimensions(&u.png_base64).unwrap(), (64, 64));
+        assert_eq!(png_dimensions(u.png_base64.as_deref().unwrap()).unwrap(), (64, 64));
         let err = decode_heightmap_png(&u, &limits()).unwrap_err();
         assert!(matches!(err, HeightmapDecodeError::Corrupt(_)), "{err}");
 
         let header_only = upload(&png[..20], 0.0, 1.0);
-        assert!(matches!(png_dimensions(&header_only.png_base64), Err(HeightmapDecodeError::Corrupt(_))));
+        assert!(matches!(
+            png_dimensions(header_only.png_base64.as_deref().unwrap()),
+            Err(HeightmapDecodeError::Corrupt(_))
+        ));
 
         let mut flipped = png.clone();
         flipped[20] ^= 0xFF; // the height's top byte: IHDR's CRC no longer matches
-        let r = png_dimensions(&upload(&flipped, 0.0, 1.0).png_base64);
+        let r = png_dimensions(upload(&flipped, 0.0, 1.0).png_base64.as_deref().unwrap());
         assert!(matches!(r, Err(HeightmapDecodeError::Corrupt(_))), "{r:?}");
     }
 
@@ -454,7 +472,7 @@ mod tests {
             encoder.write_header().unwrap();
         }
         let u = upload(&out, 0.0, 1.0);
-        assert_eq!(png_dimensions(&u.png_base64).unwrap(), (100_000, 100_000));
+        assert_eq!(png_dimensions(u.png_base64.as_deref().unwrap()).unwrap(), (100_000, 100_000));
         let err = decode_heightmap_png(&u, &limits()).unwrap_err();
         assert_eq!(err, HeightmapDecodeError::TooLarge { width: 100_000, height: 100_000, cap: 4097 * 4097 });
 
@@ -483,8 +501,8 @@ mod tests {
             .collect::<Vec<_>>()
             .join("\r\n");
         let text = format!("  DATA:image/png;base64,{wrapped}\n");
-        let u = HeightmapUpload { png_base64: text, cell_size: 1.0, z_min: 0.0, z_max: 3.0 };
-        assert_eq!(png_dimensions(&u.png_base64).unwrap(), (2, 2));
+        let u = HeightmapUpload { png_base64: Some(text), png_sha256: None, cell_size: 1.0, z_min: 0.0, z_max: 3.0 };
+        assert_eq!(png_dimensions(u.png_base64.as_deref().unwrap()).unwrap(), (2, 2));
         assert_eq!(decode_heightmap_png(&u, &limits()).unwrap().heights_m, vec![0.0, 1.0, 2.0, 3.0]);
         let not_base64 = png_dimensions(&format!("data:image/png,{plain}")).unwrap_err();
         assert!(not_base64.to_string().contains(";base64"), "{not_base64}");
@@ -497,14 +515,15 @@ mod tests {
         let data: Vec<u8> = (0..w * h).flat_map(|i| (i.wrapping_mul(2654435761) as u16).to_be_bytes()).collect();
         let png = encode_png(w, h, ColorType::Grayscale, BitDepth::Sixteen, &data);
         let mut u = upload(&png, 0.0, 65535.0);
-        assert!(u.png_base64.len() > 2 * PIECE_CHARS);
+        let text = u.png_base64.take().unwrap();
+        assert!(text.len() > 2 * PIECE_CHARS);
         u.png_base64 =
-            u.png_base64.as_bytes().chunks(64).map(|l| std::str::from_utf8(l).unwrap()).collect::<Vec<_>>().join("\n");
+            Some(text.as_bytes().chunks(64).map(|l| std::str::from_utf8(l).unwrap()).collect::<Vec<_>>().join("\n"));
         let hf = decode_heightmap_png(&u, &limits()).unwrap();
         assert_eq!((hf.cols, hf.rows), (300, 41));
         for (i, h) in hf.heights_m.iter().enumerate() {
             assert_eq!(*h, (i as u32).wrapping_mul(2654435761) as u16 as f32);
         }
-        assert_eq!(png_dimensions(&u.png_base64).unwrap(), (300, 41));
+        assert_eq!(png_dimensions(u.png_base64.as_deref().unwrap()).unwrap(), (300, 41));
     }
 }

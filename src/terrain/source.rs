@@ -1,6 +1,7 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use super::heightmap_png::decode_base64;
 use super::{decode_heightmap_png, generate_fractal, Heightfield};
 use crate::validate::{Limits, Validate, Validator};
 
@@ -76,12 +77,22 @@ impl Default for FractalParams {
     }
 }
 
-/// An uploaded heightmap.
+/// An uploaded heightmap: the PNG sent inline (`png_base64`), or named by the sha256 of one
+/// sent before (`png_sha256`) — exactly one of the two.
+///
+/// An inline PNG is stored once, by content, when the job is accepted; the job's `request` and
+/// recorded sequence then carry its `png_sha256` instead of the file, and later requests can
+/// name it the same way without sending it again.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct HeightmapUpload {
-    /// The PNG file, base64-encoded (standard alphabet). 8- or 16-bit grayscale.
-    pub png_base64: String,
+    /// The PNG file, base64-encoded (standard alphabet): grayscale, 8 or 16 bits (1, 2 and 4
+    /// bits are read too).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub png_base64: Option<String>,
+    /// The sha256 (lowercase hex) of a PNG this server was sent before.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub png_sha256: Option<String>,
     #[serde(default = "default_cell_size")]
     #[schema(default = 1.0)]
     pub cell_size: f32,
@@ -100,18 +111,20 @@ pub struct HeightmapUpload {
 pub enum TerrainError {
     #[error("{0}")]
     Heightmap(#[from] super::HeightmapDecodeError),
+    #[error("uploaded heightmap: {0}")]
+    Input(String),
     #[error("terrain job {id}: {reason}")]
     Job { id: String, reason: String },
     #[error("the terrain would have {cells} samples, more than the cap of {cap}")]
     TooLarge { cells: u64, cap: u64 },
 }
 
-/// Access to the heightfields of earlier jobs; the engine provides it from the store.
+/// What terrain sources read from the store: earlier jobs' heightfields and uploaded files.
 pub trait TerrainLookup: Sync {
     /// The final heightfield of a succeeded job, or why there is none.
     fn job_heightfield(&self, job_id: &str) -> Result<Heightfield, String>;
-    /// Whether the job exists and has a heightfield, checked when a request is accepted.
-    fn has_heightfield(&self, job_id: &str) -> Result<bool, String>;
+    /// An uploaded file by its sha256, or why there is none.
+    fn input(&self, sha256: &str) -> Result<Vec<u8>, String>;
 }
 
 /// Build the heightfield a source describes.
@@ -122,7 +135,14 @@ pub fn resolve(
 ) -> Result<Heightfield, TerrainError> {
     let hf = match source {
         TerrainSource::Fractal(p) => generate_fractal(p),
-        TerrainSource::Heightmap(u) => decode_heightmap_png(u, limits)?,
+        TerrainSource::Heightmap(u) => {
+            let png = match (&u.png_base64, &u.png_sha256) {
+                (Some(text), _) => decode_base64(text)?,
+                (None, Some(sha)) => lookup.input(sha).map_err(TerrainError::Input)?,
+                (None, None) => return Err(TerrainError::Input("the heightmap names no PNG".into())),
+            };
+            decode_heightmap_png(u, &png, limits)?
+        }
         TerrainSource::Job(id) => {
             lookup.job_heightfield(id).map_err(|reason| TerrainError::Job { id: id.clone(), reason })?
         }
@@ -135,7 +155,7 @@ pub fn resolve(
 }
 
 impl TerrainSource {
-    /// Ids of earlier jobs this source reads, with the JSON path (relative to the source).
+    /// The id of the earlier job this source reads.
     pub fn job_ref(&self) -> Option<&str> {
         match self {
             TerrainSource::Job(id) => Some(id),
@@ -143,11 +163,32 @@ impl TerrainSource {
         }
     }
 
+    /// The sha256 of an upload this source names without sending it.
+    pub fn input_ref(&self) -> Option<&str> {
+        match self {
+            TerrainSource::Heightmap(HeightmapUpload { png_base64: None, png_sha256: Some(sha), .. }) => Some(sha),
+            _ => None,
+        }
+    }
+
+    /// Take an inline PNG out of the source, leaving its sha256 in its place: returns
+    /// `(sha256, png bytes)` for the store. Call after validation.
+    pub fn take_upload(&mut self) -> Result<Option<(String, Vec<u8>)>, super::HeightmapDecodeError> {
+        let TerrainSource::Heightmap(u) = self else { return Ok(None) };
+        let Some(text) = u.png_base64.take() else { return Ok(None) };
+        let png = decode_base64(&text)?;
+        let sha = hex::encode(<sha2::Sha256 as sha2::Digest>::digest(&png));
+        u.png_sha256 = Some(sha.clone());
+        Ok(Some((sha, png)))
+    }
+
     /// Extent in samples (cols, rows) when it is known without a store, for cap checks.
     pub fn known_dimensions(&self) -> Option<(u64, u64)> {
         match self {
             TerrainSource::Fractal(p) => Some((p.size as u64, p.size as u64)),
-            TerrainSource::Heightmap(u) => super::heightmap_png::png_dimensions(&u.png_base64).ok(),
+            TerrainSource::Heightmap(u) => {
+                u.png_base64.as_deref().and_then(|text| super::heightmap_png::png_dimensions(text).ok())
+            }
             TerrainSource::Job(_) => None,
         }
     }
@@ -210,14 +251,22 @@ impl Validate for TerrainSource {
                 if u.z_min.is_finite() && u.z_max.is_finite() && u.z_max < u.z_min {
                     v.error("z_max", "must not be below z_min");
                 }
-                match super::heightmap_png::png_dimensions(&u.png_base64) {
-                    Err(e) => v.error("png_base64", e.to_string()),
-                    Ok((w, h)) if w * h > limits.max_grid_cells => v.too_large(
-                        "png_base64",
-                        format!("{w}×{h} pixels is more than the cap of {} samples", limits.max_grid_cells),
-                    ),
-                    Ok((w, h)) if w < 2 || h < 2 => v.error("png_base64", "must be at least 2×2 pixels"),
-                    Ok(_) => {}
+                match (&u.png_base64, &u.png_sha256) {
+                    (Some(_), Some(_)) => v.error("png_sha256", "give png_base64 or png_sha256, not both"),
+                    (None, None) => v.error("png_base64", "is missing (or name an earlier upload by png_sha256)"),
+                    (None, Some(sha)) => {
+                        if sha.len() != 64 || !sha.bytes().all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b)) {
+                            v.error("png_sha256", "must be a sha256 in lowercase hex (64 characters)");
+                        }
+                    }
+                    (Some(text), None) => match super::heightmap_png::png_dimensions(text) {
+                        Err(e) => v.error("png_base64", e.to_string()),
+                        Ok((w, h)) if w * h > limits.max_grid_cells => v.too_large(
+                            "png_base64",
+                            format!("{w}×{h} pixels is more than the cap of {} samples", limits.max_grid_cells),
+                        ),
+                        Ok(_) => {}
+                    },
                 }
             }),
             TerrainSource::Job(id) => {

@@ -32,7 +32,7 @@ pub use primitives::{Berm, BoxShape, Cone, HalfCylinder, Mound, Ramp, Shape, Tor
 pub use sequence::{BulldozeSequence, Step};
 
 use crate::jobs::{Outcome, RunContext, SimError, Simulation};
-use crate::terrain::Heightfield;
+use crate::terrain::{Heightfield, TerrainSource};
 use params::{check_resampled, resampled_dimensions};
 use sequence::Group;
 
@@ -48,8 +48,8 @@ impl Simulation for Bulldoze {
     type Params = BulldozeParams;
     type Sequence = BulldozeSequence;
 
-    fn job_refs(params: &BulldozeParams) -> Vec<(String, String)> {
-        params.terrain.job_ref().map(|id| ("terrain.job".to_string(), id.to_string())).into_iter().collect()
+    fn terrain_sources(params: &mut BulldozeParams) -> Vec<(&'static str, &mut TerrainSource)> {
+        vec![("terrain", &mut params.terrain)]
     }
 
     fn run(params: &BulldozeParams, _seed: u64, ctx: &RunContext) -> Result<Outcome<BulldozeSequence>, SimError> {

@@ -23,8 +23,8 @@ impl TerrainLookup for OneTerrain {
     fn job_heightfield(&self, _job_id: &str) -> Result<Heightfield, String> {
         Ok(self.0.clone())
     }
-    fn has_heightfield(&self, _job_id: &str) -> Result<bool, String> {
-        Ok(true)
+    fn input(&self, sha256: &str) -> Result<Vec<u8>, String> {
+        Err(format!("no upload with sha256 {sha256} in a test"))
     }
 }
 

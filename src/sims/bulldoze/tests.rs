@@ -121,7 +121,7 @@ fn a_job_and_its_full_replay_give_byte_identical_artifacts() {
     let body = serde_json::to_value(busy_request()).unwrap();
     let prepared = kind.prepare(body, &t.limits).expect("valid");
     assert_eq!(
-        prepared.job_refs,
+        prepared.references.jobs,
         vec![("terrain.job".to_string(), "0190a0f4-4a9e-7c3e-8000-000000000001".to_string())]
     );
     let run = kind.run(&prepared.params, 0, &t.ctx()).unwrap();
