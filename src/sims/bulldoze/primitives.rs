@@ -433,7 +433,9 @@ impl BermGeometry {
         let length = b.l as f64;
         let (r1, r2) = (b.r1 as f64, b.r2 as f64);
         let r_max = r1.max(r2);
-        let c = b.c as f64;
+        // An arc whose sagitta (c·l²/8) is under a tenth of a millimetre is straight for every
+        // purpose, and its far-away centre would cost all precision.
+        let c = if (b.c as f64).abs() * length * length / 8.0 < 1e-4 { 0.0 } else { b.c as f64 };
         let (axis, bounds) = if c == 0.0 {
             let frame = Frame::heading(sx, sz, heading);
             let bounds = Bounds::around([
@@ -847,6 +849,15 @@ mod tests {
         // A swale is the same shape, downwards.
         let s = BermGeometry::new(&berm(0.0), -1.0);
         assert!(close(s.sample(50.0, 53.0).unwrap().1, -want(4.0)));
+    }
+
+    #[test]
+    fn a_berm_with_a_vanishing_curvature_is_straight() {
+        let straight = BermGeometry::new(&berm(0.0), 1.0);
+        let nearly = BermGeometry::new(&berm(1e-30), 1.0);
+        for (x, z) in [(53.0, 50.5), (60.0, 49.0), (69.0, 50.0), (89.5, 50.0), (95.0, 50.0)] {
+            assert_eq!(straight.sample(x, z), nearly.sample(x, z), "at ({x}, {z})");
+        }
     }
 
     #[test]
