@@ -113,12 +113,15 @@ async fn deleting_a_queued_job_ends_its_stream_and_frees_its_place() {
     let engine = engine(&dir);
     let long = submit(&engine, json!({ "steps": 300 })).await;
     let queued = submit(&engine, json!({ "n": 1 })).await;
+    while engine.get(&long).await.unwrap().status != JobStatus::Running {
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
     let super::EventFeed::Live { mut rx, .. } = engine.events(&queued, None).await.unwrap() else {
         panic!("a queued job has a live feed");
     };
-    let depth = engine.queue_depth();
+    assert_eq!(engine.queue_depth(), 1);
     engine.delete(&queued).await.unwrap();
-    assert_eq!(engine.queue_depth(), depth - 1);
+    assert_eq!(engine.queue_depth(), 0);
     let done = tokio::time::timeout(Duration::from_secs(5), async {
         loop {
             let ev = rx.recv().await.unwrap();
