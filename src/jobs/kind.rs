@@ -119,7 +119,7 @@ pub trait Simulation: Send + Sync + 'static {
 
     /// The terrain sources in the parameters, each with its JSON path. The adapter reads the
     /// earlier jobs and uploads they name from them, and moves inline uploads into the store.
-    fn terrain_sources(params: &mut Self::Params) -> Vec<(&'static str, &mut TerrainSource)>;
+    fn terrain_sources(params: &mut Self::Params) -> Vec<(String, &mut TerrainSource)>;
 
     fn run(params: &Self::Params, seed: u64, ctx: &RunContext) -> Result<Outcome<Self::Sequence>, SimError>;
 

@@ -48,8 +48,8 @@ impl Simulation for Bulldoze {
     type Params = BulldozeParams;
     type Sequence = BulldozeSequence;
 
-    fn terrain_sources(params: &mut BulldozeParams) -> Vec<(&'static str, &mut TerrainSource)> {
-        vec![("terrain", &mut params.terrain)]
+    fn terrain_sources(params: &mut BulldozeParams) -> Vec<(String, &mut TerrainSource)> {
+        vec![("terrain".to_string(), &mut params.terrain)]
     }
 
     fn run(params: &BulldozeParams, _seed: u64, ctx: &RunContext) -> Result<Outcome<BulldozeSequence>, SimError> {
