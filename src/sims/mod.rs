@@ -1,10 +1,17 @@
 //! One folder per job kind: parameters, algorithm, tests. Pure computation.
 
 pub mod bulldoze;
+pub mod deform_terrain;
+
+#[cfg(test)]
+mod test_support;
 
 use crate::jobs::JobKind;
 
 /// Every job kind the service offers. Adding a kind is one line here.
 pub fn registry() -> Vec<Box<dyn JobKind>> {
-    vec![Box::new(crate::jobs::Kind::<bulldoze::Bulldoze>::default())]
+    vec![
+        Box::new(crate::jobs::Kind::<bulldoze::Bulldoze>::default()),
+        Box::new(crate::jobs::Kind::<deform_terrain::DeformTerrain>::default()),
+    ]
 }

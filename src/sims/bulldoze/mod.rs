@@ -15,8 +15,6 @@ mod primitives;
 mod sequence;
 
 #[cfg(test)]
-mod test_support;
-#[cfg(test)]
 mod tests;
 
 use std::convert::Infallible;

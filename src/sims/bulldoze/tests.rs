@@ -4,9 +4,9 @@ use std::sync::atomic::Ordering;
 
 use serde_json::{json, Value};
 
-use super::test_support::{job_terrain, TestContext};
 use super::*;
 use crate::jobs::{JobKind, Kind};
+use crate::sims::test_support::{job_terrain, TestContext};
 use crate::validate::Limits;
 
 fn hills(size: usize, cell_size_m: f32) -> Heightfield {

@@ -1,4 +1,4 @@
-//! A run context for tests: progress goes nowhere, and every `{"job": …}` terrain resolves
+//! A run context for the kinds' unit tests: progress goes nowhere, and every `{"job": …}` terrain resolves
 //! to the one heightfield the test supplies.
 
 use std::sync::atomic::AtomicBool;

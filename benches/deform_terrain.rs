@@ -1,0 +1,110 @@
+//! The seed paper's four results at 257 × 257 (its Figures 6, 1, 7 and 4: the paper took 45,
+//! 25, 6 and 75 minutes) with prediction on and off, and the star island at 1025 × 1025. Each
+//! configuration first prints its final figures (fitness, operations, evaluations), so speed
+//! and quality can be read side by side. Run with `cargo bench --bench deform_terrain`.
+
+use std::sync::atomic::AtomicBool;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use serde_json::Value;
+
+use landform::jobs::{Progress, ProgressSink, RunContext, Simulation};
+use landform::sims::deform_terrain::{DeformTerrain, DeformTerrainParams};
+use landform::terrain::{Heightfield, TerrainLookup};
+use landform::validate::Limits;
+
+struct Quiet;
+
+impl ProgressSink for Quiet {
+    fn progress(&self, _progress: Progress) {}
+    fn snapshot_due(&self) -> bool {
+        false
+    }
+    fn snapshot(&self, _png: Vec<u8>, _progress: Progress) {}
+}
+
+struct NoStore;
+
+impl TerrainLookup for NoStore {
+    fn job_heightfield(&self, job_id: &str) -> Result<Heightfield, String> {
+        Err(format!("no job {job_id} in a bench"))
+    }
+    fn input(&self, sha256: &str) -> Result<Vec<u8>, String> {
+        Err(format!("no upload {sha256} in a bench"))
+    }
+}
+
+fn example(name: &str) -> (DeformTerrainParams, u64) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("api/deform-terrain").join(name);
+    let mut body: Value = serde_json::from_str(&std::fs::read_to_string(path).expect("example")).expect("json");
+    let obj = body.as_object_mut().expect("object");
+    let seed = obj.remove("seed").and_then(|s| s.as_u64()).unwrap_or(0);
+    obj.remove("label");
+    (serde_json::from_value(body).expect("parses"), seed)
+}
+
+/// The star island scaled to a 1025-sample grid.
+fn star_1025() -> (DeformTerrainParams, u64) {
+    let (mut p, seed) = example("star-island.json");
+    let mut v = serde_json::to_value(&p).unwrap();
+    v["terrain"]["fractal"]["size"] = 1025.into();
+    for poly in v["constraints"][0]["shape_mask"]["mask"]["polygons"].as_array_mut().unwrap() {
+        for pt in poly.as_array_mut().unwrap() {
+            for c in pt.as_array_mut().unwrap() {
+                *c = (c.as_f64().unwrap() * 4.0).into();
+            }
+        }
+    }
+    p = serde_json::from_value(v).unwrap();
+    (p, seed)
+}
+
+fn run(p: &DeformTerrainParams, seed: u64) -> Value {
+    let cancel = AtomicBool::new(false);
+    let limits = Limits::default();
+    let ctx = RunContext { cancel: &cancel, sink: &Quiet, terrain: &NoStore, limits: &limits };
+    DeformTerrain::run(p, seed, &ctx).expect("runs").result
+}
+
+fn report(label: &str, p: &DeformTerrainParams, seed: u64) {
+    let started = std::time::Instant::now();
+    let r = run(p, seed);
+    let figures: Vec<Value> = r["constraints"].as_array().unwrap().to_vec();
+    eprintln!(
+        "{label}: {:.2} s, fitness {:.3e} (from {:.3e}), {} operations, {} evaluations, stopped {}, sequence {} B vs png {} B, {}",
+        started.elapsed().as_secs_f64(),
+        r["fitness"].as_f64().unwrap(),
+        r["fitness_initial"].as_f64().unwrap(),
+        r["operations"],
+        r["evaluations"],
+        r["stopped"],
+        r["sequence_bytes"],
+        r["heightmap_png_bytes"],
+        serde_json::to_string(&figures).unwrap()
+    );
+}
+
+fn bench(c: &mut Criterion) {
+    let mut group = c.benchmark_group("deform_terrain_257");
+    group.sample_size(10);
+    for name in ["star-island.json", "s-road.json", "merge-edges.json", "star-island-roads.json"] {
+        for prediction in [true, false] {
+            let (mut p, seed) = example(name);
+            p.prediction = prediction;
+            let label =
+                format!("{}/prediction_{}", name.trim_end_matches(".json"), if prediction { "on" } else { "off" });
+            report(&label, &p, seed);
+            group.bench_function(&label, |b| b.iter(|| run(&p, seed)));
+        }
+    }
+    group.finish();
+    let mut group = c.benchmark_group("deform_terrain_1025");
+    group.sample_size(10);
+    let (p, seed) = star_1025();
+    report("star-island-1025", &p, seed);
+    group.bench_function("star-island", |b| b.iter(|| run(&p, seed)));
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,493 @@
+//! Constraints as fitness functions (paper §3.1–3.2): each a sum of per-vertex penalties,
+//! computable in constant time per vertex, divided by (constrained vertices × relief²) so that
+//! F_c is a mean-square error in units of relief² and constraints combine by weight.
+//!
+//! Every penalty is one of three forms: quadratic `w (h − t)²` against a fixed target,
+//! one-sided (the shape mask's margin, equation 3), or a coupled pair `w (h_i − h_j)²` (a
+//! tileable terrain's opposite edges). The search sums them into one [`Fitness`] whose change
+//! under a deformation is evaluated over the kernel's window only.
+
+mod edge_match;
+mod match_heightmap;
+mod points;
+mod preserve;
+mod road;
+mod shape_mask;
+mod tileable;
+
+use serde_json::{json, Map, Value};
+
+use super::kernel::{Kernel, Rect};
+use super::params::Constraint;
+use crate::terrain::Heightfield;
+
+/// The grid the constraints are built on, with its starting heights.
+pub struct Grid<'a> {
+    pub cols: usize,
+    pub rows: usize,
+    pub cell_m: f64,
+    pub original: &'a [f64],
+    /// Max − min of the original heights (1 for a flat terrain), metres.
+    pub relief: f64,
+}
+
+impl Grid<'_> {
+    pub fn cells(&self) -> usize {
+        self.cols * self.rows
+    }
+
+    /// The nearest vertex to a point in metres, clamped to the grid.
+    pub fn nearest(&self, x: f64, z: f64) -> (usize, usize) {
+        let c = (x / self.cell_m).round().clamp(0.0, (self.cols - 1) as f64) as usize;
+        let r = (z / self.cell_m).round().clamp(0.0, (self.rows - 1) as f64) as usize;
+        (c, r)
+    }
+}
+
+/// Per-cell quadratic penalties `w_i (h_i − t_i)² + c_i`, already normalised.
+#[derive(Clone, Debug)]
+pub struct Quadratic {
+    pub w: Vec<f64>,
+    pub t: Vec<f64>,
+    pub c: Vec<f64>,
+}
+
+impl Quadratic {
+    /// Build from accumulated terms: several targets on one cell add up to one quadratic
+    /// plus a constant, so the sum is exact.
+    fn from_terms(cells: usize, terms: impl IntoIterator<Item = (usize, f64, f64)>) -> Self {
+        let (mut w, mut s, mut s2) = (vec![0.0; cells], vec![0.0; cells], vec![0.0; cells]);
+        for (i, wi, ti) in terms {
+            w[i] += wi;
+            s[i] += wi * ti;
+            s2[i] += wi * ti * ti;
+        }
+        let mut t = vec![0.0; cells];
+        let mut c = vec![0.0; cells];
+        for i in 0..cells {
+            if w[i] > 0.0 {
+                t[i] = s[i] / w[i];
+                c[i] = (s2[i] - s[i] * s[i] / w[i]).max(0.0);
+            }
+        }
+        Self { w, t, c }
+    }
+
+    #[inline]
+    fn at(&self, i: usize, h: f64) -> f64 {
+        let d = h - self.t[i];
+        self.w[i] * d * d + self.c[i]
+    }
+}
+
+/// The shape mask's one-sided penalties (equation 3 with a margin): land wants h ≥ `lo`, sea
+/// h ≤ `hi`; the penalty is the squared shortfall times `scale`.
+#[derive(Clone, Debug)]
+pub struct OneSided {
+    /// +1 land, −1 sea, 0 unconstrained.
+    pub side: Vec<i8>,
+    pub lo: f64,
+    pub hi: f64,
+    pub scale: f64,
+}
+
+impl OneSided {
+    #[inline]
+    fn at(&self, i: usize, h: f64) -> f64 {
+        let short = match self.side[i] {
+            1 => (self.lo - h).max(0.0),
+            -1 => (h - self.hi).max(0.0),
+            _ => 0.0,
+        };
+        self.scale * short * short
+    }
+}
+
+/// Coupled pairs `scale (h_i − h_j)²`: each cell's partner across the grid in X and in Z
+/// (`u32::MAX` for none). A pair is counted from its lower-index cell.
+#[derive(Clone, Debug)]
+pub struct Pairs {
+    pub partner_x: Vec<u32>,
+    pub partner_z: Vec<u32>,
+    pub scale: f64,
+}
+
+pub const NO_PARTNER: u32 = u32::MAX;
+
+impl Pairs {
+    fn partners(&self, i: usize) -> [u32; 2] {
+        [self.partner_x[i], self.partner_z[i]]
+    }
+}
+
+/// One constraint's penalties and what its figures need.
+pub struct Field {
+    pub name: &'static str,
+    pub weight: f64,
+    pub quadratic: Option<Quadratic>,
+    pub one_sided: Option<OneSided>,
+    pub pairs: Option<Pairs>,
+    /// Cells that drive candidate refinement (Figure 2) and define "far" cells.
+    pub interest: Vec<bool>,
+    /// Whether every cell of interest is itself a candidate vertex (Figure 2's path
+    /// vertices): for narrow features (roads, seams, points) that a coarser lattice of
+    /// centres cannot fit cell by cell.
+    pub anchors: bool,
+    pub detail: Detail,
+}
+
+/// What a constraint's figures are computed from.
+pub enum Detail {
+    MatchHeightmap,
+    ShapeMask { water_level: f64, margin: f64 },
+    Road(road::RoadDetail),
+    EdgeMatch(edge_match::EdgeDetail),
+    Tileable { x: bool, z: bool },
+    Points(Vec<(usize, f64)>),
+    Preserve,
+}
+
+/// The inputs a constraint reads besides the request: resolved terrains (match target, mask
+/// image, edge neighbour), in the order of the constraints, `None` where there is none.
+pub type Resolved = Option<Heightfield>;
+
+/// Why a constraint cannot be built: the JSON path of the field and the reason.
+#[derive(Debug)]
+pub struct BuildError {
+    pub field: String,
+    pub message: String,
+}
+
+/// Build every constraint's field. `resolved[i]` is constraint i's terrain input.
+pub fn build(constraints: &[Constraint], resolved: &[Resolved], grid: &Grid) -> Result<Vec<Field>, BuildError> {
+    constraints
+        .iter()
+        .zip(resolved)
+        .enumerate()
+        .map(|(i, (c, input))| {
+            let at = |leaf: &str| format!("constraints[{i}].{}.{leaf}", c.name());
+            let size_check = |leaf: &str, hf: &Heightfield| {
+                if hf.cols != grid.cols || hf.rows != grid.rows {
+                    Err(BuildError {
+                        field: at(leaf),
+                        message: format!(
+                            "is {}×{} samples; the terrain is {}×{}",
+                            hf.cols, hf.rows, grid.cols, grid.rows
+                        ),
+                    })
+                } else {
+                    Ok(())
+                }
+            };
+            Ok(match c {
+                Constraint::MatchHeightmap(m) => {
+                    let target = input.as_ref().expect("resolved target");
+                    size_check("target", target)?;
+                    match_heightmap::build(m, target, grid)
+                }
+                Constraint::ShapeMask(m) => {
+                    if let Some(image) = input {
+                        size_check("mask.image", image)?;
+                    }
+                    shape_mask::build(m, input.as_ref(), grid)
+                }
+                Constraint::Road(r) => road::build(r, grid),
+                Constraint::EdgeMatch(e) => {
+                    let other = input.as_ref().expect("resolved neighbour");
+                    size_check("terrain", other)?;
+                    edge_match::build(e, other, grid)
+                }
+                Constraint::Tileable(t) => tileable::build(t, grid),
+                Constraint::Points(p) => points::build(p, grid),
+                Constraint::Preserve(p) => preserve::build(p, grid),
+            })
+        })
+        .collect()
+}
+
+impl Field {
+    /// F_c over the whole grid.
+    pub fn value(&self, h: &[f64], cols: usize, rows: usize) -> f64 {
+        self.window_value(h, Rect { c0: 0, c1: cols - 1, r0: 0, r1: rows - 1 }, cols)
+    }
+
+    /// The part of F_c that depends on the cells in `rect`: their own penalties, and each
+    /// pair with a member in it (once).
+    pub fn window_value(&self, h: &[f64], rect: Rect, cols: usize) -> f64 {
+        let mut sum = 0.0;
+        for r in rect.r0..=rect.r1 {
+            let mut row_sum = 0.0;
+            for c in rect.c0..=rect.c1 {
+                let i = r * cols + c;
+                if let Some(q) = &self.quadratic {
+                    row_sum += q.at(i, h[i]);
+                }
+                if let Some(m) = &self.one_sided {
+                    row_sum += m.at(i, h[i]);
+                }
+                if let Some(p) = &self.pairs {
+                    for j in p.partners(i) {
+                        if j == NO_PARTNER {
+                            continue;
+                        }
+                        let j = j as usize;
+                        let inside = rect.contains(j % cols, j / cols);
+                        if !inside || i < j {
+                            let d = h[i] - h[j];
+                            row_sum += p.scale * d * d;
+                        }
+                    }
+                }
+            }
+            sum += row_sum;
+        }
+        sum
+    }
+
+    /// The constraint's own figures on the final heights, with its fitness.
+    pub fn figures(&self, h: &[f64], grid: &Grid) -> Value {
+        let mut out = Map::new();
+        out.insert("kind".into(), json!(self.name));
+        out.insert("weight".into(), json!(self.weight));
+        out.insert("fitness".into(), json!(self.value(h, grid.cols, grid.rows)));
+        let extra = match &self.detail {
+            Detail::MatchHeightmap => match_heightmap::figures(self, h, grid),
+            Detail::ShapeMask { water_level, margin } => shape_mask::figures(self, h, *water_level, *margin),
+            Detail::Road(d) => road::figures(d, h, grid),
+            Detail::EdgeMatch(d) => edge_match::figures(d, h, grid),
+            Detail::Tileable { x, z } => tileable::figures(*x, *z, h, grid),
+            Detail::Points(p) => points::figures(p, h, grid),
+            Detail::Preserve => preserve::figures(h, grid),
+        };
+        if let Value::Object(extra) = extra {
+            out.extend(extra);
+        }
+        Value::Object(out)
+    }
+}
+
+/// All constraints summed by weight, in the form the search evaluates.
+pub struct Fitness {
+    pub cols: usize,
+    pub rows: usize,
+    /// Combined quadratic weight and target per cell.
+    q: Vec<f64>,
+    m: Vec<f64>,
+    one_sided: Option<OneSided>,
+    pairs: Option<Pairs>,
+}
+
+/// The most displacements one evaluation tries (sampled ones plus the closed-form optimum).
+pub const MAX_DELTAS: usize = 128;
+
+impl Fitness {
+    pub fn new(fields: &[Field], cols: usize, rows: usize) -> Self {
+        let n = cols * rows;
+        let mut q = vec![0.0; n];
+        let mut qt = vec![0.0; n];
+        let mut one_sided = None;
+        let mut pairs = None;
+        for f in fields {
+            if let Some(quad) = &f.quadratic {
+                for i in 0..n {
+                    let w = f.weight * quad.w[i];
+                    q[i] += w;
+                    qt[i] += w * quad.t[i];
+                }
+            }
+            if let Some(o) = &f.one_sided {
+                one_sided = Some(OneSided { scale: o.scale * f.weight, ..o.clone() });
+            }
+            if let Some(p) = &f.pairs {
+                pairs = Some(Pairs { scale: p.scale * f.weight, ..p.clone() });
+            }
+        }
+        let m = (0..n).map(|i| if q[i] > 0.0 { qt[i] / q[i] } else { 0.0 }).collect();
+        Self { cols, rows, q, m, one_sided, pairs }
+    }
+
+    /// The best change in F over `deltas` (and the closed-form optimum of the quadratic part,
+    /// clamped to ±`d_max`) of a deformation at (col, row) with `kernel`: (ΔF, δ). With
+    /// `stride` > 1 only every stride-th cell (through the centre) is summed, scaled by
+    /// stride², as an estimate. Sums run in a fixed order; nothing is allocated.
+    #[allow(clippy::too_many_arguments)]
+    pub fn best_change(
+        &self,
+        h: &[f64],
+        col: usize,
+        row: usize,
+        kernel: &Kernel,
+        stride: usize,
+        deltas: &[f64],
+        d_max: f64,
+        with_optimum: bool,
+    ) -> (f64, f64) {
+        let cols = self.cols;
+        let rad = kernel.radius as i64;
+        let rect = Rect::around(col, row, kernel.radius, cols, self.rows);
+        // A window clipped by the border is summed exactly: a lattice through the centre can
+        // miss the edge line, where edge constraints live.
+        let clipped = rect.c1 - rect.c0 != 2 * kernel.radius || rect.r1 - rect.r0 != 2 * kernel.radius;
+        let stride = if clipped { 1 } else { stride };
+        let s = stride as i64;
+        let lo = |v: usize| -((v as i64).min(rad) / s) * s;
+        let hi = |v: usize, n: usize| ((n as i64 - 1 - v as i64).min(rad) / s) * s;
+        let (dz0, dz1, dx0, dx1) = (lo(row), hi(row, self.rows), lo(col), hi(col, cols));
+        let scale = (stride * stride) as f64;
+
+        let side_len = kernel.side();
+        // Row by row over slices on the stride lattice: no bounds checks or branches inside.
+        let row_slices = |dz: i64| {
+            let r = (row as i64 + dz) as usize;
+            let k0 = ((dz + rad) as usize) * side_len;
+            let krow = &kernel.weights[k0 + (dx0 + rad) as usize..=k0 + (dx1 + rad) as usize];
+            let (c0, c1) = ((col as i64 + dx0) as usize, (col as i64 + dx1) as usize);
+            (krow, r * cols + c0, r * cols + c1)
+        };
+        let (mut a, mut b) = (0.0, 0.0);
+        let mut dz = dz0;
+        while dz <= dz1 {
+            let (krow, i0, i1) = row_slices(dz);
+            let (hs, qs, ms) = (&h[i0..=i1], &self.q[i0..=i1], &self.m[i0..=i1]);
+            for (((&k, &hi), &qi), &mi) in krow
+                .iter()
+                .step_by(stride)
+                .zip(hs.iter().step_by(stride))
+                .zip(qs.iter().step_by(stride))
+                .zip(ms.iter().step_by(stride))
+            {
+                let qk = qi * k;
+                a += qk * k;
+                b += qk * (hi - mi);
+            }
+            dz += s;
+        }
+        a *= scale;
+        b *= scale;
+        // Pairs live on the grid's border lines only; they are summed exactly.
+        if let Some(p) = &self.pairs {
+            let mut pair = |i: usize, j: u32| {
+                if j == NO_PARTNER {
+                    return;
+                }
+                let j = j as usize;
+                let (jc, jr) = (j % cols, j / cols);
+                let inside = rect.contains(jc, jr);
+                if inside && j < i {
+                    return;
+                }
+                let k = kernel.at((i % cols) as i64 - col as i64, (i / cols) as i64 - row as i64);
+                let kj = if inside { kernel.at(jc as i64 - col as i64, jr as i64 - row as i64) } else { 0.0 };
+                let e = k - kj;
+                a += p.scale * e * e;
+                b += p.scale * e * (h[i] - h[j]);
+            };
+            for c in [0, cols - 1] {
+                if (rect.c0..=rect.c1).contains(&c) {
+                    for r in rect.r0..=rect.r1 {
+                        pair(r * cols + c, p.partner_x[r * cols + c]);
+                    }
+                }
+            }
+            for r in [0, self.rows - 1] {
+                if (rect.r0..=rect.r1).contains(&r) {
+                    for c in rect.c0..=rect.c1 {
+                        pair(r * cols + c, p.partner_z[r * cols + c]);
+                    }
+                }
+            }
+        }
+
+        let mut trial = [0.0f64; MAX_DELTAS];
+        let mut n = deltas.len().min(MAX_DELTAS - 1);
+        trial[..n].copy_from_slice(&deltas[..n]);
+        if with_optimum && a > 0.0 {
+            let opt = (-b / a).clamp(-d_max, d_max);
+            if opt != 0.0 && opt.is_finite() {
+                trial[n] = opt;
+                n += 1;
+            }
+        }
+        let trial = &trial[..n];
+        let mut change = [0.0f64; MAX_DELTAS];
+        for (d, out) in trial.iter().zip(change.iter_mut()) {
+            *out = a * d * d + 2.0 * b * d;
+        }
+
+        if let Some(m) = &self.one_sided {
+            let d_abs = trial.iter().fold(0.0f64, |acc, d| acc.max(d.abs()));
+            let mut extra = [0.0f64; MAX_DELTAS];
+            let mut dz = dz0;
+            while dz <= dz1 {
+                let (krow, i0, i1) = row_slices(dz);
+                let (hs, sides) = (&h[i0..=i1], &m.side[i0..=i1]);
+                for ((&k, &hi), &side) in
+                    krow.iter().step_by(stride).zip(hs.iter().step_by(stride)).zip(sides.iter().step_by(stride))
+                {
+                    if k <= 0.0 || side == 0 {
+                        continue;
+                    }
+                    // Signed shortfall: penalty = max(0, g − σ·δ·k)² with σ = +1 land, −1 sea.
+                    let (g, sign) = if side > 0 { (m.lo - hi, 1.0) } else { (hi - m.hi, -1.0) };
+                    if g + d_abs * k > 0.0 {
+                        let before = g.max(0.0);
+                        let before = before * before;
+                        for (d, e) in trial.iter().zip(extra.iter_mut()) {
+                            let after = (g - sign * d * k).max(0.0);
+                            *e += after * after - before;
+                        }
+                    }
+                }
+                dz += s;
+            }
+            for (out, e) in change[..n].iter_mut().zip(&extra[..n]) {
+                *out += m.scale * scale * e;
+            }
+        }
+
+        let mut best = (f64::INFINITY, 0.0);
+        for (&d, &df) in trial.iter().zip(&change[..n]) {
+            if df < best.0 {
+                best = (df, d);
+            }
+        }
+        best
+    }
+}
+
+/// The cells to refine candidates around: the union of every constraint's interest.
+pub fn interest(fields: &[Field], cells: usize) -> Vec<bool> {
+    let mut out = vec![false; cells];
+    for f in fields {
+        for (o, &i) in out.iter_mut().zip(&f.interest) {
+            *o |= i;
+        }
+    }
+    out
+}
+
+/// The cells of interest that are candidate vertices themselves, as (col, row).
+pub fn anchors(fields: &[Field], cols: usize) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    for f in fields.iter().filter(|f| f.anchors) {
+        out.extend(f.interest.iter().enumerate().filter(|(_, &i)| i).map(|(i, _)| (i % cols, i / cols)));
+    }
+    out
+}
+
+/// Root-mean-square of `values`, 0 for none.
+pub fn rms(values: impl IntoIterator<Item = f64>) -> f64 {
+    let (mut sum, mut n) = (0.0, 0usize);
+    for v in values {
+        sum += v * v;
+        n += 1;
+    }
+    if n == 0 {
+        0.0
+    } else {
+        (sum / n as f64).sqrt()
+    }
+}
+
+#[cfg(test)]
+mod tests;

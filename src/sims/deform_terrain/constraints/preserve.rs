@@ -1,0 +1,30 @@
+//! `preserve`: divergence from the original terrain everywhere, (h − original)².
+
+use serde_json::{json, Value};
+
+use super::{rms, Detail, Field, Grid, Quadratic};
+use crate::sims::deform_terrain::params::Preserve;
+
+pub fn build(p: &Preserve, grid: &Grid) -> Field {
+    let n = grid.cells();
+    let w = 1.0 / (n as f64 * grid.relief * grid.relief);
+    Field {
+        name: "preserve",
+        weight: p.weight,
+        quadratic: Some(Quadratic::from_terms(n, (0..n).map(|i| (i, w, grid.original[i])))),
+        one_sided: None,
+        pairs: None,
+        interest: vec![false; n],
+        anchors: false,
+        detail: Detail::Preserve,
+    }
+}
+
+/// RMS and largest divergence from the original as shares of the relief.
+pub fn figures(h: &[f64], grid: &Grid) -> Value {
+    let diff = || h.iter().zip(grid.original).map(|(a, o)| a - o);
+    json!({
+        "rms_change_of_relief": rms(diff()) / grid.relief,
+        "max_change_of_relief": diff().fold(0.0f64, |m, d| m.max(d.abs())) / grid.relief,
+    })
+}

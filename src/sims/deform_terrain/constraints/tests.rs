@@ -1,0 +1,122 @@
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde_json::json;
+
+use super::*;
+use crate::sims::deform_terrain::kernel::{apply, Kernel};
+use crate::terrain::Heightfield;
+
+fn terrain(cols: usize, rows: usize, phase: f32) -> Heightfield {
+    Heightfield::from_fn(cols, rows, 1.0, |x, z| {
+        20.0 * (x * 0.21 + phase).sin() * (z * 0.17).cos() + 7.0 * (x * 0.05 - z * 0.11 + phase).sin()
+    })
+}
+
+fn every_constraint() -> Vec<Constraint> {
+    let c = |v: serde_json::Value| serde_json::from_value::<Constraint>(v).unwrap();
+    vec![
+        c(json!({"shape_mask": {"mask": {"polygons": [[[5.0, 5.0], [30.0, 8.0], [20.0, 28.0]]]}, "weight": 2.0}})),
+        c(
+            json!({"road": {"path": [{"x": 2.0, "z": 3.0}, {"x": 20.0, "z": 25.0}, {"x": 38.0, "z": 10.0}], "width_m": 3.0,
+                 "height": {"profile": {"max_gradient_percent": 8.0}}}}),
+        ),
+        c(
+            json!({"road": {"path": [{"x": 0.0, "z": 30.0}, {"x": 39.0, "z": 30.0}], "width_m": 2.0, "height": {"constant": 1.5}}}),
+        ),
+        c(
+            json!({"edge_match": {"terrain": {"job": "0190a0f4-4a9e-7c3e-8000-000000000001"}, "edges": ["west", "north"], "band_cells": 6}}),
+        ),
+        c(json!({"tileable": {"edges": "both", "band_cells": 8, "weight": 3.0}})),
+        c(
+            json!({"points": {"points": [{"x": 10.0, "z": 10.0, "height": 5.0}, {"x": 33.0, "z": 20.0, "height": -4.0}]}}),
+        ),
+        c(json!({"preserve": {"weight": 0.5}})),
+        c(json!({"match_heightmap": {"target": {"job": "0190a0f4-4a9e-7c3e-8000-000000000001"}, "weight": 0.25}})),
+    ]
+}
+
+fn fields_for(h0: &[f64], cols: usize, rows: usize) -> Vec<Field> {
+    let other = terrain(cols, rows, 1.3);
+    let constraints = every_constraint();
+    let resolved: Vec<Resolved> = constraints
+        .iter()
+        .map(|c| matches!(c, Constraint::EdgeMatch(_) | Constraint::MatchHeightmap(_)).then(|| other.clone()))
+        .collect();
+    let grid = Grid { cols, rows, cell_m: 1.0, original: h0, relief: 40.0 };
+    build(&constraints, &resolved, &grid).unwrap()
+}
+
+fn total(fields: &[Field], h: &[f64], cols: usize, rows: usize) -> f64 {
+    fields.iter().map(|f| f.weight * f.value(h, cols, rows)).sum()
+}
+
+#[test]
+fn the_windowed_change_equals_the_full_recomputation() {
+    let (cols, rows) = (40, 33);
+    let h0: Vec<f64> = terrain(cols, rows, 0.0).heights_m.iter().map(|&v| v as f64).collect();
+    let fields = fields_for(&h0, cols, rows);
+    let fitness = Fitness::new(&fields, cols, rows);
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let mut h = h0.clone();
+    for trial in 0..300 {
+        let radius = rng.random_range(1..12usize);
+        let (col, row) = (rng.random_range(0..cols), rng.random_range(0..rows));
+        let delta = rng.random_range(-8.0..8.0);
+        let kernel = Kernel::new(radius);
+        let before = total(&fields, &h, cols, rows);
+        let (change, d) = fitness.best_change(&h, col, row, &kernel, 1, &[delta], 8.0, false);
+        assert_eq!(d, delta);
+        let mut after_h = h.clone();
+        let amplitude = after_h[row * cols + col] + delta;
+        apply(&mut after_h, cols, rows, col, row, amplitude, &kernel);
+        let full = total(&fields, &after_h, cols, rows) - before;
+        let tol = 1e-9 * before.abs().max(full.abs()) + 1e-12;
+        assert!((change - full).abs() <= tol, "trial {trial}: windowed {change} vs full {full}");
+        // The per-constraint window update agrees too.
+        let rect = Rect::around(col, row, radius, cols, rows);
+        for f in &fields {
+            let windowed = f.window_value(&after_h, rect, cols) - f.window_value(&h, rect, cols);
+            let full = f.value(&after_h, cols, rows) - f.value(&h, cols, rows);
+            assert!((windowed - full).abs() <= 1e-9 * f.value(&h, cols, rows).abs() + 1e-12, "{}", f.name);
+        }
+        if trial % 3 == 0 {
+            h = after_h;
+        }
+    }
+}
+
+#[test]
+fn the_closed_form_displacement_is_the_best_of_the_quadratic_part() {
+    let (cols, rows) = (30, 30);
+    let h0: Vec<f64> = terrain(cols, rows, 0.4).heights_m.iter().map(|&v| v as f64).collect();
+    let grid = Grid { cols, rows, cell_m: 1.0, original: &h0, relief: 40.0 };
+    let c: Constraint =
+        serde_json::from_value(json!({"points": {"points": [{"x": 15.0, "z": 15.0, "height": 50.0}]}})).unwrap();
+    let fields = build(&[c], &[None], &grid).unwrap();
+    let fitness = Fitness::new(&fields, cols, rows);
+    let kernel = Kernel::new(5);
+    let want = 50.0 - h0[15 * cols + 15];
+    let (change, d) = fitness.best_change(&h0, 15, 15, &kernel, 1, &[1.0, -1.0], 100.0, true);
+    assert!((d - want).abs() < 1e-9, "{d} vs {want}");
+    assert!((change + fields[0].value(&h0, cols, rows)).abs() < 1e-12);
+}
+
+#[test]
+fn the_shape_mask_counts_each_side_with_its_margin() {
+    let (cols, rows) = (20, 20);
+    let h0 = vec![0.0; cols * rows];
+    let grid = Grid { cols, rows, cell_m: 1.0, original: &h0, relief: 10.0 };
+    let c: Constraint = serde_json::from_value(
+        json!({"shape_mask": {"mask": {"polygons": [[[4.5, 4.5], [14.5, 4.5], [14.5, 14.5], [4.5, 14.5]]]}, "water_level": 0.0, "margin": 1.0}}),
+    )
+    .unwrap();
+    let f = &build(&[c], &[None], &grid).unwrap()[0];
+    let land = f.one_sided.as_ref().unwrap().side.iter().filter(|&&s| s > 0).count();
+    assert_eq!(land, 100);
+    // Every land cell is 1 m short of water level + margin, every sea cell 1 m above water
+    // level − margin.
+    let expect = 400.0 / (400.0 * 100.0);
+    assert!((f.value(&h0, cols, rows) - expect).abs() < 1e-15);
+    let figures = f.figures(&h0, &grid);
+    assert_eq!(figures["correct_side_share"], json!(0.0));
+}

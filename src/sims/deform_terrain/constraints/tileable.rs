@@ -1,0 +1,68 @@
+//! `tileable`: opposite edges match each other, (h(0, r) − h(N − 1, r))² and the same for
+//! rows, so the tile repeats without a seam.
+
+use serde_json::{json, Value};
+
+use super::{rms, Detail, Field, Grid, Pairs, NO_PARTNER};
+use crate::sims::deform_terrain::params::{TileAxes, Tileable};
+
+pub fn build(t: &Tileable, grid: &Grid) -> Field {
+    let (cols, rows, n) = (grid.cols, grid.rows, grid.cells());
+    let x = matches!(t.edges, TileAxes::Both | TileAxes::X);
+    let z = matches!(t.edges, TileAxes::Both | TileAxes::Z);
+    let mut partner_x = vec![NO_PARTNER; n];
+    let mut partner_z = vec![NO_PARTNER; n];
+    let mut count = 0;
+    if x {
+        for r in 0..rows {
+            let (a, b) = (r * cols, r * cols + cols - 1);
+            partner_x[a] = b as u32;
+            partner_x[b] = a as u32;
+            count += 1;
+        }
+    }
+    if z {
+        for c in 0..cols {
+            let (a, b) = (c, (rows - 1) * cols + c);
+            partner_z[a] = b as u32;
+            partner_z[b] = a as u32;
+            count += 1;
+        }
+    }
+    let width = (t.band_cells as usize / 8).max(1);
+    let mut interest = vec![false; n];
+    for r in 0..rows {
+        for c in 0..cols {
+            let near_x = x && (c < width || c + width >= cols);
+            let near_z = z && (r < width || r + width >= rows);
+            interest[r * cols + c] = near_x || near_z;
+        }
+    }
+    let scale = 1.0 / (count.max(1) as f64 * grid.relief * grid.relief);
+    Field {
+        name: "tileable",
+        weight: t.weight,
+        quadratic: None,
+        one_sided: None,
+        pairs: Some(Pairs { partner_x, partner_z, scale }),
+        interest,
+        anchors: true,
+        detail: Detail::Tileable { x, z },
+    }
+}
+
+/// RMS mismatch of opposite edges as a share of the relief.
+pub fn figures(x: bool, z: bool, h: &[f64], grid: &Grid) -> Value {
+    let (cols, rows) = (grid.cols, grid.rows);
+    let mut diffs = Vec::new();
+    if x {
+        diffs.extend((0..rows).map(|r| h[r * cols] - h[r * cols + cols - 1]));
+    }
+    if z {
+        diffs.extend((0..cols).map(|c| h[c] - h[(rows - 1) * cols + c]));
+    }
+    json!({
+        "rms_mismatch_of_relief": rms(diffs.iter().copied()) / grid.relief,
+        "max_mismatch_of_relief": diffs.iter().fold(0.0f64, |m, d| m.max(d.abs())) / grid.relief,
+    })
+}

@@ -1,0 +1,436 @@
+//! `deform-terrain`: a fractal heightfield deformed by stochastic local search over truncated
+//! Gaussian operations until it satisfies constraints — the seed paper's algorithm (§3), with
+//! the fitness change of a deformation evaluated over its kernel's window only, candidates
+//! evaluated in parallel, and the deformation sequence recorded as the terrain (§4.5).
+
+mod candidates;
+mod constraints;
+mod kernel;
+mod params;
+mod prediction;
+mod search;
+mod sequence;
+
+#[cfg(test)]
+mod tests;
+
+use serde_json::{json, Map, Value};
+
+pub use kernel::Kernel;
+pub use params::{
+    Constraint, DeformTerrainParams, Edge, EdgeMatch, HeightPoint, MaskShape, MatchHeightmap, PlanPoint, Points,
+    Preserve, Road, RoadHeight, RoadProfile, ShapeMask, TileAxes, Tileable, MAX_ITERATIONS,
+};
+pub use sequence::{DeformSequence, Deformation};
+
+use crate::export::Artifact;
+use crate::jobs::{Outcome, RunContext, SimError, Simulation};
+use crate::terrain::{Heightfield, TerrainSource};
+use constraints::{Field, Fitness, Grid};
+use search::{Record, Searched, Settings, Stop, Tracker, Watch};
+
+/// The `deform-terrain` job kind.
+pub struct DeformTerrain;
+
+const STAGE: &str = "search";
+
+/// How many of the smallest radii an anchor vertex (a road, seam or point cell) is tried with.
+const ANCHOR_RADII: usize = 4;
+
+impl Simulation for DeformTerrain {
+    const KIND: &'static str = "deform-terrain";
+    const SUMMARY: &'static str =
+        "Deform a terrain by stochastic local search over Gaussian operations until it satisfies constraints";
+    type Params = DeformTerrainParams;
+    type Sequence = DeformSequence;
+
+    fn terrain_sources(params: &mut DeformTerrainParams) -> Vec<(String, &mut TerrainSource)> {
+        let mut out = vec![("terrain".to_string(), &mut params.terrain)];
+        for (i, c) in params.constraints.iter_mut().enumerate() {
+            match c {
+                Constraint::MatchHeightmap(m) => {
+                    out.push((format!("constraints[{i}].match_heightmap.target"), &mut m.target))
+                }
+                Constraint::ShapeMask(ShapeMask { mask: MaskShape::Image(src), .. }) => {
+                    out.push((format!("constraints[{i}].shape_mask.mask.image"), src))
+                }
+                Constraint::EdgeMatch(e) => out.push((format!("constraints[{i}].edge_match.terrain"), &mut e.terrain)),
+                _ => {}
+            }
+        }
+        out
+    }
+
+    fn run(params: &DeformTerrainParams, seed: u64, ctx: &RunContext) -> Result<Outcome<DeformSequence>, SimError> {
+        let problem = Problem::new(params, ctx)?;
+        let mut h = problem.original.clone();
+        let grid = problem.grid();
+        let fields = problem.fields(&grid)?;
+        let settings = problem.settings(params, &fields)?;
+        let fitness = Fitness::new(&fields, grid.cols, grid.rows);
+        let interest = constraints::interest(&fields, grid.cells());
+        let shorter = grid.cols.min(grid.rows);
+        let coarse = params.coarse_spacing_cells.map_or((shorter / 16).max(1), |c| c as usize);
+        let lattice =
+            candidates::candidate_vertices(&interest, grid.cols, grid.rows, coarse, params.min_spacing_cells as usize);
+        // Anchors fit narrow features cell by cell, so they take the small radii only; the
+        // lattice's vertices take every radius.
+        let small = settings.kernels.len().min(ANCHOR_RADII);
+        let mut vertices: Vec<(usize, usize, usize)> =
+            lattice.iter().map(|&(c, r)| (c, r, settings.kernels.len())).collect();
+        vertices.extend(constraints::anchors(&fields, grid.cols).into_iter().map(|(c, r)| (c, r, small)));
+        vertices.sort_by_key(|&(c, r, n)| (r, c, std::cmp::Reverse(n)));
+        vertices.dedup_by_key(|v| (v.0, v.1));
+        let mut tracker = Tracker::new(&fields, &h, grid.cols, grid.rows);
+        let watch = JobWatch { ctx, cols: grid.cols, rows: grid.rows, cell_m: grid.cell_m };
+        let searched = search::search(&mut h, &fitness, &mut tracker, &vertices, &settings, seed, &watch)?;
+        let history = std::mem::take(&mut tracker.history);
+        let sequence = DeformSequence { terrain: params.terrain.clone(), operations: searched.operations.clone() };
+        let run = RunFigures { searched: Some(&searched), candidates: vertices.len(), prediction: params.prediction };
+        finish(&problem, &fields, &h, &history, &interest, &settings, sequence, run)
+    }
+
+    fn replay(
+        params: &DeformTerrainParams,
+        sequence: &DeformSequence,
+        until_step: Option<u64>,
+        ctx: &RunContext,
+    ) -> Result<Outcome<DeformSequence>, SimError> {
+        let k = until_step.map_or(sequence.operations.len(), |k| (k as usize).min(sequence.operations.len()));
+        let params = DeformTerrainParams { terrain: sequence.terrain.clone(), ..params.clone() };
+        let problem = Problem::new(&params, ctx)?;
+        let grid = problem.grid();
+        let fields = problem.fields(&grid)?;
+        let settings = problem.settings(&params, &fields)?;
+        let interest = constraints::interest(&fields, grid.cells());
+        let mut h = problem.original.clone();
+        let mut tracker = Tracker::new(&fields, &h, grid.cols, grid.rows);
+        let ops = &sequence.operations[..k];
+        for (n, op) in ops.iter().enumerate() {
+            ctx.check_cancelled()?;
+            check_operation(op, n, grid.cols, grid.rows)?;
+            tracker.apply(&mut h, op, &Kernel::new(op.radius_cells as usize));
+            ctx.report("replay", n as u64 + 1, k as u64, format!("operation {} of {k}", n + 1));
+        }
+        let history = std::mem::take(&mut tracker.history);
+        let sequence = DeformSequence { terrain: sequence.terrain.clone(), operations: ops.to_vec() };
+        let run = RunFigures { searched: None, candidates: 0, prediction: params.prediction };
+        finish(&problem, &fields, &h, &history, &interest, &settings, sequence, run)
+    }
+}
+
+/// Refuse a recorded operation outside the grid.
+fn check_operation(op: &Deformation, n: usize, cols: usize, rows: usize) -> Result<(), SimError> {
+    if op.col as usize >= cols || op.row as usize >= rows || op.radius_cells == 0 || !op.amplitude.is_finite() {
+        return Err(SimError::Failed(format!("recorded operation {n} does not fit the terrain")));
+    }
+    Ok(())
+}
+
+/// The resolved terrain and the constraints' inputs.
+struct Problem<'p> {
+    params: &'p DeformTerrainParams,
+    cols: usize,
+    rows: usize,
+    cell_m: f64,
+    original: Vec<f64>,
+    relief: f64,
+    resolved: Vec<Option<Heightfield>>,
+}
+
+impl<'p> Problem<'p> {
+    fn new(params: &'p DeformTerrainParams, ctx: &RunContext) -> Result<Self, SimError> {
+        let terrain = ctx.resolve_terrain(&params.terrain)?;
+        let original: Vec<f64> = terrain.heights_m.iter().map(|&v| v as f64).collect();
+        let (lo, hi) = terrain.min_max();
+        let relief = if hi > lo { hi as f64 - lo as f64 } else { 1.0 };
+        let mut resolved = Vec::with_capacity(params.constraints.len());
+        for c in &params.constraints {
+            ctx.check_cancelled()?;
+            resolved.push(match c {
+                Constraint::MatchHeightmap(m) => Some(ctx.resolve_terrain(&m.target)?),
+                Constraint::ShapeMask(ShapeMask { mask: MaskShape::Image(src), .. }) => Some(ctx.resolve_terrain(src)?),
+                Constraint::EdgeMatch(e) => Some(ctx.resolve_terrain(&e.terrain)?),
+                _ => None,
+            });
+        }
+        let p = Self {
+            params,
+            cols: terrain.cols,
+            rows: terrain.rows,
+            cell_m: terrain.cell_size_m as f64,
+            original,
+            relief,
+            resolved,
+        };
+        p.check_against_grid()?;
+        Ok(p)
+    }
+
+    fn grid(&self) -> Grid<'_> {
+        Grid { cols: self.cols, rows: self.rows, cell_m: self.cell_m, original: &self.original, relief: self.relief }
+    }
+
+    fn fields(&self, grid: &Grid) -> Result<Vec<Field>, SimError> {
+        constraints::build(&self.params.constraints, &self.resolved, grid)
+            .map_err(|e| SimError::Invalid { field: e.field, message: e.message })
+    }
+
+    /// What validation could not check before the terrain was known (an earlier job's grid).
+    fn check_against_grid(&self) -> Result<(), SimError> {
+        let p = self.params;
+        let shorter = self.cols.min(self.rows);
+        let invalid = |field: String, message: String| Err(SimError::Invalid { field, message });
+        if shorter < 3 {
+            return invalid("terrain".into(), format!("needs at least 3 samples a side (got {shorter})"));
+        }
+        for (leaf, r) in [("min_radius_cells", Some(p.min_radius_cells)), ("max_radius_cells", p.max_radius_cells)] {
+            if let Some(r) = r.filter(|&r| r as usize >= shorter) {
+                return invalid(leaf.into(), format!("{r} cells is larger than the grid ({shorter} samples a side)"));
+            }
+        }
+        let (w, d) = ((self.cols - 1) as f64 * self.cell_m, (self.rows - 1) as f64 * self.cell_m);
+        let off = |x: f64, z: f64| !(0.0..=w).contains(&x) || !(0.0..=d).contains(&z);
+        for (i, c) in p.constraints.iter().enumerate() {
+            match c {
+                Constraint::Road(r) => {
+                    if let Some(k) = r.path.iter().position(|q| off(q.x, q.z)) {
+                        return invalid(
+                            format!("constraints[{i}].road.path[{k}]"),
+                            format!("is off the grid (0..{w} m × 0..{d} m)"),
+                        );
+                    }
+                }
+                Constraint::Points(pts) => {
+                    if let Some(k) = pts.points.iter().position(|q| off(q.x, q.z)) {
+                        return invalid(
+                            format!("constraints[{i}].points.points[{k}]"),
+                            format!("is off the grid (0..{w} m × 0..{d} m)"),
+                        );
+                    }
+                }
+                Constraint::EdgeMatch(EdgeMatch { band_cells, .. })
+                | Constraint::Tileable(Tileable { band_cells, .. })
+                    if *band_cells as usize > shorter / 2 =>
+                {
+                    return invalid(
+                        format!("constraints[{i}].{}.band_cells", c.name()),
+                        format!("must be at most half the grid ({} cells)", shorter / 2),
+                    );
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+
+    fn settings(&self, p: &DeformTerrainParams, fields: &[Field]) -> Result<Settings, SimError> {
+        let shorter = self.cols.min(self.rows);
+        let max_r = p.max_radius_cells.map_or((shorter / 8).max(p.min_radius_cells as usize), |r| r as usize);
+        let radii = search::radii(p.min_radius_cells as usize, max_r, p.radii as usize);
+        let unit = search::unit_displacements(p.amplitudes as usize);
+        let d_max: Vec<f64> = radii.iter().map(|&r| p.max_displacement_ratio * r as f64 * self.cell_m).collect();
+        let deltas = d_max.iter().map(|&d| unit.iter().map(|u| u * d).collect()).collect();
+        let (tile_x, tile_z) = fields
+            .iter()
+            .find_map(|f| match f.detail {
+                constraints::Detail::Tileable { x, z } => Some((x, z)),
+                _ => None,
+            })
+            .unwrap_or((false, false));
+        Ok(Settings {
+            max_iterations: p.max_iterations,
+            epsilon: p.epsilon,
+            p: p.p,
+            top_fraction: p.top_fraction,
+            prediction: p.prediction,
+            prediction_constant: p.prediction_constant,
+            kernels: radii.iter().map(|&r| Kernel::new(r)).collect(),
+            deltas,
+            d_max,
+            cell_m: self.cell_m,
+            tile_x,
+            tile_z,
+        })
+    }
+}
+
+/// Progress and cancellation from a job's context.
+struct JobWatch<'a, 'c> {
+    ctx: &'a RunContext<'c>,
+    cols: usize,
+    rows: usize,
+    cell_m: f64,
+}
+
+impl Watch for JobWatch<'_, '_> {
+    type Stop = SimError;
+
+    fn check(&self) -> Result<(), SimError> {
+        self.ctx.check_cancelled()
+    }
+
+    fn progress(&self, iteration: u64, total: u64, fitness: f64, h: &[f64]) {
+        self.ctx.report_with_snapshot(STAGE, iteration, total, format!("fitness {fitness:.3e}"), || {
+            crate::export::snapshot_png(&to_heightfield(h, self.cols, self.rows, self.cell_m))
+        });
+    }
+}
+
+fn to_heightfield(h: &[f64], cols: usize, rows: usize, cell_m: f64) -> Heightfield {
+    Heightfield { cols, rows, cell_size_m: cell_m as f32, heights_m: h.iter().map(|&v| v as f32).collect() }
+}
+
+/// What only a run knows.
+struct RunFigures<'a> {
+    searched: Option<&'a Searched>,
+    candidates: usize,
+    prediction: bool,
+}
+
+/// `fitness.json`: the fitness after every iteration, in total and per constraint.
+#[derive(serde::Serialize)]
+struct FitnessLog<'a> {
+    constraints: Vec<&'static str>,
+    weights: Vec<f64>,
+    iterations: &'a [Record],
+}
+
+#[allow(clippy::too_many_arguments)]
+fn finish(
+    problem: &Problem,
+    fields: &[Field],
+    h: &[f64],
+    history: &[Record],
+    interest: &[bool],
+    settings: &Settings,
+    sequence: DeformSequence,
+    run: RunFigures,
+) -> Result<Outcome<DeformSequence>, SimError> {
+    let grid = problem.grid();
+    if let Some(i) = h.iter().position(|v| !v.is_finite()) {
+        return Err(SimError::Failed(format!("non-finite height at sample {i}")));
+    }
+    let hf = to_heightfield(h, grid.cols, grid.rows, grid.cell_m);
+    let log = FitnessLog {
+        constraints: fields.iter().map(|f| f.name).collect(),
+        weights: fields.iter().map(|f| f.weight).collect(),
+        iterations: history,
+    };
+    let fitness_json = serde_json::to_vec(&log).map_err(|e| SimError::Failed(e.to_string()))?;
+    let sequence_bytes = serde_json::to_vec_pretty(&sequence).map_err(|e| SimError::Failed(e.to_string()))?.len();
+    let exported = crate::export::heightfield_artifacts(&hf);
+    let heightmap_png_bytes =
+        exported.artifacts.iter().find(|a| a.name == "heightmap.png").map_or(0, |a| a.bytes.len());
+    let mut result = match exported.summary {
+        Value::Object(map) => map,
+        other => [("export".to_string(), other)].into_iter().collect::<Map<_, _>>(),
+    };
+    let total: f64 = fields.iter().map(|f| f.weight * f.value(h, grid.cols, grid.rows)).sum();
+    let max_radius = settings.kernels.iter().map(|k| k.radius).max().unwrap_or(1);
+    let figures: Vec<Value> = fields.iter().map(|f| f.figures(h, &grid)).collect();
+    result.insert("fitness".into(), json!(total));
+    result.insert("fitness_initial".into(), json!(history.first().map_or(total, |r| r.total)));
+    result.insert("constraints".into(), Value::Array(figures));
+    result.insert("operations".into(), json!(sequence.operations.len()));
+    result.insert("iterations".into(), json!(history.len().saturating_sub(1)));
+    result.insert("prediction".into(), json!(run.prediction));
+    if let Some(s) = run.searched {
+        result.insert("evaluations".into(), json!(s.evaluations));
+        result.insert("candidate_vertices".into(), json!(run.candidates));
+        result.insert(
+            "stopped".into(),
+            json!(match s.stop {
+                Stop::Epsilon => "epsilon",
+                Stop::MaxIterations => "max_iterations",
+                Stop::NoImprovement => "no_improvement",
+            }),
+        );
+    }
+    result.insert(
+        "far_cells".into(),
+        far_cells(h, &problem.original, interest, grid.cols, grid.rows, 2 * max_radius, grid.relief),
+    );
+    result.insert("sequence_bytes".into(), json!(sequence_bytes));
+    // §4.5's compression: the terrain source plus 10 bytes per operation (u16 col, u16 row,
+    // f32 amplitude, u16 radius) — what a binary encoding of sequence.json would take.
+    let source_bytes = serde_json::to_vec(&sequence.terrain).map_err(|e| SimError::Failed(e.to_string()))?.len();
+    result.insert("sequence_packed_bytes".into(), json!(source_bytes + 10 * sequence.operations.len()));
+    result.insert("heightmap_png_bytes".into(), json!(heightmap_png_bytes));
+    let mut artifacts = exported.artifacts;
+    artifacts.push(Artifact::new("fitness.json", "application/json", fitness_json));
+    Ok(Outcome { result: Value::Object(result), sequence, artifacts })
+}
+
+/// Cells at least `distance` cells (Chebyshev) from every cell of interest: how many, and
+/// their largest change from the original as a share of the relief.
+fn far_cells(
+    h: &[f64],
+    original: &[f64],
+    interest: &[bool],
+    cols: usize,
+    rows: usize,
+    distance: usize,
+    relief: f64,
+) -> Value {
+    let near = dilate(interest, cols, rows, distance.saturating_sub(1));
+    let mut count = 0u64;
+    let mut worst = 0.0f64;
+    for i in 0..h.len() {
+        if !near[i] {
+            count += 1;
+            worst = worst.max((h[i] - original[i]).abs());
+        }
+    }
+    json!({ "distance_cells": distance, "cells": count, "max_change_of_relief": worst / relief })
+}
+
+/// Mark every cell within `d` (Chebyshev) of a marked one: a separable max filter.
+fn dilate(marked: &[bool], cols: usize, rows: usize, d: usize) -> Vec<bool> {
+    let pass = |src: &[bool], along_rows: bool| {
+        let mut out = vec![false; src.len()];
+        let (n, m) = if along_rows { (rows, cols) } else { (cols, rows) };
+        for a in 0..n {
+            let idx = |b: usize| if along_rows { a * cols + b } else { b * cols + a };
+            // Distance to the last marked cell seen, forward then backward.
+            let mut last: Option<usize> = None;
+            for b in 0..m {
+                if src[idx(b)] {
+                    last = Some(b);
+                }
+                if last.is_some_and(|l| b - l <= d) {
+                    out[idx(b)] = true;
+                }
+            }
+            last = None;
+            for b in (0..m).rev() {
+                if src[idx(b)] {
+                    last = Some(b);
+                }
+                if last.is_some_and(|l| l - b <= d) {
+                    out[idx(b)] = true;
+                }
+            }
+        }
+        out
+    };
+    let once = pass(marked, true);
+    pass(&once, false)
+}
+
+/// Apply a sequence's first operations to a heightfield without a job (benches, tests).
+pub fn apply_sequence(hf: &Heightfield, operations: &[Deformation]) -> Heightfield {
+    let mut h: Vec<f64> = hf.heights_m.iter().map(|&v| v as f64).collect();
+    for op in operations {
+        kernel::apply(
+            &mut h,
+            hf.cols,
+            hf.rows,
+            op.col as usize,
+            op.row as usize,
+            op.amplitude as f64,
+            &Kernel::new(op.radius_cells as usize),
+        );
+    }
+    to_heightfield(&h, hf.cols, hf.rows, hf.cell_size_m as f64)
+}

@@ -1,0 +1,556 @@
+//! The `deform-terrain` request: a terrain, the constraints it must satisfy, and the search's
+//! settings (paper §3.3–3.5).
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::terrain::TerrainSource;
+use crate::validate::{Limits, Validate, Validator};
+
+/// Most search iterations a request may ask for (413 beyond).
+pub const MAX_ITERATIONS: u32 = 20_000;
+/// Most sampled amplitudes and radii.
+pub const MAX_AMPLITUDES: u32 = 101;
+pub const MAX_RADII: u32 = 32;
+/// Most road vertices, points and polygon vertices, each.
+pub const MAX_VERTICES: usize = 10_000;
+
+fn one() -> f64 {
+    1.0
+}
+fn default_max_iterations() -> u32 {
+    500
+}
+fn default_epsilon() -> f64 {
+    1e-6
+}
+fn default_p() -> f64 {
+    0.65
+}
+fn default_top_fraction() -> f64 {
+    0.05
+}
+fn default_amplitudes() -> u32 {
+    25
+}
+fn default_radii() -> u32 {
+    7
+}
+fn default_min_radius() -> u32 {
+    2
+}
+fn default_ratio() -> f64 {
+    0.5
+}
+fn default_min_spacing() -> u32 {
+    2
+}
+fn default_true() -> bool {
+    true
+}
+fn default_prediction_constant() -> f64 {
+    0.1
+}
+fn default_band() -> u32 {
+    16
+}
+
+/// Deform a terrain by stochastic local search over truncated-Gaussian deformations until it
+/// satisfies the constraints (Tasse & Gain's "fractal terrain deformation" seed, §3).
+///
+/// Each constraint is a fitness F_c: a sum of per-vertex penalties divided by (constrained
+/// vertices × relief²), relief = the starting terrain's max − min, so F_c is a mean-square
+/// error in units of relief². The search minimises F = Σ weight_c · F_c. Lengths in metres;
+/// grid coordinates (cols along X, rows along Z) where a field says so.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = DeformTerrainParams)]
+pub struct DeformTerrainParams {
+    /// The starting terrain.
+    pub terrain: TerrainSource,
+    /// The constraints, combined by their weights (at least one; at most one `shape_mask`
+    /// and one `tileable`).
+    pub constraints: Vec<Constraint>,
+    /// Stop after this many deformations.
+    #[serde(default = "default_max_iterations")]
+    #[schema(default = 500, minimum = 1, maximum = 20000)]
+    pub max_iterations: u32,
+    /// Stop once F ≤ epsilon.
+    #[serde(default = "default_epsilon")]
+    #[schema(default = 1e-6, minimum = 0.0)]
+    pub epsilon: f64,
+    /// Probability of taking the best deformation; otherwise one of the top fraction (§3.3).
+    #[serde(default = "default_p")]
+    #[schema(default = 0.65, minimum = 0.0, maximum = 1.0)]
+    pub p: f64,
+    /// The share of the candidate table a non-greedy choice is drawn from.
+    #[serde(default = "default_top_fraction")]
+    #[schema(default = 0.05, minimum = 0.0, maximum = 1.0)]
+    pub top_fraction: f64,
+    /// Displacements sampled per (vertex, radius), spread over ±max_displacement_ratio·radius
+    /// (zero excluded); the closed-form best displacement of the quadratic penalties is tried too.
+    #[serde(default = "default_amplitudes")]
+    #[schema(default = 25, minimum = 1, maximum = 101)]
+    pub amplitudes: u32,
+    /// Radii sampled, geometric between `min_radius_cells` and `max_radius_cells`.
+    #[serde(default = "default_radii")]
+    #[schema(default = 7, minimum = 1, maximum = 32)]
+    pub radii: u32,
+    /// The smallest radius: 2 lets a deformation move a vertex with its neighbours at 0.31,
+    /// fine enough to seat a road within half a percent of the relief; 1 would move single
+    /// cells, the spikes of the paper's Figure 3.
+    #[serde(default = "default_min_radius")]
+    #[schema(default = 2, minimum = 1)]
+    pub min_radius_cells: u32,
+    /// Absent: an eighth of the terrain's shorter side.
+    #[serde(default)]
+    pub max_radius_cells: Option<u32>,
+    /// Frequency limitation (§3.4): a displacement may be at most this times the radius (both
+    /// in metres).
+    #[serde(default = "default_ratio")]
+    #[schema(default = 0.5, exclusive_minimum = 0.0)]
+    pub max_displacement_ratio: f64,
+    /// Spacing of the coarse uniform grid of candidate vertices (Figure 2). Absent: a
+    /// sixteenth of the terrain's shorter side.
+    #[serde(default)]
+    pub coarse_spacing_cells: Option<u32>,
+    /// Smallest quadtree cell around constrained regions.
+    #[serde(default = "default_min_spacing")]
+    #[schema(default = 2, minimum = 1)]
+    pub min_spacing_cells: u32,
+    /// Prediction with per-deformation confidence (§3.5): skip recomputing unlikely candidates.
+    #[serde(default = "default_true")]
+    #[schema(default = true)]
+    pub prediction: bool,
+    /// The constant C that raises every confidence so each candidate is recomputed eventually.
+    #[serde(default = "default_prediction_constant")]
+    #[schema(default = 0.1, exclusive_minimum = 0.0, maximum = 1.0)]
+    pub prediction_constant: f64,
+}
+
+/// One constraint: exactly one of the kinds.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+#[schema(as = DeformConstraint)]
+pub enum Constraint {
+    MatchHeightmap(MatchHeightmap),
+    ShapeMask(ShapeMask),
+    Road(Road),
+    EdgeMatch(EdgeMatch),
+    Tileable(Tileable),
+    Points(Points),
+    Preserve(Preserve),
+}
+
+/// Penalise (h − t)² against a desired heightfield of the same size.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = DeformMatchHeightmap)]
+pub struct MatchHeightmap {
+    pub target: TerrainSource,
+    #[serde(default = "one")]
+    #[schema(default = 1.0)]
+    pub weight: f64,
+}
+
+/// Where land must be above `water_level` (equation 3, with a margin).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = DeformShapeMask)]
+pub struct ShapeMask {
+    pub mask: MaskShape,
+    /// Metres. Absent: the starting terrain's median height.
+    #[serde(default)]
+    pub water_level: Option<f64>,
+    /// Land wants h ≥ water_level + margin, sea h ≤ water_level − margin; metres. Absent: 1% of
+    /// the relief.
+    #[serde(default)]
+    pub margin: Option<f64>,
+    #[serde(default = "one")]
+    #[schema(default = 1.0)]
+    pub weight: f64,
+}
+
+/// The land mask: an image of the terrain's size (brighter than its mid-range = land; e.g. an
+/// 8- or 16-bit grayscale PNG as a `heightmap`, white = land), or polygons.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+#[schema(as = DeformMaskShape)]
+pub enum MaskShape {
+    Image(TerrainSource),
+    /// Polygons of [col, row] grid coordinates; land is inside any of them (even-odd).
+    Polygons(Vec<Vec<[f64; 2]>>),
+}
+
+/// A road: cells within width/2 of the polyline want the road's height; all others their
+/// original height (equation 4).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = DeformRoad)]
+pub struct Road {
+    /// At least 2 points, in metres, on the grid.
+    pub path: Vec<PlanPoint>,
+    #[schema(exclusive_minimum = 0.0)]
+    pub width_m: f64,
+    pub height: RoadHeight,
+    /// Beyond the road's edge, the pull back to the original terrain grows linearly from 0 to
+    /// full over this distance, leaving room for cuttings and embankments. Absent: four times
+    /// the width.
+    #[serde(default)]
+    pub shoulder_m: Option<f64>,
+    #[serde(default = "one")]
+    #[schema(default = 1.0)]
+    pub weight: f64,
+}
+
+/// A horizontal position in metres.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = DeformPoint)]
+pub struct PlanPoint {
+    pub x: f64,
+    pub z: f64,
+}
+
+/// A constant road height, or the original terrain along the path limited to a gradient.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+#[schema(as = DeformRoadHeight)]
+pub enum RoadHeight {
+    /// Metres.
+    Constant(f64),
+    Profile(RoadProfile),
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = DeformRoadProfile)]
+pub struct RoadProfile {
+    /// Largest rise per run along the road, percent.
+    #[schema(exclusive_minimum = 0.0)]
+    pub max_gradient_percent: f64,
+}
+
+/// Continue another terrain of the same size across shared edges (equation 5).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = DeformEdgeMatch)]
+pub struct EdgeMatch {
+    /// The neighbour; it lies beyond each listed edge of this terrain.
+    pub terrain: TerrainSource,
+    pub edges: Vec<Edge>,
+    /// Cells from the edge over which W(y) = (1 − y/band)² fades.
+    #[serde(default = "default_band")]
+    #[schema(default = 16, minimum = 1)]
+    pub band_cells: u32,
+    #[serde(default = "one")]
+    #[schema(default = 1.0)]
+    pub weight: f64,
+}
+
+/// An edge of the grid: west = column 0, east = last column, north = row 0, south = last row.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+#[schema(as = DeformEdge)]
+pub enum Edge {
+    West,
+    East,
+    North,
+    South,
+}
+
+/// Opposite edges match each other so the tile repeats.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = DeformTileable)]
+pub struct Tileable {
+    #[serde(default)]
+    pub edges: TileAxes,
+    /// Cells from each edge where candidate vertices are concentrated.
+    #[serde(default = "default_band")]
+    #[schema(default = 16, minimum = 1)]
+    pub band_cells: u32,
+    #[serde(default = "one")]
+    #[schema(default = 1.0)]
+    pub weight: f64,
+}
+
+/// Which pairs of edges: `x` = west/east, `z` = north/south.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+#[schema(as = DeformTileAxes)]
+pub enum TileAxes {
+    #[default]
+    Both,
+    X,
+    Z,
+}
+
+/// The terrain passes through these points (nearest vertex).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = DeformPoints)]
+pub struct Points {
+    pub points: Vec<HeightPoint>,
+    #[serde(default = "one")]
+    #[schema(default = 1.0)]
+    pub weight: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = DeformHeightPoint)]
+pub struct HeightPoint {
+    pub x: f64,
+    pub z: f64,
+    pub height: f64,
+}
+
+/// Divergence from the original terrain everywhere.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = DeformPreserve)]
+pub struct Preserve {
+    #[serde(default = "one")]
+    #[schema(default = 1.0)]
+    pub weight: f64,
+}
+
+/// Largest magnitude of a coordinate or height, metres.
+const MAX_METRES: f64 = 1e6;
+
+impl Constraint {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Constraint::MatchHeightmap(_) => "match_heightmap",
+            Constraint::ShapeMask(_) => "shape_mask",
+            Constraint::Road(_) => "road",
+            Constraint::EdgeMatch(_) => "edge_match",
+            Constraint::Tileable(_) => "tileable",
+            Constraint::Points(_) => "points",
+            Constraint::Preserve(_) => "preserve",
+        }
+    }
+
+    pub fn weight(&self) -> f64 {
+        match self {
+            Constraint::MatchHeightmap(c) => c.weight,
+            Constraint::ShapeMask(c) => c.weight,
+            Constraint::Road(c) => c.weight,
+            Constraint::EdgeMatch(c) => c.weight,
+            Constraint::Tileable(c) => c.weight,
+            Constraint::Points(c) => c.weight,
+            Constraint::Preserve(c) => c.weight,
+        }
+    }
+}
+
+/// Check that a source has the terrain's size when both are known before the run.
+fn same_size(v: &mut Validator, leaf: &str, source: &TerrainSource, terrain: Option<(u64, u64)>, limits: &Limits) {
+    v.field(leaf, |v| source.validate(v, limits));
+    if let (Some(a), Some(b)) = (source.known_dimensions(), terrain) {
+        if a != b {
+            v.error(leaf, format!("is {}×{} samples; the terrain is {}×{}", a.0, a.1, b.0, b.1));
+        }
+    }
+}
+
+fn on_grid(v: &mut Validator, x: f64, z: f64, extent: Option<(f64, f64)>) {
+    if !v.finite("x", x) || !v.finite("z", z) {
+        return;
+    }
+    match extent {
+        Some((w, d)) => {
+            if !(0.0..=w).contains(&x) {
+                v.error("x", format!("must be on the grid, between 0 and {w} m (got {x})"));
+            }
+            if !(0.0..=d).contains(&z) {
+                v.error("z", format!("must be on the grid, between 0 and {d} m (got {z})"));
+            }
+        }
+        None => {
+            if x < 0.0 || x.abs() > MAX_METRES {
+                v.error("x", format!("must be on the grid (got {x})"));
+            }
+            if z < 0.0 || z.abs() > MAX_METRES {
+                v.error("z", format!("must be on the grid (got {z})"));
+            }
+        }
+    }
+}
+
+impl Validate for DeformTerrainParams {
+    fn validate(&self, v: &mut Validator, limits: &Limits) {
+        v.field("terrain", |v| self.terrain.validate(v, limits));
+        let dims = self.terrain.known_dimensions();
+        let extent = match (dims, self.terrain.known_cell_size()) {
+            (Some((c, r)), Some(cell)) => Some(((c - 1) as f64 * cell as f64, (r - 1) as f64 * cell as f64)),
+            _ => None,
+        };
+        if self.constraints.is_empty() {
+            v.error("constraints", "needs at least one constraint");
+        }
+        for kind in ["shape_mask", "tileable"] {
+            if self.constraints.iter().filter(|c| c.name() == kind).count() > 1 {
+                v.error("constraints", format!("may hold at most one {kind}"));
+            }
+        }
+        v.field("constraints", |v| {
+            for (i, c) in self.constraints.iter().enumerate() {
+                v.index(i, |v| v.field(c.name(), |v| validate_constraint(c, v, limits, dims, extent)));
+            }
+        });
+        if self.max_iterations == 0 {
+            v.error("max_iterations", "must be at least 1");
+        } else if self.max_iterations > MAX_ITERATIONS {
+            v.too_large("max_iterations", format!("must be at most {MAX_ITERATIONS} (got {})", self.max_iterations));
+        }
+        v.non_negative("epsilon", self.epsilon);
+        v.in_range("p", self.p, 0.0, 1.0);
+        v.in_range("top_fraction", self.top_fraction, 0.0, 1.0);
+        if !(1..=MAX_AMPLITUDES).contains(&self.amplitudes) {
+            v.error("amplitudes", format!("must be between 1 and {MAX_AMPLITUDES} (got {})", self.amplitudes));
+        }
+        if !(1..=MAX_RADII).contains(&self.radii) {
+            v.error("radii", format!("must be between 1 and {MAX_RADII} (got {})", self.radii));
+        }
+        if self.min_radius_cells == 0 {
+            v.error("min_radius_cells", "must be at least 1");
+        }
+        let shorter = dims.map(|(c, r)| c.min(r));
+        if let Some(max) = self.max_radius_cells {
+            if max == 0 {
+                v.error("max_radius_cells", "must be at least 1");
+            } else if max < self.min_radius_cells {
+                v.error("max_radius_cells", "must not be below min_radius_cells");
+            }
+        }
+        if let Some(n) = shorter {
+            for (leaf, r) in
+                [("min_radius_cells", Some(self.min_radius_cells)), ("max_radius_cells", self.max_radius_cells)]
+            {
+                if let Some(r) = r.filter(|&r| r as u64 >= n) {
+                    v.error(leaf, format!("{r} cells is larger than the grid ({n} samples a side)"));
+                }
+            }
+        }
+        v.positive("max_displacement_ratio", self.max_displacement_ratio);
+        if self.coarse_spacing_cells == Some(0) {
+            v.error("coarse_spacing_cells", "must be at least 1");
+        }
+        if self.min_spacing_cells == 0 {
+            v.error("min_spacing_cells", "must be at least 1");
+        }
+        v.in_range("prediction_constant", self.prediction_constant, 0.0, 1.0);
+        if self.prediction_constant <= 0.0 {
+            v.error("prediction_constant", "must be greater than 0");
+        }
+    }
+}
+
+fn validate_constraint(
+    c: &Constraint,
+    v: &mut Validator,
+    limits: &Limits,
+    dims: Option<(u64, u64)>,
+    extent: Option<(f64, f64)>,
+) {
+    let weight = c.weight();
+    if v.finite("weight", weight) && !(0.0..=1e6).contains(&weight) {
+        v.error("weight", format!("must be between 0 and 1000000 (got {weight})"));
+    }
+    match c {
+        Constraint::MatchHeightmap(m) => same_size(v, "target", &m.target, dims, limits),
+        Constraint::ShapeMask(m) => {
+            match &m.mask {
+                MaskShape::Image(src) => v.field("mask", |v| same_size(v, "image", src, dims, limits)),
+                MaskShape::Polygons(polys) => v.field("mask", |v| {
+                    if polys.is_empty() {
+                        v.error("polygons", "needs at least one polygon");
+                    }
+                    if polys.iter().map(Vec::len).sum::<usize>() > MAX_VERTICES {
+                        v.too_large("polygons", format!("more than {MAX_VERTICES} vertices"));
+                    }
+                    v.field("polygons", |v| {
+                        for (i, poly) in polys.iter().enumerate() {
+                            if poly.len() < 3 {
+                                v.index(i, |v| v.error("", "a polygon needs at least 3 vertices"));
+                            }
+                            if poly.iter().flatten().any(|x| !x.is_finite() || x.abs() > MAX_METRES) {
+                                v.index(i, |v| v.error("", "coordinates must be finite grid coordinates"));
+                            }
+                        }
+                    });
+                }),
+            }
+            if let Some(w) = m.water_level {
+                v.in_range("water_level", w, -MAX_METRES, MAX_METRES);
+            }
+            if let Some(margin) = m.margin {
+                v.in_range("margin", margin, 0.0, MAX_METRES);
+            }
+        }
+        Constraint::Road(r) => {
+            if r.path.len() < 2 {
+                v.error("path", format!("needs at least 2 points (got {})", r.path.len()));
+            } else if r.path.len() > MAX_VERTICES {
+                v.too_large("path", format!("more than {MAX_VERTICES} points"));
+            }
+            v.field("path", |v| {
+                for (i, p) in r.path.iter().enumerate() {
+                    v.index(i, |v| on_grid(v, p.x, p.z, extent));
+                }
+            });
+            v.positive("width_m", r.width_m);
+            if let Some(sh) = r.shoulder_m {
+                v.in_range("shoulder_m", sh, 0.0, MAX_METRES);
+            }
+            if r.width_m.is_finite() && r.width_m > MAX_METRES {
+                v.error("width_m", format!("must be at most {MAX_METRES} m"));
+            }
+            v.field("height", |v| match &r.height {
+                RoadHeight::Constant(h) => v.in_range("constant", *h, -MAX_METRES, MAX_METRES),
+                RoadHeight::Profile(p) => v.field("profile", |v| {
+                    v.positive("max_gradient_percent", p.max_gradient_percent);
+                    if p.max_gradient_percent > 1000.0 {
+                        v.error("max_gradient_percent", "must be at most 1000");
+                    }
+                }),
+            });
+        }
+        Constraint::EdgeMatch(e) => {
+            same_size(v, "terrain", &e.terrain, dims, limits);
+            if e.edges.is_empty() {
+                v.error("edges", "needs at least one edge");
+            }
+            band(v, e.band_cells, dims);
+        }
+        Constraint::Tileable(t) => band(v, t.band_cells, dims),
+        Constraint::Points(p) => {
+            if p.points.is_empty() {
+                v.error("points", "needs at least one point");
+            } else if p.points.len() > MAX_VERTICES {
+                v.too_large("points", format!("more than {MAX_VERTICES} points"));
+            }
+            v.field("points", |v| {
+                for (i, pt) in p.points.iter().enumerate() {
+                    v.index(i, |v| {
+                        on_grid(v, pt.x, pt.z, extent);
+                        v.in_range("height", pt.height, -MAX_METRES, MAX_METRES);
+                    });
+                }
+            });
+        }
+        Constraint::Preserve(_) => {}
+    }
+}
+
+fn band(v: &mut Validator, band_cells: u32, dims: Option<(u64, u64)>) {
+    if band_cells == 0 {
+        v.error("band_cells", "must be at least 1");
+    } else if let Some((c, r)) = dims {
+        if band_cells as u64 > c.min(r) / 2 {
+            v.error("band_cells", format!("must be at most half the grid ({} cells)", c.min(r) / 2));
+        }
+    }
+}

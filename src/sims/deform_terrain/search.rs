@@ -1,0 +1,335 @@
+//! Stochastic local search over deformations (paper §3.3–3.5).
+//!
+//! The table holds, for every (candidate vertex, radius), its best change in fitness over the
+//! sampled displacements (and the closed-form best of the quadratic penalties). Each iteration
+//! applies one entry — the best with probability p, otherwise one drawn uniformly from the top
+//! fraction — then recomputes only the entries whose window meets the changed cells (or their
+//! coupled partners across a tileable terrain). Every entry's change depends only on its
+//! window, so cached entries stay exact. Recomputation runs in parallel and is collected in
+//! order; the only draws are the selection's, from one seeded stream, so the result does not
+//! depend on the thread count.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::constraints::{Field, Fitness};
+use super::kernel::{self, Kernel, Rect};
+use super::prediction;
+use super::sequence::Deformation;
+
+/// The search's settings, resolved against the grid.
+pub struct Settings {
+    pub max_iterations: u32,
+    pub epsilon: f64,
+    pub p: f64,
+    pub top_fraction: f64,
+    pub prediction: bool,
+    pub prediction_constant: f64,
+    pub kernels: Vec<Kernel>,
+    /// Per radius: the sampled displacements (metres) and the largest allowed, ±d_max.
+    pub deltas: Vec<Vec<f64>>,
+    pub d_max: Vec<f64>,
+    pub cell_m: f64,
+    pub tile_x: bool,
+    pub tile_z: bool,
+}
+
+/// Radii in cells: `count` geometric steps from `min` to `max`, rounded, without repeats.
+pub fn radii(min: usize, max: usize, count: usize) -> Vec<usize> {
+    let (min, max) = (min.max(1), max.max(min.max(1)));
+    let mut out: Vec<usize> = (0..count)
+        .map(|k| {
+            let t = if count > 1 { k as f64 / (count - 1) as f64 } else { 1.0 };
+            ((min as f64) * (max as f64 / min as f64).powf(t)).round() as usize
+        })
+        .collect();
+    out.dedup();
+    out
+}
+
+/// `count` displacements as shares of the largest, spread evenly over [−1, 1], zero excluded.
+pub fn unit_displacements(count: usize) -> Vec<f64> {
+    if count <= 1 {
+        return vec![1.0];
+    }
+    (0..count).map(|k| -1.0 + 2.0 * k as f64 / (count - 1) as f64).filter(|u| u.abs() > 1e-12).collect()
+}
+
+/// Windows larger than this many cells a side are estimated on a sparser lattice.
+const EXACT_SIDE: usize = 25;
+
+fn stride(radius: usize) -> usize {
+    (2 * radius + 1).div_ceil(EXACT_SIDE).max(1)
+}
+
+/// The per-iteration record for `fitness.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct Record {
+    pub iteration: u64,
+    pub total: f64,
+    pub constraints: Vec<f64>,
+}
+
+/// Tracks each constraint's fitness as deformations apply, updating over the changed window
+/// only. The run and the replay both apply through it, so their heights and records match.
+pub struct Tracker<'a> {
+    pub fields: &'a [Field],
+    pub values: Vec<f64>,
+    pub history: Vec<Record>,
+    pub cols: usize,
+    pub rows: usize,
+}
+
+impl<'a> Tracker<'a> {
+    pub fn new(fields: &'a [Field], h: &[f64], cols: usize, rows: usize) -> Self {
+        let values: Vec<f64> = fields.par_iter().map(|f| f.value(h, cols, rows)).collect();
+        let mut t = Self { fields, values, history: Vec::new(), cols, rows };
+        t.record(0);
+        t
+    }
+
+    pub fn total(&self) -> f64 {
+        self.fields.iter().zip(&self.values).map(|(f, v)| f.weight * v).sum()
+    }
+
+    fn record(&mut self, iteration: u64) {
+        self.history.push(Record { iteration, total: self.total(), constraints: self.values.clone() });
+    }
+
+    /// Apply one deformation and record the fitness after it; returns the changed cells' rect.
+    pub fn apply(&mut self, h: &mut [f64], op: &Deformation, kernel: &Kernel) -> Rect {
+        let (col, row) = (op.col as usize, op.row as usize);
+        let rect = Rect::around(col, row, kernel.radius, self.cols, self.rows);
+        let before: Vec<f64> = self.fields.iter().map(|f| f.window_value(h, rect, self.cols)).collect();
+        kernel::apply(h, self.cols, self.rows, col, row, op.amplitude as f64, kernel);
+        for ((f, v), b) in self.fields.iter().zip(self.values.iter_mut()).zip(before) {
+            *v += f.window_value(h, rect, self.cols) - b;
+        }
+        let next = self.history.len() as u64;
+        self.record(next);
+        rect
+    }
+}
+
+/// One entry of the table.
+#[derive(Clone, Copy, Debug)]
+struct Entry {
+    col: u32,
+    row: u32,
+    radius: u8,
+    change: f64,
+    delta: f64,
+    fresh: bool,
+    confidence: f64,
+}
+
+/// Why the search stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stop {
+    Epsilon,
+    MaxIterations,
+    NoImprovement,
+}
+
+/// What the search did.
+pub struct Searched {
+    pub operations: Vec<Deformation>,
+    pub evaluations: u64,
+    pub stop: Stop,
+}
+
+/// Who follows the search between iterations.
+pub trait Watch {
+    type Stop;
+    fn check(&self) -> Result<(), Self::Stop>;
+    fn progress(&self, iteration: u64, total: u64, fitness: f64, h: &[f64]);
+}
+
+/// Run the search from `h`, applying through `tracker`; each vertex (col, row, n) is tried
+/// with the n smallest radii.
+pub fn search<W: Watch>(
+    h: &mut [f64],
+    fitness: &Fitness,
+    tracker: &mut Tracker,
+    vertices: &[(usize, usize, usize)],
+    s: &Settings,
+    seed: u64,
+    watch: &W,
+) -> Result<Searched, W::Stop> {
+    let (cols, rows) = (fitness.cols, fitness.rows);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut table: Vec<Entry> = vertices
+        .iter()
+        .flat_map(|&(c, r, radii)| {
+            (0..radii.min(s.kernels.len())).map(move |k| Entry {
+                col: c as u32,
+                row: r as u32,
+                radius: k as u8,
+                change: 0.0,
+                delta: 0.0,
+                fresh: false,
+                confidence: 1.0,
+            })
+        })
+        .collect();
+    let eval = |h: &[f64], e: &Entry| {
+        let k = e.radius as usize;
+        let kernel = &s.kernels[k];
+        fitness.best_change(
+            h,
+            e.col as usize,
+            e.row as usize,
+            kernel,
+            stride(kernel.radius),
+            &s.deltas[k],
+            s.d_max[k],
+            true,
+        )
+    };
+    let all: Vec<usize> = (0..table.len()).collect();
+    let mut evaluations = recompute(h, &mut table, &all, &eval);
+    let mut operations = Vec::new();
+    let mut stop = Stop::MaxIterations;
+    let mut improving: Vec<usize> = Vec::with_capacity(table.len());
+
+    for iteration in 1..=s.max_iterations as u64 {
+        watch.check()?;
+        if tracker.total() <= s.epsilon {
+            stop = Stop::Epsilon;
+            break;
+        }
+        // Choose (§3.3), re-checking estimated entries exactly before applying.
+        improving.clear();
+        improving.extend((0..table.len()).filter(|&i| table[i].fresh && table[i].change < 0.0));
+        if improving.is_empty() {
+            let stale: Vec<usize> = (0..table.len()).filter(|&i| !table[i].fresh).collect();
+            evaluations += recompute(h, &mut table, &stale, &eval);
+            improving.extend((0..table.len()).filter(|&i| table[i].change < 0.0));
+        }
+        improving.sort_by(|&a, &b| table[a].change.total_cmp(&table[b].change).then(a.cmp(&b)));
+        let chosen = loop {
+            if improving.is_empty() {
+                break None;
+            }
+            let pick = if rng.random::<f64>() < s.p {
+                0
+            } else {
+                let top = ((s.top_fraction * table.len() as f64).ceil() as usize).clamp(1, improving.len());
+                rng.random_range(0..top)
+            };
+            let i = improving[pick];
+            let e = table[i];
+            let kernel = &s.kernels[e.radius as usize];
+            if stride(kernel.radius) > 1 {
+                let exact = fitness.best_change(
+                    h,
+                    e.col as usize,
+                    e.row as usize,
+                    kernel,
+                    1,
+                    &[e.delta],
+                    s.d_max[e.radius as usize],
+                    false,
+                );
+                evaluations += 1;
+                table[i].change = exact.0;
+                if exact.0 >= 0.0 {
+                    improving.remove(pick);
+                    continue;
+                }
+            }
+            break Some(e);
+        };
+        let Some(e) = chosen else {
+            stop = Stop::NoImprovement;
+            break;
+        };
+        let kernel = &s.kernels[e.radius as usize];
+        let (col, row) = (e.col as usize, e.row as usize);
+        let amplitude = (h[row * cols + col] + e.delta) as f32;
+        let op = Deformation {
+            x: col as f64 * s.cell_m,
+            z: row as f64 * s.cell_m,
+            col: e.col,
+            row: e.row,
+            amplitude,
+            radius_cells: kernel.radius as u32,
+            radius_m: kernel.radius as f64 * s.cell_m,
+        };
+        let rect = tracker.apply(h, &op, kernel);
+        operations.push(op);
+        let dirty = dirty_rects(rect, cols, rows, s.tile_x, s.tile_z);
+
+        // Invalidate what the change can reach; recompute (with prediction, only the likely).
+        let mut todo = Vec::new();
+        for (i, t) in table.iter_mut().enumerate() {
+            let window = Rect::around(t.col as usize, t.row as usize, s.kernels[t.radius as usize].radius, cols, rows);
+            if dirty.iter().any(|d| d.intersects(&window)) {
+                t.fresh = false;
+            }
+            if !t.fresh {
+                if !s.prediction || t.confidence >= prediction::THRESHOLD {
+                    todo.push(i);
+                } else {
+                    t.confidence += s.prediction_constant;
+                }
+            }
+        }
+        evaluations += recompute(h, &mut table, &todo, &eval);
+        if s.prediction {
+            let (mut best, mut worst) = (f64::INFINITY, f64::NEG_INFINITY);
+            for t in table.iter().filter(|t| t.fresh) {
+                best = best.min(t.change);
+                worst = worst.max(t.change);
+            }
+            for &i in &todo {
+                table[i].confidence = prediction::confidence(table[i].change, best, worst, s.prediction_constant);
+            }
+        }
+        watch.progress(iteration, s.max_iterations as u64, tracker.total(), h);
+    }
+    Ok(Searched { operations, evaluations, stop })
+}
+
+/// Recompute the listed entries in parallel; returns how many were evaluated.
+fn recompute(
+    h: &[f64],
+    table: &mut [Entry],
+    which: &[usize],
+    eval: &(impl Fn(&[f64], &Entry) -> (f64, f64) + Sync),
+) -> u64 {
+    let snapshot: &[Entry] = table;
+    let results: Vec<(f64, f64)> = which.par_iter().map(|&i| eval(h, &snapshot[i])).collect();
+    for (&i, (change, delta)) in which.iter().zip(results) {
+        let t = &mut table[i];
+        t.change = change;
+        t.delta = delta;
+        t.fresh = true;
+    }
+    which.len() as u64
+}
+
+/// The changed cells, plus the opposite edge strip their tileable partners lie in.
+fn dirty_rects(rect: Rect, cols: usize, rows: usize, tile_x: bool, tile_z: bool) -> Vec<Rect> {
+    let mut out = vec![rect];
+    if tile_x {
+        if rect.c0 == 0 {
+            out.push(Rect { c0: cols - 1, c1: cols - 1, ..rect });
+        }
+        if rect.c1 == cols - 1 {
+            out.push(Rect { c0: 0, c1: 0, ..rect });
+        }
+    }
+    if tile_z {
+        if rect.r0 == 0 {
+            out.push(Rect { r0: rows - 1, r1: rows - 1, ..rect });
+        }
+        if rect.r1 == rows - 1 {
+            out.push(Rect { r0: 0, r1: 0, ..rect });
+        }
+    }
+    out
+}
