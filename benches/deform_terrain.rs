@@ -1,6 +1,6 @@
 //! The seed paper's four results at 257 × 257 (its Figures 6, 1, 7 and 4: the paper took 45,
 //! 25, 6 and 75 minutes) with prediction on and off, and the star island at 1025 × 1025. Each
-//! configuration first prints its final figures (fitness, operations, evaluations), so speed
+//! configuration first prints its final figures (fitness, iterations, operations, evaluations), so speed
 //! and quality can be read side by side. Run with `cargo bench --bench deform_terrain`.
 
 use std::sync::atomic::AtomicBool;
@@ -71,10 +71,11 @@ fn report(label: &str, p: &DeformTerrainParams, seed: u64) {
     let r = run(p, seed);
     let figures: Vec<Value> = r["constraints"].as_array().unwrap().to_vec();
     eprintln!(
-        "{label}: {:.2} s, fitness {:.3e} (from {:.3e}), {} operations, {} evaluations, stopped {}, sequence {} B vs png {} B, {}",
+        "{label}: {:.2} s, fitness {:.3e} (from {:.3e}), {} iterations, {} operations, {} evaluations, stopped {}, sequence {} B vs png {} B, {}",
         started.elapsed().as_secs_f64(),
         r["fitness"].as_f64().unwrap(),
         r["fitness_initial"].as_f64().unwrap(),
+        r["iterations"],
         r["operations"],
         r["evaluations"],
         r["stopped"],

@@ -245,6 +245,7 @@ impl<'p> Problem<'p> {
             top_fraction: p.top_fraction,
             prediction: p.prediction,
             prediction_constant: p.prediction_constant,
+            batch: p.batch.max(1) as usize,
             kernels: radii.iter().map(|&r| Kernel::new(r)).collect(),
             deltas,
             d_max,
@@ -333,7 +334,8 @@ fn finish(
     result.insert("fitness_initial".into(), json!(history.first().map_or(total, |r| r.total)));
     result.insert("constraints".into(), Value::Array(figures));
     result.insert("operations".into(), json!(sequence.operations.len()));
-    result.insert("iterations".into(), json!(history.len().saturating_sub(1)));
+    let iterations = run.searched.map_or(history.len().saturating_sub(1) as u64, |s| s.iterations);
+    result.insert("iterations".into(), json!(iterations));
     result.insert("prediction".into(), json!(run.prediction));
     if let Some(s) = run.searched {
         result.insert("evaluations".into(), json!(s.evaluations));

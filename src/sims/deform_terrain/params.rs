@@ -51,6 +51,9 @@ fn default_true() -> bool {
 fn default_prediction_constant() -> f64 {
     0.1
 }
+fn default_batch() -> u32 {
+    16
+}
 fn default_band() -> u32 {
     16
 }
@@ -71,7 +74,7 @@ pub struct DeformTerrainParams {
     /// The constraints, combined by their weights (at least one; at most one `shape_mask`
     /// and one `tileable`).
     pub constraints: Vec<Constraint>,
-    /// Stop after this many deformations.
+    /// Stop after this many iterations (each applies 1 to `batch` deformations).
     #[serde(default = "default_max_iterations")]
     #[schema(default = 500, minimum = 1, maximum = 20000)]
     pub max_iterations: u32,
@@ -126,6 +129,14 @@ pub struct DeformTerrainParams {
     #[serde(default = "default_prediction_constant")]
     #[schema(default = 0.1, exclusive_minimum = 0.0, maximum = 1.0)]
     pub prediction_constant: f64,
+    /// Deformations applied per iteration. After the chosen one (§3.3), further improving
+    /// candidates are added best first while their kernel windows (with their tileable
+    /// partners) stay clear of every window already taken this iteration, so each one's change
+    /// in fitness is exact and the changes add. Each is recorded as its own operation. 1 is the
+    /// paper's one deformation per iteration.
+    #[serde(default = "default_batch")]
+    #[schema(default = 16, minimum = 1, maximum = 256)]
+    pub batch: u32,
 }
 
 /// One constraint: exactly one of the kinds.
@@ -182,8 +193,8 @@ pub enum MaskShape {
     Polygons(Vec<Vec<[f64; 2]>>),
 }
 
-/// A road: cells within width/2 of the polyline want the road's height; all others their
-/// original height (equation 4).
+/// A road: cells within width/2 of the polyline want the road's height; other cells their
+/// original height (equation 4), over the whole terrain or only the road's corridor.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 #[schema(as = DeformRoad)]
@@ -198,9 +209,33 @@ pub struct Road {
     /// the width.
     #[serde(default)]
     pub shoulder_m: Option<f64>,
+    /// The weight of the preservation term (other cells pulled back to their original heights)
+    /// relative to the road-cell term; both are mean squares in units of relief². 0 leaves the
+    /// rest of the terrain to the other constraints.
+    #[serde(default = "one")]
+    #[schema(default = 1.0, minimum = 0.0, maximum = 1000000.0)]
+    pub preserve_weight: f64,
+    /// Where the preservation term applies. `everywhere` is equation 4 as written: every
+    /// non-road cell is pulled to its original height. `corridor` keeps the pull only within the
+    /// road's shoulder (width/2 + `shoulder_m` of the path), with the same per-cell weight, so the
+    /// road does not fight terrain-wide constraints (a shape mask, a target heightmap, another
+    /// road) elsewhere; add a `preserve` constraint for a terrain-wide pull. Absent: `everywhere`
+    /// when the road is the request's only constraint, `corridor` when it is combined with
+    /// others (the paper's star island with roads, Figure 4).
+    #[serde(default)]
+    pub preserve: Option<RoadPreserve>,
     #[serde(default = "one")]
     #[schema(default = 1.0)]
     pub weight: f64,
+}
+
+/// Where a road's preservation term applies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+#[schema(as = DeformRoadPreserve)]
+pub enum RoadPreserve {
+    Everywhere,
+    Corridor,
 }
 
 /// A horizontal position in metres.
@@ -442,6 +477,9 @@ impl Validate for DeformTerrainParams {
             v.error("min_spacing_cells", "must be at least 1");
         }
         v.in_range("prediction_constant", self.prediction_constant, 0.0, 1.0);
+        if !(1..=256).contains(&self.batch) {
+            v.error("batch", format!("must be between 1 and 256 (got {})", self.batch));
+        }
         if self.prediction_constant <= 0.0 {
             v.error("prediction_constant", "must be greater than 0");
         }
@@ -504,6 +542,9 @@ fn validate_constraint(
             v.positive("width_m", r.width_m);
             if let Some(sh) = r.shoulder_m {
                 v.in_range("shoulder_m", sh, 0.0, MAX_METRES);
+            }
+            if v.finite("preserve_weight", r.preserve_weight) && !(0.0..=1e6).contains(&r.preserve_weight) {
+                v.error("preserve_weight", "must be between 0 and 1000000");
             }
             if r.width_m.is_finite() && r.width_m > MAX_METRES {
                 v.error("width_m", format!("must be at most {MAX_METRES} m"));

@@ -2,9 +2,12 @@
 //!
 //! The table holds, for every (candidate vertex, radius), its best change in fitness over the
 //! sampled displacements (and the closed-form best of the quadratic penalties). Each iteration
-//! applies one entry — the best with probability p, otherwise one drawn uniformly from the top
-//! fraction — then recomputes only the entries whose window meets the changed cells (or their
-//! coupled partners across a tileable terrain). Every entry's change depends only on its
+//! chooses one entry — the best with probability p, otherwise one drawn uniformly from the top
+//! fraction — then, up to `batch` in all, further improving entries best first whose windows
+//! no change taken so far this iteration reaches (penalties are per vertex, so their changes
+//! stay exact and add); it applies them in that order, each recorded as its own operation, and
+//! recomputes only the entries whose window meets the changed cells (or their coupled partners
+//! across a tileable terrain). Every entry's change depends only on its
 //! window, so cached entries stay exact. Recomputation runs in parallel and is collected in
 //! order; the only draws are the selection's, from one seeded stream, so the result does not
 //! depend on the thread count.
@@ -27,6 +30,8 @@ pub struct Settings {
     pub top_fraction: f64,
     pub prediction: bool,
     pub prediction_constant: f64,
+    /// Most deformations applied per iteration (1: the paper's one).
+    pub batch: usize,
     pub kernels: Vec<Kernel>,
     /// Per radius: the sampled displacements (metres) and the largest allowed, ±d_max.
     pub deltas: Vec<Vec<f64>>,
@@ -137,6 +142,8 @@ pub enum Stop {
 /// What the search did.
 pub struct Searched {
     pub operations: Vec<Deformation>,
+    /// Iterations run; each applied 1 to `batch` of the operations.
+    pub iterations: u64,
     pub evaluations: u64,
     pub stop: Stop,
 }
@@ -194,6 +201,27 @@ pub fn search<W: Watch>(
     let mut operations = Vec::new();
     let mut stop = Stop::MaxIterations;
     let mut improving: Vec<usize> = Vec::with_capacity(table.len());
+    let mut iterations = 0;
+    let window =
+        |e: &Entry| Rect::around(e.col as usize, e.row as usize, s.kernels[e.radius as usize].radius, cols, rows);
+    // The exact change of an estimated entry at its chosen displacement (None: exact already).
+    let exact = |h: &[f64], e: &Entry| {
+        let kernel = &s.kernels[e.radius as usize];
+        (stride(kernel.radius) > 1).then(|| {
+            fitness
+                .best_change(
+                    h,
+                    e.col as usize,
+                    e.row as usize,
+                    kernel,
+                    1,
+                    &[e.delta],
+                    s.d_max[e.radius as usize],
+                    false,
+                )
+                .0
+        })
+    };
 
     for iteration in 1..=s.max_iterations as u64 {
         watch.check()?;
@@ -222,52 +250,68 @@ pub fn search<W: Watch>(
             };
             let i = improving[pick];
             let e = table[i];
-            let kernel = &s.kernels[e.radius as usize];
-            if stride(kernel.radius) > 1 {
-                let exact = fitness.best_change(
-                    h,
-                    e.col as usize,
-                    e.row as usize,
-                    kernel,
-                    1,
-                    &[e.delta],
-                    s.d_max[e.radius as usize],
-                    false,
-                );
+            if let Some(change) = exact(h, &e) {
                 evaluations += 1;
-                table[i].change = exact.0;
-                if exact.0 >= 0.0 {
+                table[i].change = change;
+                if change >= 0.0 {
                     improving.remove(pick);
                     continue;
                 }
             }
-            break Some(e);
+            break Some((i, e));
         };
-        let Some(e) = chosen else {
+        let Some((first, e)) = chosen else {
             stop = Stop::NoImprovement;
             break;
         };
-        let kernel = &s.kernels[e.radius as usize];
-        let (col, row) = (e.col as usize, e.row as usize);
-        let amplitude = (h[row * cols + col] + e.delta) as f32;
-        let op = Deformation {
-            x: col as f64 * s.cell_m,
-            z: row as f64 * s.cell_m,
-            col: e.col,
-            row: e.row,
-            amplitude,
-            radius_cells: kernel.radius as u32,
-            radius_m: kernel.radius as f64 * s.cell_m,
-        };
-        let rect = tracker.apply(h, &op, kernel);
-        operations.push(op);
-        let dirty = dirty_rects(rect, cols, rows, s.tile_x, s.tile_z);
+        iterations = iteration;
+        // The batch: the choice, then further improving entries best first whose windows the
+        // changes so far leave untouched, so each entry's change is still exact and they add.
+        let mut batch = vec![e];
+        let mut dirty = dirty_rects(window(&e), cols, rows, s.tile_x, s.tile_z);
+        if s.batch > 1 {
+            for &j in improving.iter() {
+                if batch.len() >= s.batch {
+                    break;
+                }
+                let t = table[j];
+                let w = window(&t);
+                if j == first || t.change >= 0.0 || dirty.iter().any(|d| d.intersects(&w)) {
+                    continue;
+                }
+                if let Some(change) = exact(h, &t) {
+                    evaluations += 1;
+                    table[j].change = change;
+                    if change >= 0.0 {
+                        continue;
+                    }
+                }
+                dirty.extend(dirty_rects(w, cols, rows, s.tile_x, s.tile_z));
+                batch.push(t);
+            }
+        }
+        for e in &batch {
+            let kernel = &s.kernels[e.radius as usize];
+            let (col, row) = (e.col as usize, e.row as usize);
+            let amplitude = (h[row * cols + col] + e.delta) as f32;
+            let op = Deformation {
+                x: col as f64 * s.cell_m,
+                z: row as f64 * s.cell_m,
+                col: e.col,
+                row: e.row,
+                amplitude,
+                radius_cells: kernel.radius as u32,
+                radius_m: kernel.radius as f64 * s.cell_m,
+            };
+            tracker.apply(h, &op, kernel);
+            operations.push(op);
+        }
 
         // Invalidate what the change can reach; recompute (with prediction, only the likely).
         let mut todo = Vec::new();
         for (i, t) in table.iter_mut().enumerate() {
-            let window = Rect::around(t.col as usize, t.row as usize, s.kernels[t.radius as usize].radius, cols, rows);
-            if dirty.iter().any(|d| d.intersects(&window)) {
+            let w = window(t);
+            if dirty.iter().any(|d| d.intersects(&w)) {
                 t.fresh = false;
             }
             if !t.fresh {
@@ -291,7 +335,7 @@ pub fn search<W: Watch>(
         }
         watch.progress(iteration, s.max_iterations as u64, tracker.total(), h);
     }
-    Ok(Searched { operations, evaluations, stop })
+    Ok(Searched { operations, iterations, evaluations, stop })
 }
 
 /// Recompute the listed entries in parallel; returns how many were evaluated.

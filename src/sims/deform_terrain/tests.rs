@@ -289,3 +289,73 @@ fn every_example_request_parses_and_validates() {
         assert!(errors.is_empty(), "{name}: {errors:?}");
     }
 }
+
+/// FNV-1a over the operations' JSON: a fingerprint of a whole search.
+fn fingerprint(ops: &[Deformation]) -> u64 {
+    serde_json::to_vec(ops)
+        .unwrap()
+        .iter()
+        .fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3))
+}
+
+#[test]
+fn a_batch_of_one_is_the_papers_one_deformation_per_iteration() {
+    let mut p = small_star();
+    p.batch = 1;
+    let tc = TestContext::new(neighbour());
+    let one = DeformTerrain::run(&p, 5, &tc.ctx()).unwrap();
+    assert_eq!(one.result["iterations"], one.result["operations"]);
+    // The sequence the one-per-iteration search (before batching) recorded for this request.
+    assert_eq!((one.sequence.operations.len(), fingerprint(&one.sequence.operations)), (120, 0x4fe6_668e_b072_328e));
+    // A batch starts with the same choice: the same table and the same draw.
+    p.batch = 16;
+    let many = DeformTerrain::run(&p, 5, &tc.ctx()).unwrap();
+    assert_eq!(many.sequence.operations[0], one.sequence.operations[0]);
+}
+
+#[test]
+fn a_batched_run_is_its_operations_applied_one_by_one() {
+    let mut p = small_star();
+    p.batch = 8;
+    let tc = TestContext::new(neighbour());
+    let run = DeformTerrain::run(&p, 5, &tc.ctx()).unwrap();
+    let (its, ops) = (run.result["iterations"].as_u64().unwrap(), run.sequence.operations.len() as u64);
+    assert!(ops > its && ops <= 8 * its, "{ops} operations in {its} iterations");
+    let start = tc.ctx().resolve_terrain(&p.terrain).unwrap();
+    let direct = apply_sequence(&start, &run.sequence.operations);
+    let npy = run.artifacts.iter().find(|a| a.name == "heightfield.npy").unwrap();
+    assert_eq!(crate::export::read_heightfield_npy(&npy.bytes, direct.cell_size_m).unwrap(), direct);
+    let replay = DeformTerrain::replay(&p, &stored(&run.sequence), None, &tc.ctx()).unwrap();
+    assert_eq!(bits(&run.artifacts), bits(&replay.artifacts));
+    // Each batch's changes were exact and additive: the fitness after every operation falls.
+    let log: Value =
+        serde_json::from_slice(&run.artifacts.iter().find(|a| a.name == "fitness.json").unwrap().bytes).unwrap();
+    let totals: Vec<f64> = log["iterations"].as_array().unwrap().iter().map(|r| r["total"].as_f64().unwrap()).collect();
+    assert_eq!(totals.len() as u64, ops + 1);
+    assert!(totals.windows(2).all(|w| w[1] < w[0] + 1e-12 * w[0].abs()), "fitness rose within a batch");
+}
+
+#[test]
+fn combined_roads_keep_only_their_corridor() {
+    // Alone, a road preserves the whole terrain (equation 4); beside a mask, only its corridor.
+    let road = json!({"road": {"path": [{"x": 10.0, "z": 32.0}, {"x": 54.0, "z": 32.0}], "width_m": 4.0, "height": {"constant": 70.0}, "shoulder_m": 6.0}});
+    let grid_of = |p: &DeformTerrainParams| {
+        let tc = TestContext::new(neighbour());
+        let problem = Problem::new(p, &tc.ctx()).unwrap();
+        let grid = problem.grid();
+        let fields = problem.fields(&grid).unwrap();
+        let q = fields.iter().find(|f| f.name == "road").unwrap().quadratic.as_ref().unwrap().w.clone();
+        q.iter().filter(|&&w| w > 0.0).count()
+    };
+    let alone = params(json!({"terrain": fractal(65, 3), "constraints": [road.clone()]}));
+    let with_mask = params(json!({"terrain": fractal(65, 3), "constraints": [
+        road.clone(), {"shape_mask": {"mask": {"polygons": [star(32.0, 33.0, 28.0)]}}}]}));
+    assert_eq!(grid_of(&alone), 65 * 65);
+    let corridor = grid_of(&with_mask);
+    assert!(corridor < 65 * 20 && corridor > 44 * 10, "{corridor}");
+    let mut everywhere = with_mask.clone();
+    if let Constraint::Road(r) = &mut everywhere.constraints[0] {
+        r.preserve = Some(params::RoadPreserve::Everywhere);
+    }
+    assert_eq!(grid_of(&everywhere), 65 * 65);
+}

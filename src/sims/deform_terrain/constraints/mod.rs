@@ -191,7 +191,7 @@ pub fn build(constraints: &[Constraint], resolved: &[Resolved], grid: &Grid) -> 
                     }
                     shape_mask::build(m, input.as_ref(), grid)
                 }
-                Constraint::Road(r) => road::build(r, grid),
+                Constraint::Road(r) => road::build(r, grid, constraints.len() > 1),
                 Constraint::EdgeMatch(e) => {
                     let other = input.as_ref().expect("resolved neighbour");
                     size_check("terrain", other)?;

@@ -8,7 +8,7 @@
 use serde_json::{json, Value};
 
 use super::{Detail, Field, Grid, Quadratic};
-use crate::sims::deform_terrain::params::{Road, RoadHeight};
+use crate::sims::deform_terrain::params::{Road, RoadHeight, RoadPreserve};
 
 /// What the road's figures need.
 pub struct RoadDetail {
@@ -21,7 +21,9 @@ pub struct RoadDetail {
     width_m: f64,
 }
 
-pub fn build(road: &Road, grid: &Grid) -> Field {
+/// `combined`: the request holds other constraints too (the default preservation scope then
+/// is the corridor).
+pub fn build(road: &Road, grid: &Grid, combined: bool) -> Field {
     let (cols, rows, n) = (grid.cols, grid.rows, grid.cells());
     let pts: Vec<(f64, f64)> = road.path.iter().map(|p| (p.x / grid.cell_m, p.z / grid.cell_m)).collect();
     // Arc length (cells) at each vertex.
@@ -97,16 +99,20 @@ pub fn build(road: &Road, grid: &Grid) -> Field {
     };
     let relief2 = grid.relief * grid.relief;
     let w_road = 1.0 / (cells.len().max(1) as f64 * relief2);
-    let w_other = 1.0 / ((n - cells.len()).max(1) as f64 * relief2);
+    let w_other = road.preserve_weight / ((n - cells.len()).max(1) as f64 * relief2);
+    let scope = road.preserve.unwrap_or(if combined { RoadPreserve::Corridor } else { RoadPreserve::Everywhere });
+    // The corridor: cells within the shoulder's reach of the path (pull below 1 or at its edge).
+    let kept = |i: usize| scope == RoadPreserve::Everywhere || best[i].0.is_finite();
     let mut interest = vec![false; n];
     let mut target: Vec<Option<f64>> = vec![None; n];
     for &(i, t) in &cells {
         interest[i] = true;
         target[i] = Some(t);
     }
-    let terms = (0..n).map(|i| match target[i] {
-        Some(t) => (i, w_road, t),
-        None => (i, w_other * pull(i), grid.original[i]),
+    let terms = (0..n).filter_map(|i| match target[i] {
+        Some(t) => Some((i, w_road, t)),
+        None if kept(i) && w_other > 0.0 => Some((i, w_other * pull(i), grid.original[i])),
+        None => None,
     });
     Field {
         name: "road",
