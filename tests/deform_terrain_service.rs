@@ -85,7 +85,16 @@ async fn bad_deformation_requests_name_their_field() {
         (with(json!({"p": 1.5})), 422, "p"),
         (with(json!({"amplitudes": 0})), 422, "amplitudes"),
         (with(json!({"radii": 0})), 422, "radii"),
-        (with(json!({"max_radius_cells": 5000})), 422, "max_radius_cells"),
+        (with(json!({"max_radius_cells": 65})), 422, "max_radius_cells"),
+        (with(json!({"max_radius_cells": 5000})), 413, "max_radius_cells"),
+        (with(json!({"max_displacement_ratio": 100.0})), 422, "max_displacement_ratio"),
+        (with(json!({"constraints": vec![json!({"preserve": {}}); 33]})), 413, "constraints"),
+        (
+            with(json!({"constraints": [{"tileable": {"edges": "both"}}, {"edge_match": {
+            "terrain": {"fractal": {"size": 65, "seed": 2}}, "edges": ["west", "east", "west"]}}]})),
+            422,
+            "constraints[1].edge_match.edges",
+        ),
         (with(json!({"max_iterations": 10_000_000})), 413, "max_iterations"),
         (with(json!({"constraints": one_point_road})), 422, "constraints[0].road.path"),
         (with(json!({"constraints": off_grid_road})), 422, "constraints[0].road.path[1].x"),

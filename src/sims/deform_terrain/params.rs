@@ -12,6 +12,12 @@ pub const MAX_ITERATIONS: u32 = 20_000;
 /// Most sampled amplitudes and radii.
 pub const MAX_AMPLITUDES: u32 = 101;
 pub const MAX_RADII: u32 = 32;
+/// Most constraints one request may combine: each holds a few per-cell arrays.
+pub const MAX_CONSTRAINTS: usize = 32;
+/// Largest kernel radius in cells: a (2r+1)² weight table each, and a window that wide to sum.
+pub const MAX_RADIUS_CELLS: u32 = 512;
+/// Largest `max_displacement_ratio`: beyond it, displacements dwarf the kernel (§3.4).
+pub const MAX_DISPLACEMENT_RATIO: f64 = 10.0;
 /// Most road vertices, points and polygon vertices, each.
 pub const MAX_VERTICES: usize = 10_000;
 
@@ -424,6 +430,11 @@ impl Validate for DeformTerrainParams {
         };
         if self.constraints.is_empty() {
             v.error("constraints", "needs at least one constraint");
+        } else if self.constraints.len() > MAX_CONSTRAINTS {
+            v.too_large(
+                "constraints",
+                format!("{} constraints is more than the cap of {MAX_CONSTRAINTS}", self.constraints.len()),
+            );
         }
         for kind in ["shape_mask", "tileable"] {
             if self.constraints.iter().filter(|c| c.name() == kind).count() > 1 {
@@ -452,6 +463,13 @@ impl Validate for DeformTerrainParams {
         if self.min_radius_cells == 0 {
             v.error("min_radius_cells", "must be at least 1");
         }
+        for (leaf, r) in
+            [("min_radius_cells", Some(self.min_radius_cells)), ("max_radius_cells", self.max_radius_cells)]
+        {
+            if let Some(r) = r.filter(|&r| r > MAX_RADIUS_CELLS) {
+                v.too_large(leaf, format!("{r} cells is more than the cap of {MAX_RADIUS_CELLS}"));
+            }
+        }
         let shorter = dims.map(|(c, r)| c.min(r));
         if let Some(max) = self.max_radius_cells {
             if max == 0 {
@@ -470,6 +488,9 @@ impl Validate for DeformTerrainParams {
             }
         }
         v.positive("max_displacement_ratio", self.max_displacement_ratio);
+        if self.max_displacement_ratio > MAX_DISPLACEMENT_RATIO {
+            v.error("max_displacement_ratio", format!("must be at most {MAX_DISPLACEMENT_RATIO}"));
+        }
         if self.coarse_spacing_cells == Some(0) {
             v.error("coarse_spacing_cells", "must be at least 1");
         }
@@ -563,6 +584,9 @@ fn validate_constraint(
             same_size(v, "terrain", &e.terrain, dims, limits);
             if e.edges.is_empty() {
                 v.error("edges", "needs at least one edge");
+            }
+            if e.edges.iter().enumerate().any(|(i, edge)| e.edges[..i].contains(edge)) {
+                v.error("edges", "names an edge twice");
             }
             band(v, e.band_cells, dims);
         }
