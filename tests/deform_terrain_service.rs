@@ -80,6 +80,9 @@ async fn bad_deformation_requests_name_their_field() {
     };
     let one_point_road = json!([{"road": {"path": [{"x": 8, "z": 10}], "width_m": 4.0, "height": {"constant": 20.0}}}]);
     let off_grid_road = json!([{"road": {"path": [{"x": 8, "z": 10}, {"x": 500, "z": 10}], "width_m": 4.0, "height": {"constant": 20.0}}}]);
+    let wide_road = json!([{"road": {"path": [{"x": 8, "z": 10}, {"x": 50, "z": 10}], "width_m": 40.0, "height": {"constant": 20.0}}}]);
+    let zigzag: Vec<Value> = (0..300).map(|i| json!({"x": 8 + i % 2 * 40, "z": 10 + i / 10})).collect();
+    let long_road = json!([{"road": {"path": zigzag, "width_m": 4.0, "height": {"constant": 20.0}}}]);
     let cases = [
         (with(json!({"epsilon": -1.0})), 422, "epsilon"),
         (with(json!({"p": 1.5})), 422, "p"),
@@ -99,6 +102,8 @@ async fn bad_deformation_requests_name_their_field() {
         (with(json!({"constraints": one_point_road})), 422, "constraints[0].road.path"),
         (with(json!({"constraints": off_grid_road})), 422, "constraints[0].road.path[1].x"),
         (with(json!({"constraints": []})), 422, "constraints"),
+        (with(json!({"constraints": wide_road})), 422, "constraints[0].road.width_m"),
+        (with(json!({"constraints": long_road})), 413, "constraints[0].road.path"),
     ];
     for (body, status, field) in cases {
         let (got, problem) = server.post("/v1/jobs/deform-terrain", &body).await;

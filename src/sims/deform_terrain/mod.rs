@@ -34,6 +34,9 @@ pub struct DeformTerrain;
 
 const STAGE: &str = "search";
 
+/// Most (vertex, radius) entries the search table may hold (about 40 bytes each).
+const MAX_TABLE_ENTRIES: usize = 4_000_000;
+
 /// How many of the smallest radii an anchor vertex (a road, seam or point cell) is tried with.
 const ANCHOR_RADII: usize = 4;
 
@@ -81,6 +84,16 @@ impl Simulation for DeformTerrain {
         vertices.extend(constraints::anchors(&fields, grid.cols).into_iter().map(|(c, r)| (c, r, small)));
         vertices.sort_by_key(|&(c, r, n)| (r, c, std::cmp::Reverse(n)));
         vertices.dedup_by_key(|v| (v.0, v.1));
+        let entries: usize = vertices.iter().map(|v| v.2).sum();
+        if entries > MAX_TABLE_ENTRIES {
+            return Err(SimError::Invalid {
+                field: "coarse_spacing_cells".into(),
+                message: format!(
+                    "{entries} candidate deformations is more than the cap of {MAX_TABLE_ENTRIES}; \
+                     raise coarse_spacing_cells or min_spacing_cells, or use fewer radii or narrower roads"
+                ),
+            });
+        }
         let mut tracker = Tracker::new(&fields, &h, grid.cols, grid.rows);
         let watch = JobWatch { ctx, cols: grid.cols, rows: grid.rows, cell_m: grid.cell_m };
         let searched = search::search(&mut h, &fitness, &mut tracker, &vertices, &settings, seed, &watch)?;

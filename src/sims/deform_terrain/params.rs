@@ -20,6 +20,9 @@ pub const MAX_RADIUS_CELLS: u32 = 512;
 pub const MAX_DISPLACEMENT_RATIO: f64 = 10.0;
 /// Most road vertices, points and polygon vertices, each.
 pub const MAX_VERTICES: usize = 10_000;
+/// Most vertices of a road's path, or of a mask's polygons together: building a road or a
+/// polygon mask visits the grid once per segment.
+pub const MAX_OUTLINE_VERTICES: usize = 256;
 
 fn one() -> f64 {
     1.0
@@ -527,8 +530,8 @@ fn validate_constraint(
                     if polys.is_empty() {
                         v.error("polygons", "needs at least one polygon");
                     }
-                    if polys.iter().map(Vec::len).sum::<usize>() > MAX_VERTICES {
-                        v.too_large("polygons", format!("more than {MAX_VERTICES} vertices"));
+                    if polys.iter().map(Vec::len).sum::<usize>() > MAX_OUTLINE_VERTICES {
+                        v.too_large("polygons", format!("more than {MAX_OUTLINE_VERTICES} vertices in all"));
                     }
                     v.field("polygons", |v| {
                         for (i, poly) in polys.iter().enumerate() {
@@ -552,8 +555,8 @@ fn validate_constraint(
         Constraint::Road(r) => {
             if r.path.len() < 2 {
                 v.error("path", format!("needs at least 2 points (got {})", r.path.len()));
-            } else if r.path.len() > MAX_VERTICES {
-                v.too_large("path", format!("more than {MAX_VERTICES} points"));
+            } else if r.path.len() > MAX_OUTLINE_VERTICES {
+                v.too_large("path", format!("more than {MAX_OUTLINE_VERTICES} points"));
             }
             v.field("path", |v| {
                 for (i, p) in r.path.iter().enumerate() {
@@ -569,6 +572,19 @@ fn validate_constraint(
             }
             if r.width_m.is_finite() && r.width_m > MAX_METRES {
                 v.error("width_m", format!("must be at most {MAX_METRES} m"));
+            }
+            // A road and its shoulders wider than the terrain make every cell a road cell.
+            if let Some((w, d)) = extent {
+                let span = w.max(d);
+                if r.width_m.is_finite() && r.width_m > span / 2.0 {
+                    v.error("width_m", format!("must be at most half the terrain's extent ({} m)", span / 2.0));
+                }
+                if let Some(sh) = r.shoulder_m.filter(|s| s.is_finite() && *s > span / 2.0) {
+                    v.error(
+                        "shoulder_m",
+                        format!("must be at most half the terrain's extent ({} m, got {sh})", span / 2.0),
+                    );
+                }
             }
             v.field("height", |v| match &r.height {
                 RoadHeight::Constant(h) => v.in_range("constant", *h, -MAX_METRES, MAX_METRES),

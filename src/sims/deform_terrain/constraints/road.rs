@@ -128,7 +128,8 @@ pub fn build(road: &Road, grid: &Grid, combined: bool) -> Field {
 
 /// The point at arc length `s` (cells) along the polyline.
 fn at_arc(pts: &[(f64, f64)], arc: &[f64], s: f64) -> (f64, f64) {
-    let k = arc.windows(2).position(|w| s <= w[1]).unwrap_or(arc.len().saturating_sub(2));
+    // The first segment whose end reaches s: a binary search, as the arc lengths only grow.
+    let k = arc.partition_point(|&a| a < s).max(1).min(arc.len().saturating_sub(1)) - 1;
     let len = arc[k + 1] - arc[k];
     let t = if len > 0.0 { ((s - arc[k]) / len).clamp(0.0, 1.0) } else { 0.0 };
     (pts[k].0 + t * (pts[k + 1].0 - pts[k].0), pts[k].1 + t * (pts[k + 1].1 - pts[k].1))
