@@ -119,10 +119,20 @@ impl Simulation for DeformTerrain {
         let mut h = problem.original.clone();
         let mut tracker = Tracker::new(&fields, &h, grid.cols, grid.rows);
         let ops = &sequence.operations[..k];
+        // A search uses a handful of radii many times over: build each kernel once.
+        let mut kernels: Vec<Kernel> = Vec::new();
         for (n, op) in ops.iter().enumerate() {
             ctx.check_cancelled()?;
             check_operation(op, n, grid.cols, grid.rows)?;
-            tracker.apply(&mut h, op, &Kernel::new(op.radius_cells as usize));
+            let radius = op.radius_cells as usize;
+            let kernel = match kernels.iter().position(|k| k.radius == radius) {
+                Some(i) => &kernels[i],
+                None => {
+                    kernels.push(Kernel::new(radius));
+                    kernels.last().expect("just pushed")
+                }
+            };
+            tracker.apply(&mut h, op, kernel);
             ctx.report("replay", n as u64 + 1, k as u64, format!("operation {} of {k}", n + 1));
         }
         let history = std::mem::take(&mut tracker.history);
@@ -134,7 +144,8 @@ impl Simulation for DeformTerrain {
 
 /// Refuse a recorded operation outside the grid.
 fn check_operation(op: &Deformation, n: usize, cols: usize, rows: usize) -> Result<(), SimError> {
-    if op.col as usize >= cols || op.row as usize >= rows || op.radius_cells == 0 || !op.amplitude.is_finite() {
+    let radius_ok = (1..=params::MAX_RADIUS_CELLS).contains(&op.radius_cells);
+    if op.col as usize >= cols || op.row as usize >= rows || !radius_ok || !op.amplitude.is_finite() {
         return Err(SimError::Failed(format!("recorded operation {n} does not fit the terrain")));
     }
     Ok(())

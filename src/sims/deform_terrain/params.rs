@@ -501,6 +501,16 @@ impl Validate for DeformTerrainParams {
             v.error("min_spacing_cells", "must be at least 1");
         }
         v.in_range("prediction_constant", self.prediction_constant, 0.0, 1.0);
+        // The server's configured operation cap (LANDFORM_MAX_OPERATIONS) bounds it too.
+        if self.max_iterations <= MAX_ITERATIONS && u64::from(self.max_iterations) > limits.max_operations {
+            v.too_large(
+                "max_iterations",
+                format!(
+                    "must be at most the configured cap of {} (got {})",
+                    limits.max_operations, self.max_iterations
+                ),
+            );
+        }
         if !(1..=256).contains(&self.batch) {
             v.error("batch", format!("must be between 1 and 256 (got {})", self.batch));
         }

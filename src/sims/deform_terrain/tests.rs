@@ -359,3 +359,13 @@ fn combined_roads_keep_only_their_corridor() {
     }
     assert_eq!(grid_of(&everywhere), 65 * 65);
 }
+
+#[test]
+fn the_iteration_limit_follows_the_configured_operation_cap() {
+    let body = json!({"terrain": fractal(65, 3), "constraints": [{"preserve": {}}], "max_iterations": 500});
+    let p: DeformTerrainParams = serde_json::from_value(body).unwrap();
+    let mut v = Validator::new();
+    p.validate(&mut v, &Limits { max_operations: 100, ..Limits::default() });
+    assert!(v.too_large, "{:?}", v.errors);
+    assert_eq!(v.errors.iter().map(|e| e.field.as_str()).collect::<Vec<_>>(), vec!["max_iterations"]);
+}
