@@ -99,6 +99,7 @@ async fn bad_deformation_requests_name_their_field() {
             "constraints[1].edge_match.edges",
         ),
         (with(json!({"max_iterations": 10_000_000})), 413, "max_iterations"),
+        (with(json!({"max_iterations": 20_000, "batch": 256})), 413, "batch"),
         (with(json!({"constraints": one_point_road})), 422, "constraints[0].road.path"),
         (with(json!({"constraints": off_grid_road})), 422, "constraints[0].road.path[1].x"),
         (with(json!({"constraints": []})), 422, "constraints"),

@@ -12,6 +12,9 @@ pub const MAX_ITERATIONS: u32 = 20_000;
 /// Most sampled amplitudes and radii.
 pub const MAX_AMPLITUDES: u32 = 101;
 pub const MAX_RADII: u32 = 32;
+/// Most operations one job may record (max_iterations × batch): each is a line of
+/// `sequence.json` and of `fitness.json`.
+pub const MAX_OPERATIONS_PER_JOB: u64 = 1_000_000;
 /// Most constraints one request may combine: each holds a few per-cell arrays.
 pub const MAX_CONSTRAINTS: usize = 32;
 /// Largest kernel radius in cells: a (2r+1)² weight table each, and a window that wide to sum.
@@ -508,6 +511,15 @@ impl Validate for DeformTerrainParams {
                 format!(
                     "must be at most the configured cap of {} (got {})",
                     limits.max_operations, self.max_iterations
+                ),
+            );
+        }
+        let operations = u64::from(self.max_iterations) * u64::from(self.batch);
+        if operations > MAX_OPERATIONS_PER_JOB {
+            v.too_large(
+                "batch",
+                format!(
+                    "max_iterations × batch = {operations} operations, more than the cap of {MAX_OPERATIONS_PER_JOB}"
                 ),
             );
         }
