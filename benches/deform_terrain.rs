@@ -8,20 +8,10 @@ use std::sync::atomic::AtomicBool;
 use criterion::{criterion_group, criterion_main, Criterion};
 use serde_json::Value;
 
-use landform::jobs::{Progress, ProgressSink, RunContext, Simulation};
+use landform::jobs::{RunContext, SilentProgress, Simulation};
 use landform::sims::deform_terrain::{DeformTerrain, DeformTerrainParams};
 use landform::terrain::{Heightfield, TerrainLookup};
 use landform::validate::Limits;
-
-struct Quiet;
-
-impl ProgressSink for Quiet {
-    fn progress(&self, _progress: Progress) {}
-    fn snapshot_due(&self) -> bool {
-        false
-    }
-    fn snapshot(&self, _png: Vec<u8>, _progress: Progress) {}
-}
 
 struct NoStore;
 
@@ -62,7 +52,7 @@ fn star_1025() -> (DeformTerrainParams, u64) {
 fn run(p: &DeformTerrainParams, seed: u64) -> Value {
     let cancel = AtomicBool::new(false);
     let limits = Limits::default();
-    let ctx = RunContext { cancel: &cancel, sink: &Quiet, terrain: &NoStore, limits: &limits };
+    let ctx = RunContext { cancel: &cancel, sink: &SilentProgress, terrain: &NoStore, limits: &limits };
     DeformTerrain::run(p, seed, &ctx).expect("runs").result
 }
 

@@ -52,6 +52,17 @@ pub trait ProgressSink: Sync {
     fn snapshot(&self, png: Vec<u8>, progress: Progress);
 }
 
+/// A sink that drops progress and never asks for snapshots: for unit tests and benchmarks.
+pub struct SilentProgress;
+
+impl ProgressSink for SilentProgress {
+    fn progress(&self, _progress: Progress) {}
+    fn snapshot_due(&self) -> bool {
+        false
+    }
+    fn snapshot(&self, _png: Vec<u8>, _progress: Progress) {}
+}
+
 /// What a simulation may touch while it runs: cancellation, progress, earlier jobs' terrain.
 pub struct RunContext<'a> {
     pub cancel: &'a AtomicBool,

@@ -5,7 +5,7 @@ mod model;
 
 pub use kind::{
     parse_params, path_string, Artifact, JobKind, JobOutput, Kind, Outcome, Prepared, Progress, ProgressSink,
-    References, RequestError, RunContext, Sequence, SimError, Simulation,
+    References, RequestError, RunContext, Sequence, SilentProgress, SimError, Simulation,
 };
 pub use model::{ArtifactMeta, Job, JobStatus, ReplaySpec};
 

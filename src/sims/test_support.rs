@@ -3,19 +3,9 @@
 
 use std::sync::atomic::AtomicBool;
 
-use crate::jobs::{Progress, ProgressSink, RunContext};
+use crate::jobs::{RunContext, SilentProgress};
 use crate::terrain::{Heightfield, TerrainLookup, TerrainSource};
 use crate::validate::Limits;
-
-struct NoProgress;
-
-impl ProgressSink for NoProgress {
-    fn progress(&self, _progress: Progress) {}
-    fn snapshot_due(&self) -> bool {
-        false
-    }
-    fn snapshot(&self, _png: Vec<u8>, _progress: Progress) {}
-}
 
 struct OneTerrain(Heightfield);
 
@@ -42,7 +32,7 @@ impl TestContext {
     }
 
     pub fn ctx(&self) -> RunContext<'_> {
-        RunContext { cancel: &self.cancel, sink: &NoProgress, terrain: &self.terrain, limits: &self.limits }
+        RunContext { cancel: &self.cancel, sink: &SilentProgress, terrain: &self.terrain, limits: &self.limits }
     }
 }
 
