@@ -7,6 +7,7 @@ mod heightmap_png;
 mod hypsometric;
 mod npy;
 mod preview_png;
+mod render;
 mod srgb;
 
 pub use artifact::Artifact;
@@ -15,6 +16,7 @@ pub use heightmap_png::heightmap_png16;
 pub use hypsometric::Tint;
 pub use npy::{heightfield_npy, read_heightfield_npy};
 pub use preview_png::preview_png;
+pub use render::{render_png, View};
 
 use serde_json::{json, Value};
 
