@@ -8,7 +8,7 @@ use utoipa::openapi::{RefOr, Schema};
 use utoipa::ToSchema;
 
 pub use crate::export::Artifact;
-use crate::terrain::{Heightfield, TerrainError, TerrainLookup, TerrainSource};
+use crate::terrain::{Heightfield, ImageUpload, TerrainError, TerrainLookup, TerrainSource};
 use crate::validate::{FieldError, Limits, Validate, Validator};
 
 /// Where a job is: `fraction` in [0, 1], `step` of `steps` within `stage`.
@@ -131,6 +131,12 @@ pub trait Simulation: Send + Sync + 'static {
     /// The terrain sources in the parameters, each with its JSON path. The adapter reads the
     /// earlier jobs and uploads they name from them, and moves inline uploads into the store.
     fn terrain_sources(params: &mut Self::Params) -> Vec<(String, &mut TerrainSource)>;
+
+    /// Other PNGs the parameters carry (e.g. a joint map), each with its JSON path; stored and
+    /// referenced like uploaded heightmaps.
+    fn image_uploads(_params: &mut Self::Params) -> Vec<(String, &mut ImageUpload)> {
+        Vec::new()
+    }
 
     fn run(params: &Self::Params, seed: u64, ctx: &RunContext) -> Result<Outcome<Self::Sequence>, SimError>;
 
@@ -277,6 +283,16 @@ impl<S: Simulation> JobKind for Kind<S> {
             }
             let upload = source.take_upload().map_err(|e| RequestError::Invalid {
                 errors: vec![FieldError { field: format!("{path}.heightmap.png_base64"), message: e.to_string() }],
+                too_large: false,
+            })?;
+            references.uploads.extend(upload);
+        }
+        for (path, image) in S::image_uploads(&mut typed) {
+            if let Some(sha) = image.input_ref() {
+                references.inputs.push((format!("{path}.png_sha256"), sha.to_string()));
+            }
+            let upload = image.take_upload().map_err(|e| RequestError::Invalid {
+                errors: vec![FieldError { field: format!("{path}.png_base64"), message: e.to_string() }],
                 too_large: false,
             })?;
             references.uploads.extend(upload);

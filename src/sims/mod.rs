@@ -2,6 +2,7 @@
 
 pub mod bulldoze;
 pub mod deform_terrain;
+pub mod weather_column;
 
 #[cfg(test)]
 mod test_support;
@@ -13,5 +14,6 @@ pub fn registry() -> Vec<Box<dyn JobKind>> {
     vec![
         Box::new(crate::jobs::Kind::<bulldoze::Bulldoze>::default()),
         Box::new(crate::jobs::Kind::<deform_terrain::DeformTerrain>::default()),
+        Box::new(crate::jobs::Kind::<weather_column::WeatherColumn>::default()),
     ]
 }

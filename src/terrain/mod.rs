@@ -3,9 +3,11 @@
 mod fractal;
 mod heightfield;
 mod heightmap_png;
+mod image_upload;
 mod source;
 
 pub use fractal::generate_fractal;
 pub use heightfield::Heightfield;
 pub use heightmap_png::{decode_heightmap_png, HeightmapDecodeError};
+pub use image_upload::ImageUpload;
 pub use source::{resolve, FractalParams, HeightmapUpload, TerrainError, TerrainLookup, TerrainSource};

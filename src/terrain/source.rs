@@ -251,23 +251,13 @@ impl Validate for TerrainSource {
                 if u.z_min.is_finite() && u.z_max.is_finite() && u.z_max < u.z_min {
                     v.error("z_max", "must not be below z_min");
                 }
-                match (&u.png_base64, &u.png_sha256) {
-                    (Some(_), Some(_)) => v.error("png_sha256", "give png_base64 or png_sha256, not both"),
-                    (None, None) => v.error("png_base64", "is missing (or name an earlier upload by png_sha256)"),
-                    (None, Some(sha)) => {
-                        if sha.len() != 64 || !sha.bytes().all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b)) {
-                            v.error("png_sha256", "must be a sha256 in lowercase hex (64 characters)");
-                        }
-                    }
-                    (Some(text), None) => match super::heightmap_png::png_dimensions(text) {
-                        Err(e) => v.error("png_base64", e.to_string()),
-                        Ok((w, h)) if w * h > limits.max_grid_cells => v.too_large(
-                            "png_base64",
-                            format!("{w}×{h} pixels is more than the cap of {} samples", limits.max_grid_cells),
-                        ),
-                        Ok(_) => {}
-                    },
-                }
+                super::image_upload::validate_png_pair(
+                    v,
+                    u.png_base64.as_deref(),
+                    u.png_sha256.as_deref(),
+                    limits.max_grid_cells,
+                    "samples",
+                );
             }),
             TerrainSource::Job(id) => {
                 if uuid::Uuid::parse_str(id).is_err() {

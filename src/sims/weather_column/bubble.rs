@@ -1,0 +1,128 @@
+//! Bubbles (paper section 4, Figure 5): the volume around a voxel whose air-to-rock ratio
+//! estimates the local curvature, stored as the lookup table of runs a removal increments.
+
+use super::params::Bubble;
+
+/// The cells `(x_lo..=x_hi, dy, dz)` of a bubble in one row, relative to its centre.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Run {
+    pub dz: i32,
+    pub x_lo: i32,
+    pub x_hi: i32,
+}
+
+/// A bubble as rows of runs, grouped by `dy`. The same table serves two ways: counting the air
+/// around a voxel `v` (cells `v + o`), and — the paper's lookup table of increments — finding
+/// the voxels whose bubble a removed voxel `u` was in (voxels `u − o`), each of which gains
+/// exactly one cell of air.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BubbleTable {
+    pub dy_min: i32,
+    pub dy_max: i32,
+    /// `rows[dy - dy_min]`: runs ordered by `dz`.
+    pub rows: Vec<Vec<Run>>,
+    /// Cells in the bubble, its centre included.
+    pub cells: u32,
+    /// Largest |offset| along X, Y, Z.
+    pub reach: [i32; 3],
+    /// `(air / rock)^exponent` for each air count: the curvature term of the decimation.
+    ratio_power: Vec<f32>,
+}
+
+impl BubbleTable {
+    /// The table of `bubble`, its decimation growing with the air-to-rock ratio raised to
+    /// `ratio_exponent` (1 in the paper).
+    pub fn new(bubble: &Bubble, ratio_exponent: f32) -> Self {
+        let [rx, ry, rz] = bubble.radii();
+        let gumdrop = matches!(bubble, Bubble::Gumdrop { .. });
+        let inside = |dx: i32, dy: i32, dz: i32| {
+            let q = (dx as f32 / rx).powi(2) + (dy as f32 / ry).powi(2) + (dz as f32 / rz).powi(2);
+            q <= 1.0 + 1e-6 && !(gumdrop && dy < 0)
+        };
+        let (ex, ey, ez) = (rx.floor() as i32, ry.floor() as i32, rz.floor() as i32);
+        let dy_min = if gumdrop { 0 } else { -ey };
+        let mut rows = Vec::new();
+        let mut cells = 0;
+        for dy in dy_min..=ey {
+            let mut row = Vec::new();
+            for dz in -ez..=ez {
+                let xs: Vec<i32> = (-ex..=ex).filter(|&dx| inside(dx, dy, dz)).collect();
+                if let (Some(&x_lo), Some(&x_hi)) = (xs.first(), xs.last()) {
+                    cells += xs.len() as u32;
+                    row.push(Run { dz, x_lo, x_hi });
+                }
+            }
+            rows.push(row);
+        }
+        let ratio_power =
+            (0..cells).map(|air| (air as f64 / (cells - air) as f64).powf(ratio_exponent as f64) as f32).collect();
+        Self { dy_min, dy_max: ey, rows, cells, reach: [ex, ey, ez], ratio_power }
+    }
+
+    pub fn row(&self, dy: i32) -> &[Run] {
+        if dy < self.dy_min || dy > self.dy_max {
+            &[]
+        } else {
+            &self.rows[(dy - self.dy_min) as usize]
+        }
+    }
+
+    /// Decimation per step for a voxel with `air` of the bubble's cells empty (paper section 4:
+    /// the air-to-rock ratio, scaled by the rate and divided by the resistance). The centre is
+    /// rock, so `air < cells`.
+    pub fn decimation(&self, air: u16, rate: f32, resistance: f32) -> f32 {
+        rate * self.ratio_power[air as usize] / resistance
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn count(t: &BubbleTable) -> u32 {
+        t.rows.iter().flatten().map(|r| (r.x_hi - r.x_lo + 1) as u32).sum()
+    }
+
+    #[test]
+    fn sphere_of_radius_one_is_the_centre_and_six_faces() {
+        let t = BubbleTable::new(&Bubble::Sphere { radius: 1.0 }, 1.0);
+        assert_eq!(t.cells, 7);
+        assert_eq!(count(&t), 7);
+    }
+
+    #[test]
+    fn sphere_of_radius_four_holds_about_its_volume() {
+        let t = BubbleTable::new(&Bubble::Sphere { radius: 4.0 }, 1.0);
+        assert_eq!(t.cells, 257);
+        let ideal = 4.0 / 3.0 * std::f32::consts::PI * 64.0;
+        assert!((t.cells as f32 - ideal).abs() / ideal < 0.05);
+    }
+
+    #[test]
+    fn gumdrop_is_the_upper_half_with_the_centre_plane() {
+        let t = BubbleTable::new(&Bubble::Gumdrop { radius: 4.0 }, 1.0);
+        assert_eq!(t.dy_min, 0);
+        let plane = count(&BubbleTable { rows: vec![t.rows[0].clone()], ..t.clone() });
+        assert_eq!(t.cells, (257 - plane) / 2 + plane);
+    }
+
+    #[test]
+    fn ellipsoid_reaches_its_radii() {
+        let t = BubbleTable::new(&Bubble::Ellipsoid { radii: [2.0, 5.0, 3.0] }, 1.0);
+        assert_eq!(t.reach, [2, 5, 3]);
+        assert_eq!((t.dy_min, t.dy_max), (-5, 5));
+    }
+
+    #[test]
+    fn corners_weather_faster_than_faces() {
+        let t = BubbleTable::new(&Bubble::Sphere { radius: 4.0 }, 1.0);
+        // A face voxel sees the half-space above its plane as air; a corner seven octants.
+        let face_air = ((t.cells - 49) / 2) as u16;
+        assert!(t.decimation(face_air * 3 / 2, 1.0, 1.0) > 2.0 * t.decimation(face_air, 1.0, 1.0));
+        assert!(t.decimation(face_air, 1.0, 2.0) < t.decimation(face_air, 1.0, 1.0));
+        // A higher exponent favours the corner more.
+        let sharp = BubbleTable::new(&Bubble::Sphere { radius: 4.0 }, 8.0);
+        let ratio = |t: &BubbleTable| t.decimation(face_air * 3 / 2, 1.0, 1.0) / t.decimation(face_air, 1.0, 1.0);
+        assert!(ratio(&sharp) > 10.0 * ratio(&t));
+    }
+}

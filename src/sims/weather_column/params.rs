@@ -1,0 +1,424 @@
+//! The request: the column's profile and height, bedding layers with their resistance and
+//! bubble, the weathering rate and how long to run (paper sections 4–5).
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::terrain::ImageUpload;
+use crate::validate::{Limits, Validate, Validator};
+
+/// Most steps a run may take: removal steps are recorded in 16 bits.
+pub const MAX_STEPS: u32 = 65_000;
+/// Largest bubble radius, voxels (the paper measured 1 to 8).
+pub const MAX_BUBBLE_RADIUS: f32 = 8.0;
+pub const MIN_BUBBLE_RADIUS: f32 = 1.0;
+/// Most bedding layers.
+pub const MAX_LAYERS: usize = 64;
+/// Most vertices of a polygon profile.
+pub const MAX_POLYGON_POINTS: usize = 1024;
+/// Longest side of the grid, voxels.
+pub const MAX_GRID_SIDE: u32 = 4096;
+/// Most smoothing iterations of the exported mesh.
+pub const MAX_SMOOTHING_ITERATIONS: u32 = 200;
+/// Largest in-layer noise amplitude: resistance stays at least 5 % of the layer's.
+pub const MAX_NOISE_AMPLITUDE: f32 = 0.95;
+
+fn default_voxel_size() -> f32 {
+    0.1
+}
+fn default_rate() -> f32 {
+    0.25
+}
+fn default_ratio_exponent() -> f32 {
+    1.0
+}
+fn default_steps() -> u32 {
+    200
+}
+fn default_smoothing() -> u32 {
+    8
+}
+fn default_radius() -> f32 {
+    4.0
+}
+fn default_resistance() -> f32 {
+    1.0
+}
+
+/// Voxels along each axis (Y is up).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GridSize {
+    #[schema(minimum = 1, maximum = 4096)]
+    pub x: u32,
+    #[schema(minimum = 1, maximum = 4096)]
+    pub y: u32,
+    #[schema(minimum = 1, maximum = 4096)]
+    pub z: u32,
+}
+
+impl GridSize {
+    pub fn voxels(&self) -> u64 {
+        self.x as u64 * self.y as u64 * self.z as u64
+    }
+}
+
+/// The column's horizontal profile, seen from above; it is extruded straight up from the ground.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Profile {
+    /// A rectangle centred in the grid; the grid's whole footprint when no size is given.
+    Box(BoxProfile),
+    /// A circle centred in the grid.
+    Cylinder(CylinderProfile),
+    /// A simple polygon, `[x, z]` metres from the grid's centre (even-odd fill).
+    Polygon(PolygonProfile),
+    /// The paper's input: a grayscale PNG stretched over the grid's footprint (image row 0 at
+    /// z = 0, column 0 at x = 0); dark pixels (below mid-grey) are no rock.
+    JointMap(ImageUpload),
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BoxProfile {
+    /// Along X, metres; default the grid's width.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub width_m: Option<f32>,
+    /// Along Z, metres; default the grid's depth.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub depth_m: Option<f32>,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CylinderProfile {
+    /// Metres; default half the grid's shorter horizontal side.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius_m: Option<f32>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PolygonProfile {
+    /// At least three `[x, z]` points, metres from the grid's centre.
+    pub points_m: Vec<[f32; 2]>,
+}
+
+/// The rock before weathering.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Column {
+    pub profile: Profile,
+    /// Metres from the bottom of the grid; default the grid's full height.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub height_m: Option<f32>,
+    /// Rock with air beneath it, so weathering acts on every side (the paper's cube-to-sphere
+    /// check). Otherwise the column stands on ground that does not weather and is not air.
+    #[serde(default)]
+    pub floating: bool,
+}
+
+/// The volume around a voxel in which air is counted (paper Figure 5); sizes in voxels.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Bubble {
+    Sphere {
+        #[serde(default = "default_radius")]
+        #[schema(default = 4.0, minimum = 1.0, maximum = 8.0)]
+        radius: f32,
+    },
+    /// Axis-aligned, radii along X, Y and Z.
+    Ellipsoid {
+        #[schema(minimum = 1.0, maximum = 8.0)]
+        radii: [f32; 3],
+    },
+    /// A round top and a flat bottom (Figure 7c): the upper half of a sphere, cut at the
+    /// voxel's own level, so rock below a voxel does not shelter it and air below does not
+    /// weather it.
+    Gumdrop {
+        #[serde(default = "default_radius")]
+        #[schema(default = 4.0, minimum = 1.0, maximum = 8.0)]
+        radius: f32,
+    },
+}
+
+impl Default for Bubble {
+    fn default() -> Self {
+        Bubble::Sphere { radius: default_radius() }
+    }
+}
+
+/// In-layer variation of resistance: coherent (Perlin) noise, resistance × (1 + amplitude × n).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct LayerNoise {
+    /// Relative, in [0, 0.95].
+    #[serde(default)]
+    pub amplitude: f32,
+    /// Cycles per metre.
+    #[serde(default)]
+    pub frequency_per_m: f32,
+}
+
+/// A bedding plane layer: from the layer below's top (or the ground) up to `top_m`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Layer {
+    /// Metres above the bottom of the grid. The last layer also holds any rock above its top.
+    pub top_m: f32,
+    /// Resistance to weathering (> 0): a voxel's decimation per step is divided by it.
+    #[serde(default = "default_resistance")]
+    #[schema(default = 1.0)]
+    pub resistance: f32,
+    #[serde(default)]
+    pub noise: LayerNoise,
+    #[serde(default)]
+    pub bubble: Bubble,
+}
+
+/// How removals are scheduled (paper section 5).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Update {
+    /// Find every voxel fully decimated in a step, then remove them all (the default).
+    #[default]
+    Synchronized,
+    /// Remove each voxel the moment it is fully decimated, in continuous time; neighbours
+    /// change rate at once. Slower and more sensitive to noise.
+    EventBased,
+}
+
+/// The exported mesh.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MeshOptions {
+    /// Taubin smoothing passes (the paper smoothed in Maya); 0 keeps the voxel-derived surface.
+    #[serde(default = "default_smoothing")]
+    #[schema(default = 8, maximum = 200)]
+    pub smoothing_iterations: u32,
+}
+
+impl Default for MeshOptions {
+    fn default() -> Self {
+        Self { smoothing_iterations: default_smoothing() }
+    }
+}
+
+/// `POST /v1/jobs/weather-column`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct WeatherColumnParams {
+    pub grid: GridSize,
+    /// Edge of a voxel, metres.
+    #[serde(default = "default_voxel_size")]
+    #[schema(default = 0.1)]
+    pub voxel_size_m: f32,
+    pub column: Column,
+    /// Bottom to top, `top_m` strictly increasing; at least one.
+    pub layers: Vec<Layer>,
+    /// Decimation per step of a voxel whose bubble holds as much air as rock, at resistance 1;
+    /// a voxel starts at level 1 and is removed at 0.
+    #[serde(default = "default_rate")]
+    #[schema(default = 0.25)]
+    pub rate: f32,
+    /// The decimation grows with the air-to-rock ratio raised to this power. 1 is the paper's
+    /// product; there a flat face weathers at two thirds the rate of a gently rounded one, so a
+    /// cube at half its volume is still a rounded cube. Higher values make weathering follow
+    /// curvature more sharply: 8 turns a cube into a sphere by half its volume.
+    #[serde(default = "default_ratio_exponent")]
+    #[schema(default = 1.0, minimum = 1.0, maximum = 16.0)]
+    pub ratio_exponent: f32,
+    #[serde(default)]
+    pub update: Update,
+    /// Most weathering steps.
+    #[serde(default = "default_steps")]
+    #[schema(default = 200, minimum = 1, maximum = 65000)]
+    pub steps: u32,
+    /// Stop once the remaining rock is at most this fraction of the initial volume (0 = run
+    /// every step, or until nothing is left).
+    #[serde(default)]
+    #[schema(default = 0.0, minimum = 0.0, maximum = 1.0)]
+    pub stop_at_fraction: f32,
+    #[serde(default)]
+    pub mesh: MeshOptions,
+}
+
+impl WeatherColumnParams {
+    /// Height of the column in voxels.
+    pub fn column_voxels(&self) -> u32 {
+        match self.column.height_m {
+            Some(h) => ((h / self.voxel_size_m).round().max(0.0) as u32).min(self.grid.y),
+            None => self.grid.y,
+        }
+    }
+}
+
+impl Bubble {
+    /// Radii along X, Y, Z in voxels.
+    pub fn radii(&self) -> [f32; 3] {
+        match *self {
+            Bubble::Sphere { radius } | Bubble::Gumdrop { radius } => [radius; 3],
+            Bubble::Ellipsoid { radii } => radii,
+        }
+    }
+}
+
+impl Validate for WeatherColumnParams {
+    fn validate(&self, v: &mut Validator, limits: &Limits) {
+        let g = self.grid;
+        v.field("grid", |v| {
+            for (leaf, side) in [("x", g.x), ("y", g.y), ("z", g.z)] {
+                if side == 0 {
+                    v.error(leaf, "must be at least 1");
+                } else if side > MAX_GRID_SIDE {
+                    v.too_large(leaf, format!("must be at most {MAX_GRID_SIDE} voxels (got {side})"));
+                }
+            }
+        });
+        if g.voxels() > limits.max_voxels {
+            v.too_large(
+                "grid",
+                format!(
+                    "{}×{}×{} = {} voxels is more than the cap of {}",
+                    g.x,
+                    g.y,
+                    g.z,
+                    g.voxels(),
+                    limits.max_voxels
+                ),
+            );
+        }
+        v.positive("voxel_size_m", self.voxel_size_m as f64);
+        if self.voxel_size_m.is_finite() && self.voxel_size_m > 100.0 {
+            v.error("voxel_size_m", "must be at most 100 m");
+        }
+        let size = self.voxel_size_m;
+        let width_m = g.x as f32 * size;
+        let depth_m = g.z as f32 * size;
+        v.field("column", |v| {
+            if let Some(h) = self.column.height_m {
+                v.positive("height_m", h as f64);
+                if h.is_finite() && size > 0.0 && h > g.y as f32 * size * 1.0001 {
+                    v.error("height_m", format!("is taller than the grid ({} m)", g.y as f32 * size));
+                } else if h.is_finite() && size > 0.0 && (h / size).round() < 1.0 {
+                    v.error("height_m", "is less than one voxel");
+                }
+            }
+            v.field("profile", |v| validate_profile(&self.column.profile, v, limits, width_m, depth_m));
+        });
+        if self.layers.is_empty() {
+            v.error("layers", "needs at least one layer");
+        } else if self.layers.len() > MAX_LAYERS {
+            v.too_large("layers", format!("at most {MAX_LAYERS} layers (got {})", self.layers.len()));
+        }
+        v.field("layers", |v| {
+            let mut below: Option<f32> = None;
+            for (i, layer) in self.layers.iter().enumerate().take(MAX_LAYERS) {
+                v.index(i, |v| {
+                    if v.finite("top_m", layer.top_m as f64) {
+                        if layer.top_m <= 0.0 {
+                            v.error("top_m", "must be above the ground (greater than 0)");
+                        }
+                        match below {
+                            Some(b) if layer.top_m < b => v.error(
+                                "top_m",
+                                format!("is below the layer before it ({b} m): list layers bottom to top"),
+                            ),
+                            Some(b) if layer.top_m == b => {
+                                v.error("top_m", format!("overlaps the layer before it (both end at {b} m)"))
+                            }
+                            _ => {}
+                        }
+                        below = Some(layer.top_m);
+                    }
+                    v.positive("resistance", layer.resistance as f64);
+                    if layer.resistance.is_finite() && layer.resistance > 1e6 {
+                        v.error("resistance", "must be at most 1000000");
+                    }
+                    v.field("noise", |v| {
+                        v.in_range("amplitude", layer.noise.amplitude as f64, 0.0, MAX_NOISE_AMPLITUDE as f64);
+                        v.in_range("frequency_per_m", layer.noise.frequency_per_m as f64, 0.0, 1e4);
+                    });
+                    v.field("bubble", |v| validate_bubble(&layer.bubble, v));
+                });
+            }
+        });
+        v.positive("rate", self.rate as f64);
+        if self.rate.is_finite() && self.rate > 100.0 {
+            v.error("rate", "must be at most 100");
+        }
+        v.in_range("ratio_exponent", self.ratio_exponent as f64, 1.0, 16.0);
+        let max_steps = MAX_STEPS.min(limits.max_operations.min(u32::MAX as u64) as u32);
+        if self.steps == 0 {
+            v.error("steps", "must be at least 1");
+        } else if self.steps > max_steps {
+            v.error("steps", format!("must be at most {max_steps} (got {})", self.steps));
+        }
+        v.in_range("stop_at_fraction", self.stop_at_fraction as f64, 0.0, 1.0);
+        v.field("mesh", |v| {
+            if self.mesh.smoothing_iterations > MAX_SMOOTHING_ITERATIONS {
+                v.error(
+                    "smoothing_iterations",
+                    format!("must be at most {MAX_SMOOTHING_ITERATIONS} (got {})", self.mesh.smoothing_iterations),
+                );
+            }
+        });
+    }
+}
+
+fn validate_bubble(bubble: &Bubble, v: &mut Validator) {
+    let check = |v: &mut Validator, leaf: &str, r: f32| {
+        v.in_range(leaf, r as f64, MIN_BUBBLE_RADIUS as f64, MAX_BUBBLE_RADIUS as f64);
+    };
+    match bubble {
+        Bubble::Sphere { radius } => v.field("sphere", |v| check(v, "radius", *radius)),
+        Bubble::Gumdrop { radius } => v.field("gumdrop", |v| check(v, "radius", *radius)),
+        Bubble::Ellipsoid { radii } => v.field("ellipsoid", |v| {
+            for (i, r) in radii.iter().enumerate() {
+                check(v, &format!("radii[{i}]"), *r);
+            }
+        }),
+    }
+}
+
+fn validate_profile(profile: &Profile, v: &mut Validator, limits: &Limits, width_m: f32, depth_m: f32) {
+    match profile {
+        Profile::Box(b) => v.field("box", |v| {
+            for (leaf, value, extent) in [("width_m", b.width_m, width_m), ("depth_m", b.depth_m, depth_m)] {
+                if let Some(value) = value {
+                    v.positive(leaf, value as f64);
+                    if value.is_finite() && value > extent * 1.0001 {
+                        v.error(leaf, format!("is wider than the grid ({extent} m)"));
+                    }
+                }
+            }
+        }),
+        Profile::Cylinder(c) => v.field("cylinder", |v| {
+            if let Some(r) = c.radius_m {
+                v.positive("radius_m", r as f64);
+                if r.is_finite() && 2.0 * r > width_m.max(depth_m) * 1.0001 {
+                    v.error("radius_m", "is wider than the grid");
+                }
+            }
+        }),
+        Profile::Polygon(p) => v.field("polygon", |v| {
+            if p.points_m.len() < 3 {
+                v.error("points_m", "needs at least 3 points");
+            } else if p.points_m.len() > MAX_POLYGON_POINTS {
+                v.too_large("points_m", format!("at most {MAX_POLYGON_POINTS} points (got {})", p.points_m.len()));
+            }
+            if let Some(i) = p.points_m.iter().position(|q| !q.iter().all(|c| c.is_finite())) {
+                v.error(&format!("points_m[{i}]"), "must be finite numbers");
+            }
+        }),
+        Profile::JointMap(image) => v.field("joint_map", |v| {
+            if image.validate_in(v, limits).is_some() {
+                if let Some(Ok(bytes)) = image.inline_bytes() {
+                    if let Err(message) = super::shape::check_joint_map(&bytes) {
+                        v.error("png_base64", message);
+                    }
+                }
+            }
+        }),
+    }
+}

@@ -1,0 +1,299 @@
+//! The paper's checks, measured on the voxels and the mesh: a cube weathers toward a sphere
+//! (Figure 7a–b), a gumdrop bubble gives a flat bottom and a round top (Figure 7c), a hard cap
+//! over a soft base ends wider at the cap (Figure 2c); the lookup table keeps every air count
+//! exact; the mesh is closed; replay until k is a run of k steps; threads don't change bytes.
+
+use serde_json::{json, Value};
+
+use super::grid::ROCK;
+use super::params::{Bubble, Layer};
+use super::rock::count_air;
+use super::*;
+use crate::sims::test_support::TestContext;
+use crate::terrain::Heightfield;
+use crate::validate::{Limits, Validate, Validator};
+
+fn params(v: Value) -> WeatherColumnParams {
+    let p: WeatherColumnParams = serde_json::from_value(v).expect("parses");
+    let mut val = Validator::new();
+    p.validate(&mut val, &Limits::default());
+    assert!(val.is_ok(), "{:?}", val.errors);
+    p
+}
+
+/// A floating cube of homogeneous rock filling a `side`³ grid; decimation ∝ ratio^8.
+fn floating_cube(side: u32, bubble: Value, stop_at_fraction: f32, update: &str) -> WeatherColumnParams {
+    params(json!({
+        "grid": {"x": side, "y": side, "z": side},
+        "voxel_size_m": 0.1,
+        "column": {"profile": {"box": {}}, "floating": true},
+        "layers": [{"top_m": 1000.0, "resistance": 1.0, "bubble": bubble}],
+        "rate": 0.25,
+        "ratio_exponent": 8.0,
+        "update": update,
+        "steps": 5000,
+        "stop_at_fraction": stop_at_fraction,
+        "mesh": {"smoothing_iterations": 0},
+    }))
+}
+
+fn weather(p: &WeatherColumnParams, seed: u64) -> (Rock, History) {
+    simulate(p, seed, None, &mut |_, _, _| Ok(())).expect("weathers")
+}
+
+fn rock_cells(rock: &Rock) -> Vec<(usize, usize, usize)> {
+    (0..rock.grid.len()).filter(|&i| rock.state[i] == ROCK).map(|i| rock.grid.coords(i)).collect()
+}
+
+/// Rock voxels with at least one face open to air (or to outside the grid).
+fn surface_cells(rock: &Rock) -> Vec<(usize, usize, usize)> {
+    let g = &rock.grid;
+    rock_cells(rock)
+        .into_iter()
+        .filter(|&(x, y, z)| {
+            let (x, y, z) = (x as i64, y as i64, z as i64);
+            [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
+                .iter()
+                .any(|(dx, dy, dz)| !g.solid(&rock.state, x + dx, y + dy, z + dz))
+        })
+        .collect()
+}
+
+/// Mean and coefficient of variation (std / mean) of the surface voxels' distances from the
+/// rock's centroid, in voxels.
+fn roundness(rock: &Rock) -> (f64, f64) {
+    let cells = rock_cells(rock);
+    let n = cells.len() as f64;
+    let c = cells.iter().fold([0.0; 3], |a, &(x, y, z)| [a[0] + x as f64, a[1] + y as f64, a[2] + z as f64]);
+    let c = [c[0] / n, c[1] / n, c[2] / n];
+    let d: Vec<f64> = surface_cells(rock)
+        .iter()
+        .map(|&(x, y, z)| ((x as f64 - c[0]).powi(2) + (y as f64 - c[1]).powi(2) + (z as f64 - c[2]).powi(2)).sqrt())
+        .collect();
+    let mean = d.iter().sum::<f64>() / d.len() as f64;
+    let var = d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / d.len() as f64;
+    (mean, var.sqrt() / mean)
+}
+
+/// Rock voxels in each horizontal plane, bottom to top.
+fn plane_areas(rock: &Rock) -> Vec<usize> {
+    let plane = rock.grid.plane();
+    rock.state.chunks(plane).map(|p| p.iter().filter(|&&s| s == ROCK).count()).collect()
+}
+
+fn remaining(rock: &Rock) -> f64 {
+    rock.rock_voxels as f64 / rock.initial_voxels as f64
+}
+
+#[test]
+fn floating_cube_weathers_toward_a_sphere() {
+    let p = floating_cube(40, json!({"sphere": {"radius": 4.0}}), 0.5, "synchronized");
+    let (cube, _) = weather(&WeatherColumnParams { steps: 1, ..p.clone() }, 1);
+    let (_, cube_cv) = roundness(&cube);
+    let (rock, history) = weather(&p, 1);
+    let left = remaining(&rock);
+    let (mean, cv) = roundness(&rock);
+    eprintln!("cube cv {cube_cv:.4}; at {left:.3} left after {} steps: mean {mean:.2} cv {cv:.4}", history.steps());
+    assert!((0.45..=0.5).contains(&left), "stopped at {left} of the volume");
+    // A cube's surface lies 1 to √3 half-sides from its centre (cv ≈ 0.12 on this grid); at
+    // half the volume the weathered rock's surface voxels lie within 3.5 % (one standard
+    // deviation) of their mean distance, about two thirds of a voxel at a radius of 19: the
+    // digital sphere's own staircase.
+    assert!(cube_cv > 0.1, "the cube's spread {cube_cv}");
+    assert!(cv < 0.035, "surface distances spread {cv} of their mean {mean} voxels");
+    // The paper's linear ratio (exponent 1) only rounds the cube's edges by then.
+    let (linear, _) = weather(&WeatherColumnParams { ratio_exponent: 1.0, ..p }, 1);
+    let (_, linear_cv) = roundness(&linear);
+    assert!(linear_cv > 2.0 * cv, "exponent 1: {linear_cv}");
+}
+
+#[test]
+fn event_based_update_rounds_a_cube_too() {
+    let p = floating_cube(24, json!({"sphere": {"radius": 3.0}}), 0.5, "event_based");
+    let (rock, history) = weather(&p, 1);
+    let (mean, cv) = roundness(&rock);
+    eprintln!("event-based: {:.3} left after {} steps: mean {mean:.2} cv {cv:.4}", remaining(&rock), history.steps());
+    assert!((0.45..=0.5).contains(&remaining(&rock)));
+    assert!(cv < 0.05, "surface distances spread {cv} of their mean {mean}");
+}
+
+#[test]
+fn gumdrop_bubble_gives_a_flat_bottom_and_a_round_top() {
+    let shape = |bubble: Value| {
+        let (rock, _) = weather(&floating_cube(32, bubble, 0.5, "synchronized"), 1);
+        let areas = plane_areas(&rock);
+        let max = *areas.iter().max().unwrap() as f64;
+        let bottom = areas.iter().position(|&a| a > 0).unwrap();
+        let top = areas.iter().rposition(|&a| a > 0).unwrap();
+        (areas[bottom] as f64 / max, areas[top] as f64 / max)
+    };
+    let (gum_bottom, gum_top) = shape(json!({"gumdrop": {"radius": 4.0}}));
+    let (sphere_bottom, sphere_top) = shape(json!({"sphere": {"radius": 4.0}}));
+    eprintln!("gumdrop bottom {gum_bottom:.3} top {gum_top:.3}; sphere bottom {sphere_bottom:.3} top {sphere_top:.3}");
+    // Flat bottom: the lowest plane is (nearly) the widest. Round top: the highest is a cap.
+    assert!(gum_bottom > 0.8, "gumdrop bottom plane is {gum_bottom} of the widest");
+    assert!(gum_top < 0.3, "gumdrop top plane is {gum_top} of the widest");
+    // A sphere bubble rounds both ends alike.
+    assert!(sphere_bottom < 0.5 && (sphere_bottom - sphere_top).abs() < 0.15);
+}
+
+#[test]
+fn hard_cap_over_soft_base_ends_wider_at_the_cap() {
+    // Figure 2c: sandstone cap over shale and siltstone, standing on the ground.
+    let p = params(json!({
+        "grid": {"x": 28, "y": 40, "z": 28},
+        "voxel_size_m": 0.1,
+        "column": {"profile": {"box": {"width_m": 2.2, "depth_m": 2.2}}},
+        "layers": [
+            {"top_m": 1.3, "resistance": 0.35, "bubble": {"sphere": {"radius": 3.0}}},
+            {"top_m": 2.6, "resistance": 0.5, "bubble": {"sphere": {"radius": 3.0}}},
+            {"top_m": 4.0, "resistance": 4.0, "bubble": {"sphere": {"radius": 3.0}}},
+        ],
+        "rate": 0.25,
+        "steps": 200,
+        "stop_at_fraction": 0.55,
+    }));
+    let (rock, _) = weather(&p, 3);
+    let areas = plane_areas(&rock);
+    let cap = *areas[26..].iter().max().unwrap();
+    let pedestal = *areas[2..24].iter().min().unwrap();
+    eprintln!("areas {areas:?}");
+    assert!(cap as f64 > 1.5 * pedestal as f64, "cap {cap} voxels vs pedestal {pedestal}");
+    // The ground does not weather: the base still stands on it.
+    assert!(areas[0] > 0);
+}
+
+#[test]
+fn lookup_table_increments_keep_every_air_count_exact() {
+    for bubble in [
+        json!({"sphere": {"radius": 3.0}}),
+        json!({"gumdrop": {"radius": 2.5}}),
+        json!({"ellipsoid": {"radii": [2.0, 4.0, 3.0]}}),
+    ] {
+        for update in ["synchronized", "event_based"] {
+            let mut p = floating_cube(16, bubble.clone(), 0.6, update);
+            p.column.floating = false;
+            p.layers.insert(0, Layer { top_m: 0.7, ..p.layers[0].clone() });
+            p.layers[0].bubble = Bubble::Sphere { radius: 2.0 };
+            let (rock, _) = weather(&p, 1);
+            let g = &rock.grid;
+            for i in 0..g.len() {
+                if rock.state[i] != ROCK {
+                    continue;
+                }
+                let (x, y, z) = g.coords(i);
+                let exact = count_air(g, &rock.state, rock.bubble_of_plane(y), x as i64, y as i64, z as i64);
+                assert_eq!(rock.air[i], exact, "{update} {bubble}: voxel {x},{y},{z}");
+            }
+        }
+    }
+}
+
+#[test]
+fn weathered_rock_mesh_is_closed_and_holds_the_rock_volume() {
+    let p = floating_cube(24, json!({"sphere": {"radius": 3.0}}), 0.6, "synchronized");
+    let (rock, history) = weather(&p, 1);
+    for iterations in [0, 8] {
+        let (result, artifacts) = outputs::build(
+            &WeatherColumnParams { mesh: params::MeshOptions { smoothing_iterations: iterations }, ..p.clone() },
+            &rock.grid,
+            &rock.resistance,
+            &rock.state,
+            &history,
+        );
+        assert_eq!(result["mesh"]["closed"], json!(true));
+        let mesh_volume = result["mesh"]["volume_m3"].as_f64().unwrap();
+        let voxel_volume = result["volume_m3"]["final"].as_f64().unwrap();
+        // Faces lie on voxel boundaries; edges and corners are cut by the clamped field.
+        assert!(
+            (mesh_volume / voxel_volume - 1.0).abs() < 0.08,
+            "smoothing {iterations}: mesh {mesh_volume} m³ vs voxels {voxel_volume} m³"
+        );
+        assert_eq!(artifacts[0].name, "mesh.glb");
+    }
+}
+
+#[test]
+fn column_on_the_ground_has_a_flat_base_at_zero() {
+    let p = params(json!({
+        "grid": {"x": 16, "y": 20, "z": 16},
+        "column": {"profile": {"cylinder": {}}},
+        "layers": [{"top_m": 2.0}],
+        "steps": 10,
+    }));
+    let (rock, _) = weather(&p, 1);
+    let state = &rock.state;
+    let rock_fn = |i: usize| state[i] == ROCK;
+    let mesh = outputs::rock_mesh(&rock.grid, &rock_fn, 8);
+    assert!(mesh.is_closed());
+    let (lo, _) = mesh.bounds().unwrap();
+    assert_eq!(lo[1], 0.0);
+    let on_ground = mesh.positions.iter().filter(|p| p[1] == 0.0).count();
+    assert!(on_ground > 20, "{on_ground} vertices on the ground");
+    assert!(mesh.signed_volume() > 0.0);
+}
+
+fn ctx() -> TestContext {
+    TestContext::new(Heightfield::from_fn(2, 2, 1.0, |_, _| 0.0))
+}
+
+fn hashes(outcome: &Outcome<WeatherSequence>) -> Vec<(String, Vec<u8>)> {
+    outcome.artifacts.iter().map(|a| (a.name.clone(), a.bytes.clone())).collect()
+}
+
+fn goblin(steps: u32, update: &str) -> WeatherColumnParams {
+    params(json!({
+        "grid": {"x": 20, "y": 24, "z": 20},
+        "voxel_size_m": 0.1,
+        "column": {"profile": {"cylinder": {"radius_m": 0.9}}},
+        "layers": [
+            {"top_m": 1.4, "resistance": 1.5, "noise": {"amplitude": 0.3, "frequency_per_m": 2.0}, "bubble": {"sphere": {"radius": 3.0}}},
+            {"top_m": 2.4, "resistance": 5.0, "noise": {"amplitude": 0.2, "frequency_per_m": 3.0}, "bubble": {"gumdrop": {"radius": 3.0}}},
+        ],
+        "rate": 0.1,
+        "update": update,
+        "steps": steps,
+        "mesh": {"smoothing_iterations": 4},
+    }))
+}
+
+#[test]
+fn replay_until_k_equals_a_run_of_k_steps() {
+    let t = ctx();
+    for update in ["synchronized", "event_based"] {
+        let full = WeatherColumn::run(&goblin(30, update), 5, &t.ctx()).unwrap();
+        assert_eq!(full.sequence.steps, 30);
+        let again = WeatherColumn::replay(&goblin(30, update), &full.sequence, None, &t.ctx()).unwrap();
+        assert_eq!(hashes(&again), hashes(&full), "{update}: full replay");
+        assert_eq!(again.result, full.result);
+        assert_eq!(again.sequence, full.sequence);
+        let k = 12;
+        let part = WeatherColumn::replay(&goblin(30, update), &full.sequence, Some(k), &t.ctx()).unwrap();
+        let short = WeatherColumn::run(&goblin(k as u32, update), 5, &t.ctx()).unwrap();
+        assert_eq!(hashes(&part), hashes(&short), "{update}: replay until {k}");
+        assert_eq!(part.result, short.result);
+        assert_eq!(part.sequence, short.sequence);
+        assert_ne!(hashes(&part), hashes(&full));
+    }
+}
+
+#[test]
+fn one_and_two_threads_give_identical_artifacts() {
+    let run = |threads: usize, update: &str| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| WeatherColumn::run(&goblin(25, update), 9, &ctx().ctx()).unwrap())
+    };
+    for update in ["synchronized", "event_based"] {
+        let (one, two) = (run(1, update), run(2, update));
+        assert_eq!(hashes(&one), hashes(&two), "{update}");
+        assert_eq!(one.sequence, two.sequence);
+    }
+}
+
+#[test]
+fn seeds_change_the_noise_and_the_rock() {
+    let t = ctx();
+    let a = WeatherColumn::run(&goblin(20, "synchronized"), 1, &t.ctx()).unwrap();
+    let b = WeatherColumn::run(&goblin(20, "synchronized"), 2, &t.ctx()).unwrap();
+    assert_ne!(a.sequence.removal_steps, b.sequence.removal_steps);
+}

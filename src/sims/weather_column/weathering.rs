@@ -1,0 +1,233 @@
+//! The weathering loop (paper sections 4–5): every active voxel's decimation level falls by
+//! its rate each step; voxels that reach zero are removed and their neighbours' air counts
+//! grow by the bubble's lookup table.
+//!
+//! The synchronized two-step update finds all removals of a step from the levels at its start,
+//! then applies them; it runs in parallel and gives the same result on any number of threads.
+//! The event-based update removes each voxel at the moment its level reaches zero, in
+//! continuous time (one step = one unit of time), and changes its neighbours' rates at once.
+
+use std::cmp::{Ordering, Reverse};
+use std::collections::{BinaryHeap, HashMap};
+
+use rayon::prelude::*;
+
+use super::grid::ROCK;
+use super::rock::{Active, Rock};
+use crate::jobs::SimError;
+
+/// What each step did, for the sequence and the job's result.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct History {
+    /// Active voxels at the start of each step.
+    pub active_per_step: Vec<u32>,
+    /// Voxels removed by each step.
+    pub removed_per_step: Vec<u32>,
+}
+
+impl History {
+    pub fn steps(&self) -> u32 {
+        self.removed_per_step.len() as u32
+    }
+}
+
+/// When to stop and how fast rock weathers.
+#[derive(Clone, Copy, Debug)]
+pub struct Schedule {
+    /// Decimation per step at air-to-rock ratio 1 and resistance 1.
+    pub rate: f32,
+    pub steps: u32,
+    /// Stop once at most this many rock voxels remain.
+    pub stop_at_voxels: u64,
+}
+
+/// Called after each step with (step, rock, active voxels now): reports progress and returns
+/// `Err` to stop (cancellation).
+pub type OnStep<'a> = dyn FnMut(u32, &Rock, usize) -> Result<(), SimError> + 'a;
+
+pub fn weather_synchronized(rock: &mut Rock, schedule: Schedule, on_step: &mut OnStep) -> Result<History, SimError> {
+    let mut active = rock.initialise();
+    let mut history = History::default();
+    for step in 1..=schedule.steps {
+        if active.is_empty() || rock.rock_voxels <= schedule.stop_at_voxels {
+            break;
+        }
+        history.active_per_step.push(active.len() as u32);
+        let removed = synchronized_step(rock, &mut active, schedule.rate, step as u16);
+        history.removed_per_step.push(removed as u32);
+        on_step(step, rock, active.len())?;
+    }
+    Ok(history)
+}
+
+/// One step of the two-step update: decimate every active voxel by the rate its air count
+/// gives, then remove those at zero and update their neighbours. Returns the removals.
+pub fn synchronized_step(rock: &mut Rock, active: &mut Active, rate: f32, step: u16) -> usize {
+    let plane = rock.grid.plane();
+    {
+        let rock = &*rock;
+        active.level.par_iter_mut().zip(active.index.par_iter()).zip(active.resistance.par_iter()).for_each(
+            |((level, &i), &resistance)| {
+                let bubble = rock.bubble_of_plane(i as usize / plane);
+                *level -= bubble.decimation(rock.air[i as usize], rate, resistance);
+            },
+        );
+    }
+    let removed: Vec<u32> =
+        active.index.par_iter().zip(active.level.par_iter()).filter(|(_, &l)| l <= 0.0).map(|(&i, _)| i).collect();
+    let activated = rock.remove(&removed, step);
+    *active = merge_active(rock, std::mem::take(active), activated);
+    removed.len()
+}
+
+/// Survivors of `active` (level above 0) and the newly `activated` voxels (level 1), sorted.
+fn merge_active(rock: &Rock, active: Active, activated: Vec<u32>) -> Active {
+    let fresh: Vec<f32> = activated.par_iter().map(|&i| rock.resistance_of(i as usize)).collect();
+    let capacity = active.len() + activated.len();
+    let mut out = Active {
+        index: Vec::with_capacity(capacity),
+        level: Vec::with_capacity(capacity),
+        resistance: Vec::with_capacity(capacity),
+    };
+    let mut n = 0;
+    let push_fresh_below = |out: &mut Active, bound: u32, n: &mut usize| {
+        while *n < activated.len() && activated[*n] < bound {
+            out.index.push(activated[*n]);
+            out.level.push(1.0);
+            out.resistance.push(fresh[*n]);
+            *n += 1;
+        }
+    };
+    for k in 0..active.len() {
+        if active.level[k] <= 0.0 {
+            continue;
+        }
+        push_fresh_below(&mut out, active.index[k], &mut n);
+        out.index.push(active.index[k]);
+        out.level.push(active.level[k]);
+        out.resistance.push(active.resistance[k]);
+    }
+    push_fresh_below(&mut out, u32::MAX, &mut n);
+    if n < activated.len() {
+        // u32::MAX itself is never a voxel index (grids are capped well below it).
+        unreachable!("activated voxel beyond the last index");
+    }
+    out
+}
+
+/// An active voxel in the event-based update: its level at time `since`, falling at `rate`.
+struct EventVoxel {
+    level: f64,
+    since: f64,
+    rate: f64,
+    resistance: f32,
+    version: u32,
+}
+
+/// A scheduled removal; stale when the voxel's version moved on.
+#[derive(PartialEq)]
+struct Event {
+    time: f64,
+    index: u32,
+    version: u32,
+}
+
+impl Eq for Event {}
+
+impl PartialOrd for Event {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Event {
+    /// By time, ties by voxel index: the order never depends on the heap's history.
+    fn cmp(&self, other: &Self) -> Ordering {
+        self.time.total_cmp(&other.time).then(self.index.cmp(&other.index)).then(self.version.cmp(&other.version))
+    }
+}
+
+pub fn weather_event_based(rock: &mut Rock, schedule: Schedule, on_step: &mut OnStep) -> Result<History, SimError> {
+    let initial = rock.initialise();
+    let plane = rock.grid.plane();
+    let rate_of = |rock: &Rock, i: u32, resistance: f32| -> f64 {
+        rock.bubble_of_plane(i as usize / plane).decimation(rock.air[i as usize], schedule.rate, resistance) as f64
+    };
+    let mut voxels: HashMap<u32, EventVoxel> = HashMap::with_capacity(initial.len());
+    let mut queue = BinaryHeap::with_capacity(initial.len());
+    for (&i, &resistance) in initial.index.iter().zip(&initial.resistance) {
+        let rate = rate_of(rock, i, resistance);
+        voxels.insert(i, EventVoxel { level: 1.0, since: 0.0, rate, resistance, version: 0 });
+        queue.push(Reverse(Event { time: 1.0 / rate, index: i, version: 0 }));
+    }
+    drop(initial);
+    let mut history = History::default();
+    let mut step = 1u32;
+    let mut removed_this_step = 0u32;
+    let mut active_at_start = voxels.len() as u32;
+    let mut targets: Vec<(usize, usize, usize)> = Vec::new();
+    loop {
+        if rock.rock_voxels <= schedule.stop_at_voxels {
+            break;
+        }
+        let Some(Reverse(event)) = queue.pop() else { break };
+        let Some(v) = voxels.get(&event.index) else { continue };
+        if v.version != event.version {
+            continue;
+        }
+        // Close the steps that ended before this removal.
+        while event.time > step as f64 {
+            history.active_per_step.push(active_at_start);
+            history.removed_per_step.push(removed_this_step);
+            on_step(step, rock, voxels.len())?;
+            if step == schedule.steps {
+                return Ok(history);
+            }
+            step += 1;
+            removed_this_step = 0;
+            active_at_start = voxels.len() as u32;
+        }
+        let t = event.time;
+        voxels.remove(&event.index);
+        rock.state[event.index as usize] = step as u16;
+        rock.rock_voxels -= 1;
+        removed_this_step += 1;
+        targets.clear();
+        rock.for_each_target_run(event.index as usize, 0..rock.grid.ny, |row, lo, hi| targets.push((row, lo, hi)));
+        for &(row, lo, hi) in &targets {
+            for i in row + lo..=row + hi {
+                rock.air[i] += 1;
+                if rock.state[i] != ROCK {
+                    continue;
+                }
+                let i = i as u32;
+                match voxels.get_mut(&i) {
+                    Some(v) => {
+                        v.level -= v.rate * (t - v.since);
+                        v.since = t;
+                        v.rate = rate_of(rock, i, v.resistance);
+                        v.version += 1;
+                        queue.push(Reverse(Event {
+                            time: t + v.level.max(0.0) / v.rate,
+                            index: i,
+                            version: v.version,
+                        }));
+                    }
+                    None => {
+                        let resistance = rock.resistance_of(i as usize);
+                        let rate = rate_of(rock, i, resistance);
+                        voxels.insert(i, EventVoxel { level: 1.0, since: t, rate, resistance, version: 0 });
+                        queue.push(Reverse(Event { time: t + 1.0 / rate, index: i, version: 0 }));
+                    }
+                }
+            }
+        }
+    }
+    // Stopped within `step`: it counts when it removed anything.
+    if removed_this_step > 0 {
+        history.active_per_step.push(active_at_start);
+        history.removed_per_step.push(removed_this_step);
+        on_step(step, rock, voxels.len())?;
+    }
+    Ok(history)
+}
