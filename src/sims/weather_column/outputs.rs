@@ -156,7 +156,9 @@ pub fn build(
 
     let initial = state.par_iter().filter(|&&s| s != NEVER_ROCK).count() as u64;
     let remaining = state.par_iter().filter(|&&s| s == super::grid::ROCK).count() as u64;
-    let voxel_m3 = (grid.voxel_size_m as f64).powi(3);
+    // The shortest decimal of the f32 edge (0.1, not 0.10000000149), cubed.
+    let edge_m: f64 = grid.voxel_size_m.to_string().parse().unwrap_or(grid.voxel_size_m as f64);
+    let voxel_m3 = edge_m.powi(3);
     let result = json!({
         "steps_run": history.steps(),
         "voxels": { "initial": initial, "removed": initial - remaining, "remaining": remaining },

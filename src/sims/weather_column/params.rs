@@ -36,7 +36,7 @@ fn default_steps() -> u32 {
     200
 }
 fn default_smoothing() -> u32 {
-    8
+    20
 }
 fn default_radius() -> f32 {
     4.0
@@ -194,7 +194,7 @@ pub enum Update {
 pub struct MeshOptions {
     /// Taubin smoothing passes (the paper smoothed in Maya); 0 keeps the voxel-derived surface.
     #[serde(default = "default_smoothing")]
-    #[schema(default = 8, maximum = 200)]
+    #[schema(default = 20, maximum = 200)]
     pub smoothing_iterations: u32,
 }
 

@@ -66,8 +66,8 @@ impl Rock {
         let mut reach = [0; 3];
         let mut dy_range = (0, 0);
         for b in &bubbles {
-            for k in 0..3 {
-                reach[k] = reach[k].max(b.reach[k]);
+            for (r, br) in reach.iter_mut().zip(b.reach) {
+                *r = (*r).max(br);
             }
             dy_range = (dy_range.0.min(b.dy_min), dy_range.1.max(b.dy_max));
         }
