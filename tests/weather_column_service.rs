@@ -60,6 +60,12 @@ async fn a_goblin_weathers_streams_and_replays_to_the_same_bytes() {
         progress.iter().any(|p| p["stage"] == "weathering" && p["message"].as_str().unwrap().contains("active voxels")),
         "{progress:?}"
     );
+    // The first step publishes a live snapshot of the rock (once the job ends, live.png is the
+    // final preview).
+    let snapshot = progress.iter().find_map(|p| p["snapshot"].as_str()).expect("a progress event announces a snapshot");
+    let live = server.client.get(server.url(snapshot)).send().await.unwrap();
+    assert_eq!(live.status(), 200);
+    assert!(png_size(&live.bytes().await.unwrap()).0 >= 256);
     let job = server.wait_done(&id).await;
     assert_eq!(job["status"], "succeeded", "{job}");
     let result = &job["result"];
