@@ -3,26 +3,14 @@
 //! configuration first prints its final figures (fitness, iterations, operations, evaluations), so speed
 //! and quality can be read side by side. Run with `cargo bench --bench deform_terrain`.
 
-use std::sync::atomic::AtomicBool;
-
 use criterion::{criterion_group, criterion_main, Criterion};
 use serde_json::Value;
 
-use landform::jobs::{RunContext, SilentProgress, Simulation};
+use landform::jobs::Simulation;
 use landform::sims::deform_terrain::{DeformTerrain, DeformTerrainParams};
-use landform::terrain::{Heightfield, TerrainLookup};
-use landform::validate::Limits;
 
-struct NoStore;
-
-impl TerrainLookup for NoStore {
-    fn job_heightfield(&self, job_id: &str) -> Result<Heightfield, String> {
-        Err(format!("no job {job_id} in a bench"))
-    }
-    fn input(&self, sha256: &str) -> Result<Vec<u8>, String> {
-        Err(format!("no upload {sha256} in a bench"))
-    }
-}
+#[path = "support/mod.rs"]
+mod support;
 
 fn example(name: &str) -> (DeformTerrainParams, u64) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("api/deform-terrain").join(name);
@@ -50,10 +38,7 @@ fn star_1025() -> (DeformTerrainParams, u64) {
 }
 
 fn run(p: &DeformTerrainParams, seed: u64) -> Value {
-    let cancel = AtomicBool::new(false);
-    let limits = Limits::default();
-    let ctx = RunContext { cancel: &cancel, sink: &SilentProgress, terrain: &NoStore, limits: &limits };
-    DeformTerrain::run(p, seed, &ctx).expect("runs").result
+    support::with_context(|ctx| DeformTerrain::run(p, seed, ctx).expect("runs").result)
 }
 
 fn report(label: &str, p: &DeformTerrainParams, seed: u64) {

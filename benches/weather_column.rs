@@ -4,16 +4,14 @@
 //! 12 min 33 s and 793 MB). Run with `cargo bench --bench weather_column`.
 
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use serde_json::json;
 
-use landform::jobs::{RunContext, SilentProgress, Simulation};
+use landform::jobs::Simulation;
 use landform::sims::weather_column::{Stepper, WeatherColumn, WeatherColumnParams};
-use landform::terrain::{Heightfield, TerrainLookup};
-use landform::validate::Limits;
 
 /// Counts live heap bytes and their peak.
 struct Counting;
@@ -39,16 +37,8 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static ALLOCATOR: Counting = Counting;
 
-struct NoStore;
-
-impl TerrainLookup for NoStore {
-    fn job_heightfield(&self, job_id: &str) -> Result<Heightfield, String> {
-        Err(format!("no job {job_id} in a bench"))
-    }
-    fn input(&self, sha256: &str) -> Result<Vec<u8>, String> {
-        Err(format!("no upload {sha256} in a bench"))
-    }
-}
+#[path = "support/mod.rs"]
+mod support;
 
 fn params(x: u32, y: u32, z: u32, rate: f32, steps: u32) -> WeatherColumnParams {
     serde_json::from_value(json!({
@@ -99,12 +89,7 @@ fn cube_step(c: &mut Criterion) {
 /// 160 × 400 × 160 = 10.24M voxels standing on the ground, weathered to nothing.
 fn column_to_nothing(c: &mut Criterion) {
     let p = params(160, 400, 160, 0.5, 65_000);
-    let run = || {
-        let cancel = AtomicBool::new(false);
-        let limits = Limits::default();
-        let ctx = RunContext { cancel: &cancel, sink: &SilentProgress, terrain: &NoStore, limits: &limits };
-        WeatherColumn::run(&p, 1, &ctx).expect("runs")
-    };
+    let run = || support::with_context(|ctx| WeatherColumn::run(&p, 1, ctx).expect("runs"));
     let before = LIVE.load(Ordering::Relaxed);
     PEAK.store(before, Ordering::Relaxed);
     let started = Instant::now();

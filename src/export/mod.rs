@@ -10,6 +10,18 @@ mod preview_png;
 mod render;
 mod srgb;
 
+#[cfg(test)]
+pub(crate) mod test_png {
+    /// Decode a PNG for a test: its header and pixel bytes.
+    pub fn decode(bytes: &[u8]) -> (png::OutputInfo, Vec<u8>) {
+        let mut reader = png::Decoder::new(bytes).read_info().unwrap();
+        let mut buf = vec![0; reader.output_buffer_size()];
+        let info = reader.next_frame(&mut buf).unwrap();
+        buf.truncate(info.buffer_size());
+        (info, buf)
+    }
+}
+
 pub use artifact::Artifact;
 pub use glb::{write_glb, MAX_U16_INDEXED_VERTICES};
 pub use heightmap_png::heightmap_png16;

@@ -126,14 +126,7 @@ fn exaggeration_for(picture: &Heightfield) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn decode(bytes: &[u8]) -> (png::OutputInfo, Vec<u8>) {
-        let mut reader = png::Decoder::new(bytes).read_info().unwrap();
-        let mut buf = vec![0; reader.output_buffer_size()];
-        let info = reader.next_frame(&mut buf).unwrap();
-        buf.truncate(info.buffer_size());
-        (info, buf)
-    }
+    use crate::export::test_png::decode;
 
     fn hills(cols: usize, rows: usize) -> Heightfield {
         Heightfield::from_fn(cols, rows, 10.0, |x, z| 300.0 * (x * 0.004).sin() * (z * 0.003).cos() + 50.0)

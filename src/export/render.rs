@@ -516,15 +516,8 @@ fn normalize(v: [f32; 3]) -> [f32; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::export::test_png::decode;
     use crate::mesh::{extract_isosurface, Mesh, ScalarField, SceneNode};
-
-    fn decode(bytes: &[u8]) -> (png::OutputInfo, Vec<u8>) {
-        let mut reader = png::Decoder::new(bytes).read_info().unwrap();
-        let mut buf = vec![0; reader.output_buffer_size()];
-        let info = reader.next_frame(&mut buf).unwrap();
-        buf.truncate(info.buffer_size());
-        (info, buf)
-    }
 
     fn sphere(radius_m: f32) -> Mesh {
         let n = 40;

@@ -170,6 +170,27 @@ pub struct References {
     pub uploads: Vec<(String, Vec<u8>)>,
 }
 
+impl References {
+    /// Record a PNG at `field` (`….png_sha256` / `….png_base64`): the upload it names, or the
+    /// one it sent, taken out of the request.
+    fn add_png(
+        &mut self,
+        field: &str,
+        named: Option<String>,
+        taken: Result<Option<(String, Vec<u8>)>, crate::terrain::HeightmapDecodeError>,
+    ) -> Result<(), RequestError> {
+        if let Some(sha) = named {
+            self.inputs.push((format!("{field}.png_sha256"), sha));
+        }
+        let upload = taken.map_err(|e| RequestError::Invalid {
+            errors: vec![FieldError { field: format!("{field}.png_base64"), message: e.to_string() }],
+            too_large: false,
+        })?;
+        self.uploads.extend(upload);
+        Ok(())
+    }
+}
+
 /// Why a request body was refused.
 #[derive(Debug)]
 pub enum RequestError {
@@ -278,24 +299,12 @@ impl<S: Simulation> JobKind for Kind<S> {
             if let Some(id) = source.job_ref() {
                 references.jobs.push((format!("{path}.job"), id.to_string()));
             }
-            if let Some(sha) = source.input_ref() {
-                references.inputs.push((format!("{path}.heightmap.png_sha256"), sha.to_string()));
-            }
-            let upload = source.take_upload().map_err(|e| RequestError::Invalid {
-                errors: vec![FieldError { field: format!("{path}.heightmap.png_base64"), message: e.to_string() }],
-                too_large: false,
-            })?;
-            references.uploads.extend(upload);
+            let sha = source.input_ref().map(str::to_string);
+            references.add_png(&format!("{path}.heightmap"), sha, source.take_upload())?;
         }
         for (path, image) in S::image_uploads(&mut typed) {
-            if let Some(sha) = image.input_ref() {
-                references.inputs.push((format!("{path}.png_sha256"), sha.to_string()));
-            }
-            let upload = image.take_upload().map_err(|e| RequestError::Invalid {
-                errors: vec![FieldError { field: format!("{path}.png_base64"), message: e.to_string() }],
-                too_large: false,
-            })?;
-            references.uploads.extend(upload);
+            let sha = image.input_ref().map(str::to_string);
+            references.add_png(&path, sha, image.take_upload())?;
         }
         let params = serde_json::to_value(&typed).map_err(|e| RequestError::Malformed(e.to_string()))?;
         Ok(Prepared { params, references })

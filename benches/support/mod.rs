@@ -1,0 +1,25 @@
+//! What the benches share: a run context with no store behind it.
+
+use std::sync::atomic::AtomicBool;
+
+use landform::jobs::{RunContext, SilentProgress};
+use landform::terrain::{Heightfield, TerrainLookup};
+use landform::validate::Limits;
+
+pub struct NoStore;
+
+impl TerrainLookup for NoStore {
+    fn job_heightfield(&self, job_id: &str) -> Result<Heightfield, String> {
+        Err(format!("no job {job_id} in a bench"))
+    }
+    fn input(&self, sha256: &str) -> Result<Vec<u8>, String> {
+        Err(format!("no upload {sha256} in a bench"))
+    }
+}
+
+/// Run `f` with a context that never cancels, reports nowhere and has no earlier jobs.
+pub fn with_context<T>(f: impl FnOnce(&RunContext) -> T) -> T {
+    let cancel = AtomicBool::new(false);
+    let limits = Limits::default();
+    f(&RunContext { cancel: &cancel, sink: &SilentProgress, terrain: &NoStore, limits: &limits })
+}
