@@ -2,6 +2,7 @@
 
 pub mod bulldoze;
 pub mod deform_terrain;
+pub mod grow_cave;
 pub mod weather_column;
 
 #[cfg(test)]
@@ -15,5 +16,6 @@ pub fn registry() -> Vec<Box<dyn JobKind>> {
         Box::new(crate::jobs::Kind::<bulldoze::Bulldoze>::default()),
         Box::new(crate::jobs::Kind::<deform_terrain::DeformTerrain>::default()),
         Box::new(crate::jobs::Kind::<weather_column::WeatherColumn>::default()),
+        Box::new(crate::jobs::Kind::<grow_cave::GrowCave>::default()),
     ]
 }

@@ -1,0 +1,98 @@
+//! The chamber: a floor at y ≥ 0 and a roof hanging from `height_m`, each flat or relieved by
+//! seeded noise, and the drip sites on the roof.
+
+use noise::{Fbm, MultiFractal, NoiseFn, Perlin};
+use rand::Rng;
+
+use super::growth::site_rng;
+use super::params::{Chamber, GrowCaveParams, Mineral, Site, Sites, Surface};
+use crate::terrain::Heightfield;
+
+/// Roof and floor heights as functions of (x, z) in metres.
+pub struct ChamberShape {
+    chamber: Chamber,
+    roof: Fbm<Perlin>,
+    floor: Fbm<Perlin>,
+}
+
+impl ChamberShape {
+    pub fn new(chamber: &Chamber, seed: u64) -> Self {
+        let fbm = |salt: u64| Fbm::<Perlin>::new((seed ^ salt) as u32 ^ (seed >> 32) as u32).set_octaves(3);
+        Self { chamber: chamber.clone(), roof: fbm(0x524F_4F46), floor: fbm(0x464C_4F52) }
+    }
+
+    fn relief(noise: &Fbm<Perlin>, s: &Surface, x: f32, z: f32) -> f32 {
+        if s.relief_m == 0.0 {
+            return 0.0;
+        }
+        let f = s.frequency_per_m as f64;
+        let n = noise.get([x as f64 * f, z as f64 * f]).clamp(-1.0, 1.0) as f32;
+        s.relief_m * (n + 1.0) / 2.0
+    }
+
+    pub fn roof_y(&self, x: f32, z: f32) -> f32 {
+        self.chamber.height_m - Self::relief(&self.roof, &self.chamber.roof, x, z)
+    }
+
+    pub fn floor_y(&self, x: f32, z: f32) -> f32 {
+        Self::relief(&self.floor, &self.chamber.floor, x, z)
+    }
+
+    /// `samples` across the width, square cells; the depth is matched to the nearest cell.
+    fn surface(&self, f: impl Fn(f32, f32) -> f32) -> Heightfield {
+        let c = &self.chamber;
+        let cols = c.samples as usize;
+        let cell = c.width_m / (cols - 1) as f32;
+        let rows = ((c.depth_m / cell).round() as usize + 1).max(2);
+        Heightfield::from_fn(cols, rows, cell, f)
+    }
+
+    pub fn roof_heightfield(&self) -> Heightfield {
+        self.surface(|x, z| self.roof_y(x, z))
+    }
+
+    pub fn floor_heightfield(&self) -> Heightfield {
+        self.surface(|x, z| self.floor_y(x, z))
+    }
+}
+
+/// The drip sites: those listed, or `count` scattered over the roof from the seed, kept a
+/// stalactite's radius from the walls and (best effort) `min_spacing_m` apart.
+pub fn drip_sites(params: &GrowCaveParams, seed: u64) -> Vec<Site> {
+    match &params.sites {
+        Sites::Explicit(sites) => sites.clone(),
+        Sites::Scatter { count, min_spacing_m } => {
+            let c = &params.chamber;
+            let margin = params.stalactite_radius_m.max(params.stalagmite_radius_m).min(c.width_m.min(c.depth_m) / 4.0);
+            // A stream of its own, after every site's.
+            let mut rng = site_rng(seed, usize::MAX - 1);
+            let mut out: Vec<Site> = Vec::with_capacity(*count as usize);
+            for _ in 0..*count {
+                let mut best = None;
+                for _ in 0..30 {
+                    let x = rng.random_range(margin..=c.width_m - margin);
+                    let z = rng.random_range(margin..=c.depth_m - margin);
+                    let gap = out.iter().map(|s| (s.x_m - x).hypot(s.z_m - z)).fold(f32::INFINITY, f32::min);
+                    if best.is_none_or(|(_, _, g)| gap > g) {
+                        best = Some((x, z, gap));
+                    }
+                    if gap >= *min_spacing_m {
+                        break;
+                    }
+                }
+                let (x_m, z_m, _) = best.expect("thirty candidates");
+                out.push(Site { x_m, z_m, conditions: None, mineral: None });
+            }
+            out
+        }
+    }
+}
+
+/// A site's mineral: its own, the request's, or one of Table 1 drawn from its stream when
+/// `random`.
+pub fn site_mineral(params: &GrowCaveParams, site: &Site, seed: u64, index: usize) -> Mineral {
+    match site.mineral.unwrap_or(params.mineral) {
+        Mineral::Random => Mineral::ALL[site_rng(seed ^ 0x4D49_4E45, index).random_range(0..Mineral::ALL.len())],
+        m => m,
+    }
+}

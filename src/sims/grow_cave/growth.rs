@@ -1,0 +1,301 @@
+//! Ring-by-ring growth (paper section 4.1, Table 2): each pass, every growing speleothem gets a
+//! new ring whose radius and height step follow the pluviometric index level, the drip
+//! interval and the CO₂ concentration; wind displaces it; low CO₂ adds horizontal
+//! displacement vd = kf · arr / irr. Growth stops under the paper's four conditions.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use super::params::{Co2, Conditions, DripInterval, GrowCaveParams, Pluviometric};
+
+/// Radii below this close the tip (condition ii: the new ring's radius is zero).
+pub const CLOSED_RADIUS_M: f32 = 1e-4;
+
+/// One ring as grown: `[pass, [radius_m, height_m, dx_m, dz_m, vd_m]]` — the pass that grew
+/// it, its radius, its vertical step from the ring before, the wind's horizontal shift of its
+/// centre from the ring before, and the horizontal displacement of its surface.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Ring(pub u32, pub [f32; 5]);
+
+impl Ring {
+    pub fn pass(&self) -> u32 {
+        self.0
+    }
+    pub fn radius(&self) -> f32 {
+        self.1[0]
+    }
+    pub fn height(&self) -> f32 {
+        self.1[1]
+    }
+    pub fn shift(&self) -> [f32; 2] {
+        [self.1[2], self.1[3]]
+    }
+    pub fn displacement(&self) -> f32 {
+        self.1[4]
+    }
+}
+
+/// The conditions one ring grows under.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Drawn {
+    pub level: u8,
+    pub drip: DripInterval,
+    pub co2: Co2,
+}
+
+/// Table 2: (radius direction × multiple, height multiple) of a stalactite at `co2`.
+pub fn stalactite_row(co2: Co2) -> (i32, u32) {
+    match co2 {
+        Co2::Low => (-2, 1),
+        Co2::Normal => (-1, 2),
+        Co2::High | Co2::Random => (0, 3),
+    }
+}
+
+/// Table 2: (radius direction × multiple, height multiple) of a stalagmite.
+pub fn stalagmite_row(drip: DripInterval, co2: Co2) -> (i32, u32) {
+    let radius = match drip {
+        DripInterval::Dry => -1,
+        DripInterval::Standard | DripInterval::Random => 0,
+        DripInterval::Wet => 1,
+    };
+    let height = match co2 {
+        Co2::Low => 1,
+        Co2::Normal => 2,
+        Co2::High | Co2::Random => 3,
+    };
+    (radius, height)
+}
+
+/// A drip site as it grows: the recorded rings of its stalactite and stalagmite.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SiteGrowth {
+    pub x_m: f32,
+    pub z_m: f32,
+    pub roof_y_m: f32,
+    pub floor_y_m: f32,
+    /// Ring 0 is the initial calcite ring.
+    pub stalactite: Vec<Ring>,
+    pub stalagmite: Vec<Ring>,
+    /// The pass at which the two met and became a column.
+    pub column_at: Option<u32>,
+    #[serde(skip)]
+    pub stalactite_done: bool,
+    #[serde(skip)]
+    pub stalagmite_done: bool,
+}
+
+impl SiteGrowth {
+    pub fn new(x_m: f32, z_m: f32, roof_y_m: f32, floor_y_m: f32) -> Self {
+        Self {
+            x_m,
+            z_m,
+            roof_y_m,
+            floor_y_m,
+            stalactite: Vec::new(),
+            stalagmite: Vec::new(),
+            column_at: None,
+            stalactite_done: false,
+            stalagmite_done: false,
+        }
+    }
+
+    /// Lowest point of the stalactite's axis.
+    pub fn stalactite_tip_y(&self) -> f32 {
+        self.roof_y_m - self.stalactite.iter().map(Ring::height).sum::<f32>()
+    }
+
+    /// Highest point of the stalagmite's axis.
+    pub fn stalagmite_top_y(&self) -> f32 {
+        self.floor_y_m + self.stalagmite.iter().map(Ring::height).sum::<f32>()
+    }
+
+    pub fn growing(&self) -> bool {
+        self.column_at.is_none() && !(self.stalactite_done && (self.stalagmite_done || self.stalagmite.is_empty()))
+    }
+
+    /// The site as it was after `passes` passes.
+    pub fn until(&self, passes: u32) -> SiteGrowth {
+        let keep = |rings: &[Ring]| rings.iter().copied().take_while(|r| r.pass() <= passes).collect();
+        SiteGrowth {
+            stalactite: keep(&self.stalactite),
+            stalagmite: keep(&self.stalagmite),
+            column_at: self.column_at.filter(|&p| p <= passes),
+            ..self.clone()
+        }
+    }
+}
+
+/// Everything a pass needs besides the site: the request's numbers.
+pub struct Grower<'a> {
+    pub params: &'a GrowCaveParams,
+    pub conditions: Conditions,
+}
+
+impl Grower<'_> {
+    fn draw(&self, rng: &mut ChaCha8Rng) -> Drawn {
+        let c = self.conditions;
+        let level = match c.pluviometric_index {
+            Pluviometric::Level0 => 0,
+            Pluviometric::Level1 => 1,
+            Pluviometric::Level2 => 2,
+            Pluviometric::Random => rng.random_range(0..3),
+        };
+        let drip = match c.drip_interval {
+            DripInterval::Random => {
+                [DripInterval::Dry, DripInterval::Standard, DripInterval::Wet][rng.random_range(0..3)]
+            }
+            d => d,
+        };
+        let co2 = match c.co2 {
+            Co2::Random => [Co2::Low, Co2::Normal, Co2::High][rng.random_range(0..3)],
+            c => c,
+        };
+        Drawn { level, drip, co2 }
+    }
+
+    /// One new ring of radius `previous` changed by `row`, with its height, wind shift and
+    /// displacement. `manual` replaces the sampled radius and height.
+    #[allow(clippy::too_many_arguments)]
+    fn ring(
+        &self,
+        rng: &mut ChaCha8Rng,
+        pass: u32,
+        previous: f32,
+        initial: f32,
+        row: (i32, u32),
+        co2: Co2,
+        manual: Option<(f32, f32)>,
+    ) -> Ring {
+        let p = self.params;
+        // Every ring draws the same numbers whatever its row, so the stream stays aligned.
+        let (u_r, u_h): (f32, f32) = (rng.random_range(0.5..1.5), rng.random_range(0.5..1.5));
+        let (wind_angle, wind_draw): (f32, f32) = (rng.random_range(0.0..std::f32::consts::TAU), rng.random());
+        let (radius, height) = match manual {
+            Some(m) => m,
+            None => ((previous + row.0 as f32 * p.radius_step_m * u_r).max(0.0), row.1 as f32 * p.height_step_m * u_h),
+        };
+        let (dx, dz) = match &p.wind {
+            Some(w) => {
+                let intensity = w.intensity.unwrap_or(wind_draw);
+                let dir = match w.direction {
+                    Some([x, z]) => {
+                        let len = (x * x + z * z).sqrt();
+                        [x / len, z / len]
+                    }
+                    None => [wind_angle.cos(), wind_angle.sin()],
+                };
+                let d = intensity * w.scale * height;
+                (dir[0] * d, dir[1] * d)
+            }
+            None => (0.0, 0.0),
+        };
+        // vd = kf · arr / irr: full at low CO₂ (drops solidify on the body), a slight roughness
+        // otherwise.
+        let share = if co2 == Co2::Low { 1.0 } else { 0.25 };
+        let vd = share * p.kf_m * radius / initial;
+        Ring(pass, [radius, height, dx, dz, vd])
+    }
+
+    /// Grow `site` by one pass (number `pass`, from 1).
+    pub fn pass(&self, site: &mut SiteGrowth, rng: &mut ChaCha8Rng, pass: u32) {
+        if !site.growing() && !site.stalactite.is_empty() {
+            return;
+        }
+        let drawn = self.draw(rng);
+        if drawn.level == 0 {
+            return; // condition (i): no rain, no growth this pass
+        }
+        let p = self.params;
+        let manual = p.manual.as_ref();
+        if !site.stalactite_done {
+            if site.stalactite.is_empty() {
+                site.stalactite.push(Ring(pass, [p.stalactite_radius_m, 0.0, 0.0, 0.0, 0.0]));
+            } else {
+                let k = site.stalactite.len() - 1;
+                let m = manual
+                    .filter(|m| !m.stalactite.is_empty())
+                    .map(|m| m.stalactite.get(k).map(|r| (r.radius_m, r.height_m)));
+                if let Some(None) = m {
+                    site.stalactite_done = true; // the manual list is used up
+                } else {
+                    let previous = site.stalactite[k].radius();
+                    let mut ring = self.ring(
+                        rng,
+                        pass,
+                        previous,
+                        p.stalactite_radius_m,
+                        stalactite_row(drawn.co2),
+                        drawn.co2,
+                        m.flatten(),
+                    );
+                    ring.1[0] = ring.1[0].min(previous); // a stalactite never widens
+                    site.stalactite.push(ring);
+                    if ring.radius() < CLOSED_RADIUS_M {
+                        site.stalactite_done = true; // condition (ii)
+                    }
+                }
+            }
+        }
+        if drawn.level == 2 && !site.stalagmite_done {
+            if site.stalagmite.is_empty() {
+                site.stalagmite.push(Ring(pass, [p.stalagmite_radius_m, 0.0, 0.0, 0.0, 0.0]));
+            } else {
+                let k = site.stalagmite.len() - 1;
+                let m = manual
+                    .filter(|m| !m.stalagmite.is_empty())
+                    .map(|m| m.stalagmite.get(k).map(|r| (r.radius_m, r.height_m)));
+                if let Some(None) = m {
+                    site.stalagmite_done = true;
+                } else {
+                    let previous = site.stalagmite[k].radius();
+                    let row = stalagmite_row(drawn.drip, drawn.co2);
+                    let ring = self.ring(rng, pass, previous, p.stalagmite_radius_m, row, drawn.co2, m.flatten());
+                    site.stalagmite.push(ring);
+                    if ring.radius() < CLOSED_RADIUS_M {
+                        site.stalagmite_done = true;
+                    }
+                }
+            }
+        }
+        self.check_limits(site, pass);
+    }
+
+    /// Conditions (iii) and (iv): a speleothem reaching the floor or roof stops; a stalactite
+    /// meeting its stalagmite joins it into a column at the point where they meet.
+    fn check_limits(&self, site: &mut SiteGrowth, pass: u32) {
+        let tip = site.stalactite_tip_y();
+        let top = site.stalagmite_top_y();
+        if !site.stalagmite.is_empty() && !site.stalactite.is_empty() && tip <= top {
+            // Trim the overlap from the two newest rings, half each, so they meet exactly.
+            let overlap = top - tip;
+            for rings in [&mut site.stalactite, &mut site.stalagmite] {
+                if let Some(last) = rings.last_mut() {
+                    last.1[1] = (last.1[1] - overlap / 2.0).max(0.0);
+                }
+            }
+            site.column_at = Some(pass);
+            site.stalactite_done = true;
+            site.stalagmite_done = true;
+            return;
+        }
+        if tip <= site.floor_y_m {
+            let last = site.stalactite.last_mut().expect("a stalactite reached the floor");
+            last.1[1] -= site.floor_y_m - tip;
+            site.stalactite_done = true;
+        }
+        if top >= site.roof_y_m {
+            let last = site.stalagmite.last_mut().expect("a stalagmite reached the roof");
+            last.1[1] -= top - site.roof_y_m;
+            site.stalagmite_done = true;
+        }
+    }
+}
+
+/// The RNG stream of drip site `index`: the same numbers whatever thread grows it.
+pub fn site_rng(seed: u64, index: usize) -> ChaCha8Rng {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(index as u64 + 1);
+    rng
+}

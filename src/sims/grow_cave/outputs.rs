@@ -1,0 +1,136 @@
+//! The cave as a glTF scene (floor, roof, one node per speleothem), a picture of it, and the
+//! job's figures. Everything here follows from the recorded sequence and the request.
+
+use rayon::prelude::*;
+use serde_json::{json, Value};
+
+use super::chamber::ChamberShape;
+use super::params::{GrowCaveParams, Mineral};
+use super::sequence::{CaveSequence, RecordedSite};
+use super::speleothem_mesh::{column_mesh, speleothem_mesh};
+use crate::export::{render_png, write_glb, Artifact, View};
+use crate::mesh::{heightfield_mesh, MaterialKind, Mesh, Scene, SceneNode, DEFAULT_MAX_SIDE_SAMPLES};
+
+/// Limestone walls.
+const ROCK_SRGB: [u8; 3] = [120, 108, 96];
+const PREVIEW: View = View { width_px: 1024, height_px: 768, azimuth_deg: 30.0, elevation_deg: 12.0 };
+const SNAPSHOT: View = View { width_px: 256, height_px: 192, azimuth_deg: 30.0, elevation_deg: 12.0 };
+
+/// fv_c's mc: Table 1's colour mixed with calcareous white by the intensity.
+pub fn mineral_colour(mineral: Mineral, intensity: f32) -> [f32; 3] {
+    let (base, mc) = (Mineral::Calcareous.rgb(), mineral.rgb());
+    [0, 1, 2].map(|k| base[k] + (mc[k] - base[k]) * intensity)
+}
+
+/// The speleothems of one site, as named nodes: a column, or a stalactite and a stalagmite.
+fn site_nodes(params: &GrowCaveParams, index: usize, site: &RecordedSite) -> Vec<SceneNode> {
+    let g = &site.growth;
+    let colour = mineral_colour(site.mineral, params.intensity);
+    let segments = params.segments as usize;
+    let node = |name: &str, mesh: Mesh| SceneNode::new(format!("{name} {index}"), mesh, MaterialKind::VertexColors);
+    if g.column_at.is_some() {
+        return vec![node("column", column_mesh(g, index as u64, segments, colour))];
+    }
+    let mut out = Vec::new();
+    if !g.stalactite.is_empty() {
+        out.push(node("stalactite", speleothem_mesh(g, index as u64, &g.stalactite, true, segments, colour)));
+    }
+    if !g.stalagmite.is_empty() {
+        out.push(node("stalagmite", speleothem_mesh(g, index as u64, &g.stalagmite, false, segments, colour)));
+    }
+    out
+}
+
+/// The chamber's floor (facing up) and roof (facing down) as nodes.
+fn chamber_nodes(shape: &ChamberShape) -> (SceneNode, SceneNode) {
+    let floor = heightfield_mesh(&shape.floor_heightfield(), DEFAULT_MAX_SIDE_SAMPLES, None).mesh;
+    let mut roof = heightfield_mesh(&shape.roof_heightfield(), DEFAULT_MAX_SIDE_SAMPLES, None).mesh;
+    for t in roof.indices.chunks_exact_mut(3) {
+        t.swap(1, 2);
+    }
+    for n in &mut roof.normals {
+        *n = n.map(|c| -c);
+    }
+    let matte = MaterialKind::Matte { srgb: ROCK_SRGB };
+    (SceneNode::new("floor", floor, matte), SceneNode::new("roof", roof, matte))
+}
+
+/// The scene: floor, roof, then each site's speleothems in site order.
+pub fn scene(params: &GrowCaveParams, sequence: &CaveSequence) -> Scene {
+    let shape = ChamberShape::new(&params.chamber, sequence.seed);
+    let (floor, roof) = chamber_nodes(&shape);
+    let speleothems: Vec<Vec<SceneNode>> =
+        sequence.sites.par_iter().enumerate().map(|(i, s)| site_nodes(params, i, s)).collect();
+    let mut nodes = vec![floor, roof];
+    nodes.extend(speleothems.into_iter().flatten());
+    Scene { nodes }
+}
+
+/// The scene without its roof, which would hide the cave from any outside view.
+fn cut_away(scene: &Scene) -> Scene {
+    Scene { nodes: scene.nodes.iter().filter(|n| n.name != "roof").cloned().collect() }
+}
+
+/// A small picture of the cave so far, for live progress.
+pub fn snapshot_png(params: &GrowCaveParams, sequence: &CaveSequence) -> Vec<u8> {
+    render_png(&cut_away(&scene(params, sequence)), &SNAPSHOT)
+}
+
+#[derive(Default)]
+struct Stats {
+    lengths: Vec<f64>,
+    radii: Vec<f64>,
+}
+
+impl Stats {
+    fn push(&mut self, length: f32, radius: f32) {
+        self.lengths.push(length as f64);
+        self.radii.push(radius as f64);
+    }
+
+    fn summary(&self) -> Value {
+        let span = |v: &[f64]| {
+            if v.is_empty() {
+                return Value::Null;
+            }
+            let min = v.iter().copied().fold(f64::INFINITY, f64::min);
+            let max = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            json!({"min": min, "mean": v.iter().sum::<f64>() / v.len() as f64, "max": max})
+        };
+        json!({"count": self.lengths.len(), "length_m": span(&self.lengths), "base_radius_m": span(&self.radii)})
+    }
+}
+
+/// `mesh.glb` and `preview.png` of the cave the sequence describes, and the figures.
+pub fn build(params: &GrowCaveParams, sequence: &CaveSequence) -> (Value, Vec<Artifact>) {
+    let scene = scene(params, sequence);
+    let (glb, preview) = rayon::join(|| write_glb(&scene), || render_png(&cut_away(&scene), &PREVIEW));
+    let (mut stalactites, mut stalagmites, mut columns) = (Stats::default(), Stats::default(), Stats::default());
+    for s in &sequence.sites {
+        let g = &s.growth;
+        if g.column_at.is_some() {
+            columns.push(g.roof_y_m - g.floor_y_m, g.stalactite[0].radius().max(g.stalagmite[0].radius()));
+            continue;
+        }
+        if let Some(first) = g.stalactite.first() {
+            stalactites.push(g.roof_y_m - g.stalactite_tip_y(), first.radius());
+        }
+        if let Some(first) = g.stalagmite.first() {
+            stalagmites.push(g.stalagmite_top_y() - g.floor_y_m, first.radius());
+        }
+    }
+    let speleothem = |n: &SceneNode| n.name != "floor" && n.name != "roof";
+    let triangles: usize = scene.nodes.iter().filter(|n| speleothem(n)).map(|n| n.mesh.triangle_count()).sum();
+    let all_triangles: usize = scene.nodes.iter().map(|n| n.mesh.triangle_count()).sum();
+    let result = json!({
+        "passes": sequence.passes,
+        "sites": sequence.sites.len(),
+        "stalactites": stalactites.summary(),
+        "stalagmites": stalagmites.summary(),
+        "columns": columns.summary(),
+        "triangles": { "speleothems": triangles, "total": all_triangles },
+    });
+    let artifacts =
+        vec![Artifact::new("mesh.glb", "model/gltf-binary", glb), Artifact::new("preview.png", "image/png", preview)];
+    (result, artifacts)
+}

@@ -1,0 +1,450 @@
+//! The request: the chamber, the drip sites, the geological conditions of Table 2, the
+//! minerals of Table 1, wind, and the manual mode (paper section 4).
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::validate::{Limits, Validate, Validator};
+
+/// Most rings (passes) a speleothem may grow.
+pub const MAX_RINGS: u32 = 256;
+/// Most vertices around a ring.
+pub const MAX_SEGMENTS: u32 = 64;
+pub const MIN_SEGMENTS: u32 = 3;
+/// Most drip sites.
+pub const MAX_SITES: usize = 5000;
+/// Largest chamber side or height, metres.
+pub const MAX_CHAMBER_M: f32 = 10_000.0;
+/// Most samples along a side of the roof and floor heightfields.
+pub const MAX_SURFACE_SAMPLES: u32 = 513;
+
+fn default_width() -> f32 {
+    12.0
+}
+fn default_height() -> f32 {
+    5.0
+}
+fn default_samples() -> u32 {
+    65
+}
+fn default_rings() -> u32 {
+    48
+}
+fn default_segments() -> u32 {
+    16
+}
+fn default_stalactite_radius() -> f32 {
+    0.08
+}
+fn default_stalagmite_radius() -> f32 {
+    0.14
+}
+fn default_radius_step() -> f32 {
+    0.004
+}
+fn default_height_step() -> f32 {
+    0.03
+}
+fn default_kf() -> f32 {
+    0.01
+}
+fn default_intensity() -> f32 {
+    1.0
+}
+fn default_wind_scale() -> f32 {
+    1.0
+}
+
+/// A roof or floor: flat, or relief from seeded noise.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Surface {
+    /// Peak-to-peak relief in metres (0 = flat). The roof hangs down by it, the floor rises.
+    #[serde(default)]
+    pub relief_m: f32,
+    /// Noise features per metre.
+    #[serde(default = "default_frequency")]
+    #[schema(default = 0.15)]
+    pub frequency_per_m: f32,
+}
+
+fn default_frequency() -> f32 {
+    0.15
+}
+
+/// The chamber: floor at y = 0, roof at `height_m`, X and Z from 0 to its width and depth.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Chamber {
+    #[serde(default = "default_width")]
+    #[schema(default = 12.0)]
+    pub width_m: f32,
+    #[serde(default = "default_width")]
+    #[schema(default = 12.0)]
+    pub depth_m: f32,
+    /// Floor to roof where both are flat.
+    #[serde(default = "default_height")]
+    #[schema(default = 5.0)]
+    pub height_m: f32,
+    #[serde(default)]
+    pub roof: Surface,
+    #[serde(default)]
+    pub floor: Surface,
+    /// Samples along each side of the roof and floor meshes.
+    #[serde(default = "default_samples")]
+    #[schema(default = 65, minimum = 2, maximum = 513)]
+    pub samples: u32,
+}
+
+impl Default for Chamber {
+    fn default() -> Self {
+        serde_json::from_str("{}").expect("defaults")
+    }
+}
+
+/// The pluviometric index level: 0 no rain (nothing grows), 1 stalactites without dripping,
+/// 2 dripping — a stalagmite grows on the floor below.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Pluviometric {
+    #[serde(rename = "0")]
+    Level0,
+    #[serde(rename = "1")]
+    Level1,
+    #[serde(rename = "2")]
+    Level2,
+    /// Drawn anew for every ring.
+    Random,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum DripInterval {
+    Dry,
+    Standard,
+    Wet,
+    /// Drawn anew for every ring.
+    Random,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Co2 {
+    Low,
+    Normal,
+    High,
+    /// Drawn anew for every ring.
+    Random,
+}
+
+/// The geological conditions of Table 2.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Conditions {
+    /// "0", "1", "2" or "random".
+    #[schema(value_type = String, example = "2")]
+    pub pluviometric_index: Pluviometric,
+    pub drip_interval: DripInterval,
+    pub co2: Co2,
+}
+
+impl Default for Conditions {
+    fn default() -> Self {
+        Self { pluviometric_index: Pluviometric::Level2, drip_interval: DripInterval::Standard, co2: Co2::Normal }
+    }
+}
+
+/// Table 1.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Mineral {
+    Calcareous,
+    Iron,
+    Manganese,
+    Copper,
+    Malachite,
+    /// One of the five, drawn per drip site.
+    Random,
+}
+
+impl Mineral {
+    pub const ALL: [Mineral; 5] =
+        [Mineral::Calcareous, Mineral::Iron, Mineral::Manganese, Mineral::Copper, Mineral::Malachite];
+
+    /// Table 1's RGB value (0–1).
+    pub fn rgb(self) -> [f32; 3] {
+        match self {
+            Mineral::Calcareous | Mineral::Random => [0.8, 0.8, 0.8],
+            Mineral::Iron => [0.87, 0.62, 0.34],
+            Mineral::Manganese => [0.32, 0.44, 0.54],
+            Mineral::Copper => [0.05, 0.7, 0.7],
+            Mineral::Malachite => [0.67, 0.82, 0.75],
+        }
+    }
+}
+
+/// The air flow: a horizontal direction and an intensity, each fixed or drawn per ring.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Wind {
+    /// `[x, z]`, any length but zero; omitted = a random direction per ring.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub direction: Option<[f32; 2]>,
+    /// In [0, 1]; omitted = random in [0, 1] per ring.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub intensity: Option<f32>,
+    /// How far an intensity-1 wind moves a ring sideways, as a multiple of the ring's height
+    /// step (1 = 45° at full intensity).
+    #[serde(default = "default_wind_scale")]
+    #[schema(default = 1.0)]
+    pub scale: f32,
+}
+
+/// One ring of the manual mode: the radius it has and how far it grows from the ring before.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ManualRing {
+    pub radius_m: f32,
+    pub height_m: f32,
+}
+
+/// The paper's interactive controls: every ring's radius and height given instead of sampled.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Manual {
+    /// Rings of each stalactite, after its initial ring; radii must not grow.
+    #[serde(default)]
+    pub stalactite: Vec<ManualRing>,
+    /// Rings of each stalagmite, after its initial ring (grown only at pluviometric index 2).
+    #[serde(default)]
+    pub stalagmite: Vec<ManualRing>,
+}
+
+/// A drip site on the roof, with optional conditions and mineral of its own.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Site {
+    pub x_m: f32,
+    pub z_m: f32,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub conditions: Option<Conditions>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mineral: Option<Mineral>,
+}
+
+/// Where water drips from the roof: listed, or scattered by count from the seed.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Sites {
+    Explicit(Vec<Site>),
+    Scatter {
+        count: u32,
+        /// Keep sites at least this far apart, metres (best effort).
+        #[serde(default)]
+        min_spacing_m: f32,
+    },
+}
+
+/// `POST /v1/jobs/grow-cave`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GrowCaveParams {
+    #[serde(default)]
+    pub chamber: Chamber,
+    pub sites: Sites,
+    /// Conditions at every site that does not set its own.
+    #[serde(default)]
+    pub conditions: Conditions,
+    #[serde(default = "default_mineral")]
+    pub mineral: Mineral,
+    /// How much of the mineral is in the solution, 0 (calcareous white) to 1 (Table 1's colour).
+    #[serde(default = "default_intensity")]
+    #[schema(default = 1.0)]
+    pub intensity: f32,
+    /// Passes: the most rings a speleothem grows.
+    #[serde(default = "default_rings")]
+    #[schema(default = 48, maximum = 256)]
+    pub rings: u32,
+    /// Vertices around each ring.
+    #[serde(default = "default_segments")]
+    #[schema(default = 16, minimum = 3, maximum = 64)]
+    pub segments: u32,
+    /// The base primitive's radius for stalactites (the initial calcite ring), metres.
+    #[serde(default = "default_stalactite_radius")]
+    #[schema(default = 0.08)]
+    pub stalactite_radius_m: f32,
+    /// The first ring of a stalagmite, metres.
+    #[serde(default = "default_stalagmite_radius")]
+    #[schema(default = 0.14)]
+    pub stalagmite_radius_m: f32,
+    /// Table 2's "x1" radius step, metres (each ring draws 50–150 % of it).
+    #[serde(default = "default_radius_step")]
+    #[schema(default = 0.004)]
+    pub radius_step_m: f32,
+    /// Table 2's "x1" height step, metres (each ring draws 50–150 % of it).
+    #[serde(default = "default_height_step")]
+    #[schema(default = 0.03)]
+    pub height_step_m: f32,
+    /// kf of vd = kf · arr / irr, metres: the horizontal displacement of low CO₂ growth; a
+    /// quarter of it roughens the surface at other concentrations.
+    #[serde(default = "default_kf")]
+    #[schema(default = 0.01)]
+    pub kf_m: f32,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wind: Option<Wind>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub manual: Option<Manual>,
+}
+
+fn default_mineral() -> Mineral {
+    Mineral::Calcareous
+}
+
+impl Validate for GrowCaveParams {
+    fn validate(&self, v: &mut Validator, limits: &Limits) {
+        let c = &self.chamber;
+        v.field("chamber", |v| {
+            for (leaf, value) in [("width_m", c.width_m), ("depth_m", c.depth_m), ("height_m", c.height_m)] {
+                v.positive(leaf, value as f64);
+                if value.is_finite() && value > MAX_CHAMBER_M {
+                    v.error(leaf, format!("must be at most {MAX_CHAMBER_M} m"));
+                }
+            }
+            for (name, s) in [("roof", &c.roof), ("floor", &c.floor)] {
+                v.field(name, |v| {
+                    v.non_negative("relief_m", s.relief_m as f64);
+                    v.in_range("frequency_per_m", s.frequency_per_m as f64, 0.0, 100.0);
+                });
+            }
+            if c.roof.relief_m.is_finite()
+                && c.floor.relief_m.is_finite()
+                && c.roof.relief_m + c.floor.relief_m >= c.height_m
+            {
+                v.error("height_m", "must exceed the roof's and the floor's relief together");
+            }
+            if c.samples < 2 {
+                v.error("samples", "must be at least 2");
+            } else if c.samples > MAX_SURFACE_SAMPLES {
+                v.too_large("samples", format!("must be at most {MAX_SURFACE_SAMPLES} (got {})", c.samples));
+            }
+        });
+        let max_sites = (MAX_SITES as u64).min(limits.max_operations) as usize;
+        match &self.sites {
+            Sites::Explicit(sites) => {
+                if sites.is_empty() {
+                    v.error("sites.explicit", "needs at least one site");
+                } else if sites.len() > max_sites {
+                    v.too_large("sites.explicit", format!("at most {max_sites} sites (got {})", sites.len()));
+                }
+                v.field("sites", |v| {
+                    v.field("explicit", |v| {
+                        for (i, s) in sites.iter().enumerate().take(max_sites) {
+                            v.index(i, |v| {
+                                for (leaf, value, extent) in [("x_m", s.x_m, c.width_m), ("z_m", s.z_m, c.depth_m)] {
+                                    if v.finite(leaf, value as f64) && !(0.0..=extent).contains(&value) {
+                                        v.error(leaf, format!("is outside the roof (0 to {extent} m)"));
+                                    }
+                                }
+                            });
+                        }
+                    })
+                });
+            }
+            Sites::Scatter { count, min_spacing_m } => v.field("sites", |v| {
+                v.field("scatter", |v| {
+                    if *count == 0 {
+                        v.error("count", "must be at least 1");
+                    } else if *count as usize > max_sites {
+                        v.too_large("count", format!("at most {max_sites} sites (got {count})"));
+                    }
+                    v.non_negative("min_spacing_m", *min_spacing_m as f64);
+                })
+            }),
+        }
+        v.in_range("intensity", self.intensity as f64, 0.0, 1.0);
+        if self.rings == 0 {
+            v.error("rings", "must be at least 1");
+        } else if self.rings > MAX_RINGS {
+            v.too_large("rings", format!("must be at most {MAX_RINGS} (got {})", self.rings));
+        }
+        if self.segments < MIN_SEGMENTS {
+            v.error("segments", format!("must be at least {MIN_SEGMENTS}"));
+        } else if self.segments > MAX_SEGMENTS {
+            v.too_large("segments", format!("must be at most {MAX_SEGMENTS} (got {})", self.segments));
+        }
+        let sites = match &self.sites {
+            Sites::Explicit(s) => s.len() as u64,
+            Sites::Scatter { count, .. } => *count as u64,
+        };
+        let vertices = sites * 2 * (self.rings as u64 + 2) * self.segments as u64;
+        if vertices > limits.max_grid_cells {
+            v.too_large(
+                "rings",
+                format!(
+                    "sites × rings × segments make {vertices} vertices, more than the cap of {}",
+                    limits.max_grid_cells
+                ),
+            );
+        }
+        for (leaf, value) in [
+            ("stalactite_radius_m", self.stalactite_radius_m),
+            ("stalagmite_radius_m", self.stalagmite_radius_m),
+            ("height_step_m", self.height_step_m),
+        ] {
+            v.positive(leaf, value as f64);
+            if value.is_finite() && value > c.height_m.max(0.0) {
+                v.error(leaf, "must be less than the chamber's height");
+            }
+        }
+        v.non_negative("radius_step_m", self.radius_step_m as f64);
+        v.non_negative("kf_m", self.kf_m as f64);
+        if self.kf_m.is_finite() && self.kf_m > 10.0 {
+            v.error("kf_m", "must be at most 10 m");
+        }
+        if let Some(w) = &self.wind {
+            v.field("wind", |v| {
+                if let Some(d) = w.direction {
+                    if !d.iter().all(|x| x.is_finite()) || d[0] * d[0] + d[1] * d[1] == 0.0 {
+                        v.error("direction", "must be a finite, non-zero [x, z] vector");
+                    }
+                }
+                if let Some(i) = w.intensity {
+                    v.in_range("intensity", i as f64, 0.0, 1.0);
+                }
+                v.in_range("scale", w.scale as f64, 0.0, 10.0);
+            });
+        }
+        if let Some(m) = &self.manual {
+            v.field("manual", |v| {
+                for (name, rings, first) in [
+                    ("stalactite", &m.stalactite, self.stalactite_radius_m),
+                    ("stalagmite", &m.stalagmite, self.stalagmite_radius_m),
+                ] {
+                    if rings.len() > MAX_RINGS as usize {
+                        v.too_large(name, format!("at most {MAX_RINGS} rings (got {})", rings.len()));
+                        continue;
+                    }
+                    v.field(name, |v| {
+                        let mut previous = first;
+                        for (i, r) in rings.iter().enumerate() {
+                            v.index(i, |v| {
+                                v.non_negative("radius_m", r.radius_m as f64);
+                                v.non_negative("height_m", r.height_m as f64);
+                                if name == "stalactite" && r.radius_m > previous {
+                                    v.error(
+                                        "radius_m",
+                                        format!(
+                                            "grows ({} m after {previous} m): a stalactite's rings never widen",
+                                            r.radius_m
+                                        ),
+                                    );
+                                }
+                            });
+                            previous = r.radius_m;
+                        }
+                    });
+                }
+            });
+        }
+    }
+}

@@ -1,0 +1,259 @@
+//! Table 2 row by row, the stop conditions, columns, wind, Table 1's colours, closed meshes,
+//! replay and thread-count determinism.
+
+use serde_json::{json, Value};
+
+use super::growth::Ring;
+use super::params::{Co2, DripInterval, Mineral};
+use super::*;
+use crate::sims::test_support::TestContext;
+use crate::terrain::Heightfield;
+use crate::validate::{Limits, Validate, Validator};
+
+fn params(v: Value) -> GrowCaveParams {
+    let p: GrowCaveParams = serde_json::from_value(v).expect("parses");
+    let mut val = Validator::new();
+    p.validate(&mut val, &Limits::default());
+    assert!(val.is_ok(), "{:?}", val.errors);
+    p
+}
+
+/// One drip site in a tall chamber, fixed conditions, no wind, no displacement.
+fn one_site(level: &str, drip: &str, co2: &str, rings: u32) -> GrowCaveParams {
+    params(json!({
+        "chamber": {"width_m": 4, "depth_m": 4, "height_m": 40},
+        "sites": {"explicit": [{"x_m": 2, "z_m": 2}]},
+        "conditions": {"pluviometric_index": level, "drip_interval": drip, "co2": co2},
+        "rings": rings,
+        "kf_m": 0.0,
+    }))
+}
+
+fn grown(p: &GrowCaveParams, seed: u64) -> CaveSequence {
+    grow(p, seed, &mut |_, _| Ok(())).expect("grows")
+}
+
+/// Check each ring after the first against (radius step multiple, height multiple).
+fn assert_row(rings: &[Ring], row: (i32, u32), p: &GrowCaveParams, what: &str) {
+    assert!(rings.len() > 3, "{what}: {} rings", rings.len());
+    let (dr, dh) = (p.radius_step_m, p.height_step_m);
+    for w in rings.windows(2) {
+        let (before, ring) = (w[0], w[1]);
+        let h = ring.height() / (row.1 as f32 * dh);
+        assert!((0.5 - 1e-4..=1.5 + 1e-4).contains(&h), "{what}: height {} is {h} × its step", ring.height());
+        let change = ring.radius() - before.radius();
+        match row.0 {
+            0 => assert_eq!(change, 0.0, "{what}: radius stays"),
+            k => {
+                let steps = change / (k as f32 * dr);
+                // A ring clamped at radius 0 shrinks by less than a full step.
+                let clamped = ring.radius() == 0.0 && steps > 0.0;
+                assert!(
+                    clamped || (0.5 - 1e-3..=1.5 + 1e-3).contains(&steps),
+                    "{what}: radius change {change} is {steps} × {k} steps"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn stalactite_rows_of_table_2() {
+    for (co2, row) in [("low", (-2, 1)), ("normal", (-1, 2)), ("high", (0, 3))] {
+        let p = one_site("1", "standard", co2, 12);
+        let s = &grown(&p, 1).sites[0].growth;
+        assert!(s.stalagmite.is_empty(), "level 1 does not drip");
+        assert_row(&s.stalactite, row, &p, &format!("stalactite at {co2} CO2"));
+    }
+}
+
+#[test]
+fn stalagmite_rows_of_table_2() {
+    for (drip, radius) in [("dry", -1), ("standard", 0), ("wet", 1)] {
+        for (co2, height) in [("low", 1), ("normal", 2), ("high", 3)] {
+            let p = one_site("2", drip, co2, 12);
+            let s = &grown(&p, 2).sites[0].growth;
+            assert_row(&s.stalagmite, (radius, height), &p, &format!("stalagmite {drip} {co2}"));
+            assert_eq!(s.stalagmite[0].pass(), s.stalactite[0].pass(), "the drip falls from the first pass");
+        }
+    }
+}
+
+#[test]
+fn the_rows_drawn_are_table_2s() {
+    assert_eq!(growth::stalactite_row(Co2::Normal), (-1, 2));
+    assert_eq!(growth::stalagmite_row(DripInterval::Wet, Co2::High), (1, 3));
+}
+
+#[test]
+fn level_0_grows_nothing() {
+    let p = one_site("0", "standard", "normal", 10);
+    let seq = grown(&p, 1);
+    assert!(seq.sites[0].growth.stalactite.is_empty() && seq.sites[0].growth.stalagmite.is_empty());
+    let (result, _) = outputs::build(&p, &seq);
+    assert_eq!(result["stalactites"]["count"], 0);
+    assert_eq!(result["stalagmites"]["count"], 0);
+    assert_eq!(result["triangles"]["speleothems"], 0);
+}
+
+#[test]
+fn a_stalactite_meeting_its_stalagmite_becomes_one_column_and_stops() {
+    let mut p = one_site("2", "standard", "high", 60);
+    p.chamber.height_m = 1.2;
+    let seq = grown(&p, 3);
+    let g = &seq.sites[0].growth;
+    let at = g.column_at.expect("they met");
+    assert!((g.stalactite_tip_y() - g.stalagmite_top_y()).abs() < 1e-4, "the column is continuous");
+    let rings = (g.stalactite.len(), g.stalagmite.len());
+    assert_eq!(g.stalactite.last().unwrap().pass(), at);
+    // More passes grow nothing more.
+    let mut longer = p.clone();
+    longer.rings = 100;
+    let again = grown(&longer, 3);
+    assert_eq!((again.sites[0].growth.stalactite.len(), again.sites[0].growth.stalagmite.len()), rings);
+    let (result, _) = outputs::build(&p, &seq);
+    assert_eq!(result["columns"]["count"], 1);
+    assert_eq!(result["stalactites"]["count"], 0);
+    assert!((result["columns"]["length_m"]["max"].as_f64().unwrap() - 1.2).abs() < 1e-4);
+}
+
+#[test]
+fn wind_moves_rings_along_its_direction_only() {
+    let mut p = one_site("2", "standard", "normal", 20);
+    p.wind = Some(serde_json::from_value(json!({"direction": [1.0, 0.0], "intensity": 0.6})).unwrap());
+    let g = grown(&p, 4).sites[0].growth.clone();
+    for ring in g.stalactite[1..].iter().chain(&g.stalagmite[1..]) {
+        let [dx, dz] = ring.shift();
+        assert!(dx > 0.0 && dz.abs() < 1e-6, "shift {dx}, {dz}");
+        assert!((dx - 0.6 * ring.height()).abs() < 1e-5);
+    }
+    // Random intensity per ring: never against the wind, sometimes calm.
+    p.wind = Some(serde_json::from_value(json!({"direction": [0.0, -2.0]})).unwrap());
+    let g = grown(&p, 4).sites[0].growth.clone();
+    assert!(g.stalactite.iter().all(|r| r.shift()[1] <= 0.0 && r.shift()[0].abs() < 1e-6));
+    assert!(g.stalactite.iter().map(|r| r.shift()[1]).sum::<f32>() < 0.0);
+}
+
+#[test]
+fn low_co2_displaces_the_surface_by_kf_times_radius_ratio() {
+    let mut p = one_site("1", "standard", "low", 8);
+    p.kf_m = 0.02;
+    let g = grown(&p, 5).sites[0].growth.clone();
+    for ring in &g.stalactite[1..] {
+        let expected = p.kf_m * ring.radius() / p.stalactite_radius_m;
+        assert!((ring.displacement() - expected).abs() < 1e-6);
+    }
+}
+
+#[test]
+fn each_minerals_tip_colour_is_table_1s() {
+    for (mineral, rgb) in [
+        (Mineral::Calcareous, [0.8, 0.8, 0.8]),
+        (Mineral::Iron, [0.87, 0.62, 0.34]),
+        (Mineral::Manganese, [0.32, 0.44, 0.54]),
+        (Mineral::Copper, [0.05, 0.7, 0.7]),
+        (Mineral::Malachite, [0.67, 0.82, 0.75]),
+    ] {
+        let mut p = one_site("1", "standard", "normal", 10);
+        p.mineral = mineral;
+        let seq = grown(&p, 6);
+        let scene = outputs::scene(&p, &seq);
+        let node = scene.nodes.iter().find(|n| n.name.starts_with("stalactite")).expect("a stalactite");
+        let m = &node.mesh;
+        // The tip: the lowest vertex.
+        let tip = (0..m.vertex_count()).min_by(|&a, &b| m.positions[a][1].total_cmp(&m.positions[b][1])).unwrap();
+        let want = rgb.map(|c: f32| (c * 255.0).round() as u8);
+        assert_eq!(&m.colors.as_ref().unwrap()[tip][..3], &want[..], "{mineral:?}");
+        // The base is darker: fv_c = mc · (arID / rc).
+        let base = (0..m.vertex_count()).max_by(|&a, &b| m.positions[a][1].total_cmp(&m.positions[b][1])).unwrap();
+        let sum = |c: &[u8]| c.iter().map(|&v| v as u32).sum::<u32>();
+        assert!(sum(&m.colors.as_ref().unwrap()[base][..3]) < sum(&want));
+    }
+}
+
+fn random_cave(sites: u32, rings: u32) -> GrowCaveParams {
+    params(json!({
+        "chamber": {"width_m": 8, "depth_m": 6, "height_m": 5, "roof": {"relief_m": 0.6}, "floor": {"relief_m": 0.4}},
+        "sites": {"scatter": {"count": sites, "min_spacing_m": 0.6}},
+        "conditions": {"pluviometric_index": "random", "drip_interval": "random", "co2": "random"},
+        "mineral": "random",
+        "rings": rings,
+        "segments": 12,
+        "height_step_m": 0.06,
+        "wind": {"scale": 0.5},
+    }))
+}
+
+#[test]
+fn every_speleothem_mesh_is_closed_and_faces_out() {
+    let p = random_cave(30, 60);
+    let seq = grown(&p, 7);
+    let scene = outputs::scene(&p, &seq);
+    let mut kinds = std::collections::BTreeMap::new();
+    for node in &scene.nodes[2..] {
+        assert!(node.mesh.check().is_ok());
+        assert!(node.mesh.is_closed(), "{} is not closed", node.name);
+        assert!(node.mesh.signed_volume() > 0.0, "{} faces inwards", node.name);
+        *kinds.entry(node.name.split(' ').next().unwrap().to_string()).or_insert(0) += 1;
+    }
+    assert!(kinds.len() >= 2, "{kinds:?}");
+}
+
+#[test]
+fn manual_rings_are_used_as_given() {
+    let mut p = one_site("2", "standard", "normal", 10);
+    p.manual = Some(
+        serde_json::from_value(json!({
+            "stalactite": [{"radius_m": 0.07, "height_m": 0.1}, {"radius_m": 0.05, "height_m": 0.2}],
+            "stalagmite": [{"radius_m": 0.2, "height_m": 0.05}],
+        }))
+        .unwrap(),
+    );
+    let g = grown(&p, 8).sites[0].growth.clone();
+    let radii: Vec<f32> = g.stalactite.iter().map(Ring::radius).collect();
+    assert_eq!(radii, [0.08, 0.07, 0.05]);
+    assert_eq!(g.stalactite[2].height(), 0.2);
+    assert_eq!(g.stalagmite.len(), 2);
+    assert_eq!(g.stalagmite[1].radius(), 0.2);
+}
+
+fn ctx() -> TestContext {
+    TestContext::new(Heightfield::from_fn(2, 2, 1.0, |_, _| 0.0))
+}
+
+/// Artifact names and sha256s.
+fn bytes(o: &Outcome<CaveSequence>) -> Vec<(String, String)> {
+    o.artifacts
+        .iter()
+        .map(|a| (a.name.clone(), hex::encode(<sha2::Sha256 as sha2::Digest>::digest(&a.bytes))))
+        .collect()
+}
+
+#[test]
+fn replay_until_k_equals_a_run_of_k_passes() {
+    let t = ctx();
+    let p = random_cave(12, 40);
+    let full = GrowCave::run(&p, 9, &t.ctx()).unwrap();
+    let again = GrowCave::replay(&p, &full.sequence, None, &t.ctx()).unwrap();
+    assert_eq!(bytes(&again), bytes(&full));
+    assert_eq!(again.result, full.result);
+    let k = 15;
+    let part = GrowCave::replay(&p, &full.sequence, Some(k), &t.ctx()).unwrap();
+    let short = GrowCave::run(&GrowCaveParams { rings: k as u32, ..p.clone() }, 9, &t.ctx()).unwrap();
+    assert_eq!(bytes(&part), bytes(&short));
+    assert_eq!(part.result, short.result);
+    assert_eq!(serde_json::to_value(&part.sequence).unwrap(), serde_json::to_value(&short.sequence).unwrap());
+    assert_ne!(bytes(&part), bytes(&full));
+}
+
+#[test]
+fn one_and_two_threads_give_identical_artifacts() {
+    let p = random_cave(40, 30);
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| GrowCave::run(&p, 10, &ctx().ctx()).unwrap())
+    };
+    let (one, two) = (run(1), run(2));
+    assert_eq!(bytes(&one), bytes(&two));
+    assert_eq!(one.result, two.result);
+}
