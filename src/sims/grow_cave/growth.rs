@@ -268,8 +268,16 @@ impl Grower<'_> {
         let tip = site.stalactite_tip_y();
         let top = site.stalagmite_top_y();
         if !site.stalagmite.is_empty() && !site.stalactite.is_empty() && tip <= top {
-            // Trim the overlap from the two newest rings, half each, so they meet exactly.
             let overlap = top - tip;
+            let closed = |rings: &[Ring]| rings.last().is_some_and(|r| r.radius() < CLOSED_RADIUS_M);
+            if closed(&site.stalactite) || closed(&site.stalagmite) {
+                // A point touches: the stalagmite stops at the stalactite's tip, no column.
+                let last = site.stalagmite.last_mut().expect("a stalagmite");
+                last.1[1] = (last.1[1] - overlap).max(0.0);
+                site.stalagmite_done = true;
+                return;
+            }
+            // Trim the overlap from the two newest rings, half each, so they meet exactly.
             for rings in [&mut site.stalactite, &mut site.stalagmite] {
                 if let Some(last) = rings.last_mut() {
                     last.1[1] = (last.1[1] - overlap / 2.0).max(0.0);

@@ -20,6 +20,7 @@ use crate::terrain::TerrainSource;
 
 use chamber::{drip_sites, site_mineral, ChamberShape};
 use growth::{site_rng, Grower, SiteGrowth};
+pub use outputs::scene;
 pub use params::GrowCaveParams;
 pub use sequence::CaveSequence;
 use sequence::RecordedSite;

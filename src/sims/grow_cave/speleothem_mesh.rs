@@ -12,8 +12,17 @@ struct Placed {
     centre: [f32; 3],
     radius: f32,
     displacement: f32,
-    /// arID / rc.
+    /// The colour factor: arID / rc, lifted so the base is not black (see [`BASE_SHADE`]).
     shade: f32,
+}
+
+/// fv_c = mc · (arID / rc) darkens a speleothem's first rings to black, which no cave shows
+/// (the paper's own pictures are light at the base): the linear variation runs from this share
+/// of mc at the base to all of it at the tip.
+pub const BASE_SHADE: f32 = 0.4;
+
+fn shade(ring_fraction: f32) -> f32 {
+    BASE_SHADE + (1.0 - BASE_SHADE) * ring_fraction
 }
 
 /// Rings of a stalactite (down from the roof, `down = true`) or stalagmite (up from the floor),
@@ -29,7 +38,7 @@ fn place(site: &SiteGrowth, rings: &[Ring], down: bool) -> Vec<Placed> {
         centre: [site.x_m, base_y - sign * first.radius().max(0.02), site.z_m],
         radius: first.radius(),
         displacement: 0.0,
-        shade: 1.0 / rc,
+        shade: shade(1.0 / rc),
     });
     let (mut x, mut y, mut z) = (site.x_m, base_y, site.z_m);
     for (k, ring) in rings.iter().enumerate() {
@@ -41,7 +50,7 @@ fn place(site: &SiteGrowth, rings: &[Ring], down: bool) -> Vec<Placed> {
             centre: [x, y, z],
             radius: ring.radius(),
             displacement: ring.displacement(),
-            shade: (k + 1) as f32 / rc,
+            shade: shade((k + 1) as f32 / rc),
         });
     }
     out
