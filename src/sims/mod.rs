@@ -1,6 +1,7 @@
 //! One folder per job kind: parameters, algorithm, tests. Pure computation.
 
 pub mod bulldoze;
+pub mod carve_coast;
 pub mod deform_terrain;
 pub mod grow_cave;
 pub mod weather_column;
@@ -17,5 +18,6 @@ pub fn registry() -> Vec<Box<dyn JobKind>> {
         Box::new(crate::jobs::Kind::<deform_terrain::DeformTerrain>::default()),
         Box::new(crate::jobs::Kind::<weather_column::WeatherColumn>::default()),
         Box::new(crate::jobs::Kind::<grow_cave::GrowCave>::default()),
+        Box::new(crate::jobs::Kind::<carve_coast::CarveCoast>::default()),
     ]
 }

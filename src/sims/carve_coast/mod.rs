@@ -1,0 +1,131 @@
+//! `carve-coast`: coastal erosion with overhangs, sea caves and arches (seed 003). The
+//! heightfield becomes an implicit surface; passes of spheres grown inward from steep points
+//! near sea level are subtracted from it; an optional warp adds strata; the result is meshed
+//! in a narrow band around the surface into a closed solid.
+
+mod erosion;
+mod field;
+mod implicit;
+mod outputs;
+pub mod params;
+mod sequence;
+
+#[cfg(test)]
+mod tests;
+
+use crate::jobs::{Outcome, RunContext, SimError, Simulation};
+use crate::terrain::{Heightfield, TerrainSource};
+use crate::validate::Limits;
+
+use implicit::{Implicit, Sphere};
+pub use params::CarveCoastParams;
+use params::{estimate_voxels, MAX_SPHERES};
+pub use sequence::CoastSequence;
+
+pub struct CarveCoast;
+
+impl Simulation for CarveCoast {
+    const KIND: &'static str = "carve-coast";
+    const SUMMARY: &'static str =
+        "Carve a coastline with overhangs, sea caves and arches out of a terrain's implicit form, meshed as a closed solid";
+    type Params = CarveCoastParams;
+    type Sequence = CoastSequence;
+
+    fn terrain_sources(params: &mut Self::Params) -> Vec<(String, &mut TerrainSource)> {
+        vec![("terrain".to_string(), &mut params.terrain)]
+    }
+
+    fn run(params: &Self::Params, seed: u64, ctx: &RunContext) -> Result<Outcome<Self::Sequence>, SimError> {
+        let hf = ctx.resolve_terrain(&params.terrain)?;
+        let voxel_m = checked_voxel(params, &hf, ctx.limits)?;
+        let total = params.passes as u64 + 1;
+        let spheres = carve(params, &hf, seed, voxel_m, &mut |pass, spheres| {
+            ctx.check_cancelled()?;
+            let implicit = Implicit::new(&hf, spheres, params.warp.as_ref(), seed);
+            let message = format!("pass {pass}: {} spheres carved", spheres.len());
+            ctx.report_with_snapshot("carving", pass as u64, total, message, || {
+                outputs::snapshot_png(&implicit, params, voxel_m)
+            });
+            Ok(())
+        })?;
+        let sequence = CoastSequence { seed, spheres };
+        finish(params, &hf, sequence, voxel_m, ctx)
+    }
+
+    fn replay(
+        params: &Self::Params,
+        sequence: &Self::Sequence,
+        until_step: Option<u64>,
+        ctx: &RunContext,
+    ) -> Result<Outcome<Self::Sequence>, SimError> {
+        let hf = ctx.resolve_terrain(&params.terrain)?;
+        let voxel_m = checked_voxel(params, &hf, ctx.limits)?;
+        finish(params, &hf, sequence.until(until_step), voxel_m, ctx)
+    }
+}
+
+/// The voxel size, after checking the sea level and the voxel cap against the resolved terrain.
+fn checked_voxel(params: &CarveCoastParams, hf: &Heightfield, limits: &Limits) -> Result<f32, SimError> {
+    let (lo, hi) = hf.min_max();
+    if !(lo..=hi).contains(&params.sea_level) {
+        return Err(SimError::Invalid {
+            field: "sea_level".into(),
+            message: format!("must lie within the terrain's heights ({lo} to {hi} m), got {}", params.sea_level),
+        });
+    }
+    let voxel_m = params.voxel_size_m.unwrap_or(hf.cell_size_m);
+    let voxels = estimate_voxels(
+        hf.cols as u64,
+        hf.rows as u64,
+        hf.cell_size_m,
+        hi - lo,
+        voxel_m,
+        params.erosion.radius_range[1],
+    );
+    if voxels > limits.max_voxels {
+        return Err(SimError::Invalid {
+            field: "voxel_size_m".into(),
+            message: format!("meshing would take about {voxels} voxels, more than the cap of {}", limits.max_voxels),
+        });
+    }
+    Ok(voxel_m)
+}
+
+/// All passes of erosion; `on_pass(pass, spheres so far)` after each.
+pub fn carve(
+    params: &CarveCoastParams,
+    hf: &Heightfield,
+    seed: u64,
+    voxel_m: f32,
+    on_pass: &mut dyn FnMut(u32, &[Sphere]) -> Result<(), SimError>,
+) -> Result<Vec<Sphere>, SimError> {
+    let mut spheres: Vec<Sphere> = Vec::new();
+    for pass in 1..=params.passes {
+        let new = {
+            // Seeds are found on the surface carved so far, unwarped.
+            let implicit = Implicit::new(hf, &spheres, None, seed);
+            erosion::erosion_pass(&implicit, params, seed, pass, voxel_m.min(hf.cell_size_m))
+        };
+        spheres.extend(new);
+        spheres.truncate(MAX_SPHERES);
+        on_pass(pass, &spheres)?;
+    }
+    Ok(spheres)
+}
+
+fn finish(
+    params: &CarveCoastParams,
+    hf: &Heightfield,
+    sequence: CoastSequence,
+    voxel_m: f32,
+    ctx: &RunContext,
+) -> Result<Outcome<CoastSequence>, SimError> {
+    let implicit = Implicit::new(hf, &sequence.spheres, params.warp.as_ref(), sequence.seed);
+    let total = params.passes as u64 + 1;
+    let (result, artifacts) = outputs::build(&implicit, params, &sequence.spheres, voxel_m, &mut |done, of| {
+        ctx.check_cancelled()?;
+        ctx.report("meshing", params.passes as u64, total, format!("sampled chunk {done} of {of}"));
+        Ok(())
+    })?;
+    Ok(Outcome { result, sequence, artifacts })
+}

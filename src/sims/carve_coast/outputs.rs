@@ -1,0 +1,211 @@
+//! The carved terrain as outputs: the closed mesh coloured by material with a sea plane, a
+//! lit preview that shows the overhangs, the topmost surface as a 16-bit heightmap (and the
+//! exact heights for the next job), and the figures.
+
+use rayon::prelude::*;
+use serde_json::{json, Value};
+
+use super::field::{bands, columns, grid_for, remove_fragments, sample_planes, Grid};
+use super::implicit::{Implicit, Sphere};
+use super::params::CarveCoastParams;
+use crate::export::{heightfield_npy, heightmap_png16, render_png, write_glb, Artifact, View};
+use crate::jobs::{SimError, HEIGHTFIELD_ARTIFACT};
+use crate::mesh::{extract_isosurface, MaterialKind, Mesh, ScalarField, Scene, SceneNode};
+use crate::terrain::Heightfield;
+
+const PREVIEW: View = View { width_px: 1024, height_px: 768, azimuth_deg: 35.0, elevation_deg: 28.0 };
+const SNAPSHOT: View = View { width_px: 256, height_px: 192, azimuth_deg: 35.0, elevation_deg: 28.0 };
+const ROCK: [u8; 4] = [132, 120, 108, 255];
+const SAND: [u8; 4] = [214, 196, 150, 255];
+const GRASS: [u8; 4] = [96, 138, 70, 255];
+/// Faces steeper than this from horizontal are bare rock.
+const ROCK_SLOPE_DEG: f32 = 40.0;
+/// Metres above sea level that are beach.
+const BEACH_M: f32 = 1.5;
+/// Field chunks (groups of planes) sampled between progress reports.
+const CHUNKS: usize = 8;
+
+/// The sampled field and what it took.
+pub struct Sampled {
+    pub grid: Grid,
+    pub values: Vec<f32>,
+    pub fragments: usize,
+    pub pockets: usize,
+}
+
+/// Sample the implicit terrain over its box at `voxel_m`; `on_chunk(done, of)` after each chunk
+/// of planes (it may stop the run).
+pub fn sample(
+    implicit: &Implicit,
+    params: &CarveCoastParams,
+    voxel_m: f32,
+    dense: bool,
+    on_chunk: &mut dyn FnMut(usize, usize) -> Result<(), SimError>,
+) -> Result<Sampled, SimError> {
+    let headroom = params.warp_amplitude() * 2.0 + voxel_m;
+    let grid = grid_for(implicit.hf, voxel_m, headroom);
+    let bands = bands(implicit, &grid, params.warp_amplitude(), dense);
+    let plane = grid.plane();
+    let mut values = vec![0f32; grid.len()];
+    let per_chunk = grid.ny.div_ceil(CHUNKS);
+    for (c, chunk) in values.chunks_mut(plane * per_chunk).enumerate() {
+        let first = c * per_chunk;
+        sample_planes(implicit, &grid, &bands, first..first + chunk.len() / plane, chunk);
+        on_chunk(c + 1, grid.ny.div_ceil(per_chunk))?;
+    }
+    let (fragments, pockets) =
+        if params.remove_fragments { remove_fragments(&mut values, &grid, &bands) } else { (0, 0) };
+    Ok(Sampled { grid, values, fragments, pockets })
+}
+
+/// The closed surface of the sampled field, metres.
+pub fn surface(s: &Sampled) -> Mesh {
+    let g = &s.grid;
+    let field = ScalarField {
+        dims: [g.nx, g.ny, g.nz],
+        origin_m: [0.0, g.bottom_y, 0.0],
+        spacing_m: g.voxel_m,
+        values: &s.values,
+    };
+    extract_isosurface(&field, 0.0)
+}
+
+/// Colour by material: rock on steep or carved faces, sand near sea level, grass above.
+fn colour(mesh: &mut Mesh, implicit: &Implicit, sea_level: f32, voxel_m: f32) {
+    let steep = ROCK_SLOPE_DEG.to_radians().cos();
+    let colours = mesh
+        .positions
+        .par_iter()
+        .zip(mesh.normals.par_iter())
+        .map(|(p, n)| {
+            let carved = implicit.sphere_distance(*p, implicit.index.near(p[0], p[2])).abs() < voxel_m;
+            if carved || n[1] < steep {
+                ROCK
+            } else if p[1] < sea_level + BEACH_M {
+                SAND
+            } else {
+                GRASS
+            }
+        })
+        .collect();
+    mesh.colors = Some(colours);
+}
+
+/// A flat quad at sea level over the terrain's footprint, facing up.
+fn sea_plane(hf: &Heightfield, sea_level: f32) -> Mesh {
+    let (w, d) = (hf.width_m(), hf.depth_m());
+    Mesh {
+        positions: vec![[0.0, sea_level, 0.0], [w, sea_level, 0.0], [w, sea_level, d], [0.0, sea_level, d]],
+        normals: vec![[0.0, 1.0, 0.0]; 4],
+        uvs: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+        colors: None,
+        indices: vec![0, 2, 1, 0, 3, 2],
+    }
+}
+
+/// Connected pieces and genus of a closed mesh (Euler: V − E + F = 2·(pieces − genus)).
+pub fn topology(mesh: &Mesh) -> (usize, i64) {
+    let n = mesh.vertex_count();
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    fn find(parent: &mut [u32], mut i: u32) -> u32 {
+        while parent[i as usize] != i {
+            parent[i as usize] = parent[parent[i as usize] as usize];
+            i = parent[i as usize];
+        }
+        i
+    }
+    for t in mesh.indices.chunks_exact(3) {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2])] {
+            let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+            if ra != rb {
+                parent[ra.max(rb) as usize] = ra.min(rb);
+            }
+        }
+    }
+    let used: std::collections::BTreeSet<u32> = mesh.indices.iter().copied().collect();
+    let pieces = used.iter().filter(|&&i| find(&mut parent, i) == i).count();
+    let (v, f) = (used.len() as i64, mesh.triangle_count() as i64);
+    let euler = v - f * 3 / 2 + f;
+    (pieces, pieces as i64 - euler / 2)
+}
+
+/// A small picture of the carved terrain, meshed coarsely, for live progress.
+pub fn snapshot_png(implicit: &Implicit, params: &CarveCoastParams, voxel_m: f32) -> Vec<u8> {
+    let coarse = voxel_m * 4.0;
+    let Ok(s) = sample(implicit, params, coarse, false, &mut |_, _| Ok(())) else { return Vec::new() };
+    let scene = Scene {
+        nodes: vec![
+            SceneNode::new("terrain", surface(&s), MaterialKind::Matte { srgb: [170, 150, 120] }),
+            SceneNode::new("sea", sea_plane(implicit.hf, params.sea_level), MaterialKind::Water),
+        ],
+    };
+    render_png(&scene, &SNAPSHOT)
+}
+
+/// Everything the job delivers for the terrain carved by `spheres`.
+pub fn build(
+    implicit: &Implicit,
+    params: &CarveCoastParams,
+    spheres: &[Sphere],
+    voxel_m: f32,
+    on_chunk: &mut dyn FnMut(usize, usize) -> Result<(), SimError>,
+) -> Result<(Value, Vec<Artifact>), SimError> {
+    let sampled = sample(implicit, params, voxel_m, false, on_chunk)?;
+    let (crossings, top) = columns(&sampled.values, &sampled.grid);
+    let mut mesh = surface(&sampled);
+    drop(sampled.values);
+    colour(&mut mesh, implicit, params.sea_level, voxel_m);
+    let closed = mesh.is_closed();
+    let (pieces, genus) = topology(&mesh);
+    let triangles = mesh.triangle_count();
+    // Shoreline columns: the original ground within the seed elevation range.
+    let e = &params.erosion;
+    let (lo, hi) = (params.sea_level + e.seed_elevation_range[0], params.sea_level + e.seed_elevation_range[1]);
+    let g = &sampled.grid;
+    let (mut shore, mut overhung) = (0u64, 0u64);
+    for (k, &c) in crossings.iter().enumerate() {
+        let h = implicit.hf.sample((k % g.nx) as f32 * g.voxel_m, (k / g.nx) as f32 * g.voxel_m);
+        if (lo..=hi).contains(&h) {
+            shore += 1;
+            overhung += (c > 1) as u64;
+        }
+    }
+    let mut per_pass = vec![0u64; params.passes as usize];
+    for s in spheres {
+        if let Some(n) = per_pass.get_mut(s.pass() as usize - 1) {
+            *n += 1;
+        }
+    }
+    let scene = Scene {
+        nodes: vec![
+            SceneNode::new("terrain", mesh, MaterialKind::VertexColors),
+            SceneNode::new("sea", sea_plane(implicit.hf, params.sea_level), MaterialKind::Water),
+        ],
+    };
+    let ((glb, preview), (heightmap, npy)) = rayon::join(
+        || rayon::join(|| write_glb(&scene), || render_png(&scene, &PREVIEW)),
+        || rayon::join(|| heightmap_png16(&top), || heightfield_npy(&top)),
+    );
+    let (z_min, z_max) = top.min_max();
+    let result = json!({
+        "spheres": { "total": spheres.len(), "per_pass": per_pass },
+        "overhangs": { "shoreline_columns": shore, "with_overhang": overhung,
+                       "share": if shore == 0 { 0.0 } else { overhung as f64 / shore as f64 } },
+        "through_holes": genus,
+        "pieces": pieces,
+        "fragments_removed": sampled.fragments,
+        "air_pockets_filled": sampled.pockets,
+        "mesh": { "triangles": triangles, "closed": closed },
+        "grid": { "x": g.nx, "y": g.ny, "z": g.nz, "voxel_m": g.voxel_m },
+        "z_min": z_min, "z_max": z_max,
+    });
+    Ok((
+        result,
+        vec![
+            Artifact::new("mesh.glb", "model/gltf-binary", glb),
+            Artifact::new("preview.png", "image/png", preview),
+            Artifact::new("heightmap.png", "image/png", heightmap),
+            Artifact::new(HEIGHTFIELD_ARTIFACT, "application/octet-stream", npy),
+        ],
+    ))
+}

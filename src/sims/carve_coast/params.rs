@@ -1,0 +1,204 @@
+//! The request: a terrain source, the sea level, the voxel size for meshing, the seed's
+//! `CoastalErosionSettings`, the number of passes and the warp operator.
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::terrain::TerrainSource;
+use crate::validate::{Limits, Validate, Validator};
+
+/// Most erosion passes.
+pub const MAX_PASSES: u32 = 16;
+/// Most spheres one job may carve.
+pub const MAX_SPHERES: usize = 200_000;
+/// Largest sphere radius, metres.
+pub const MAX_RADIUS_M: f32 = 1_000.0;
+/// Most growth steps per seed and spheres per step.
+pub const MAX_GROWTH: u32 = 64;
+
+fn default_passes() -> u32 {
+    3
+}
+fn default_min_slope() -> f32 {
+    35.0
+}
+fn default_elevation_range() -> [f32; 2] {
+    [-3.0, 8.0]
+}
+fn default_probability() -> f32 {
+    0.08
+}
+fn default_radius_range() -> [f32; 2] {
+    [1.5, 4.0]
+}
+fn default_growth_steps() -> [u32; 2] {
+    [2, 6]
+}
+fn default_growth_spheres() -> [u32; 2] {
+    [1, 3]
+}
+fn default_true() -> bool {
+    true
+}
+
+/// The seed's `CoastalErosionSettings`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Erosion {
+    /// Least slope of a seed's surface, degrees from horizontal.
+    #[serde(default = "default_min_slope")]
+    #[schema(default = 35.0)]
+    pub seed_min_slope: f32,
+    /// `[low, high]` metres relative to `sea_level` within which seeds are taken (and sphere
+    /// centres stay).
+    #[serde(default = "default_elevation_range")]
+    #[schema(default = json!([-3.0, 8.0]))]
+    pub seed_elevation_range: [f32; 2],
+    /// Chance that a qualifying surface point becomes a seed, in [0, 1].
+    #[serde(default = "default_probability")]
+    #[schema(default = 0.08)]
+    pub seed_acceptance_probability: f32,
+    /// `[min, max]` sphere radius, metres.
+    #[serde(default = "default_radius_range")]
+    #[schema(default = json!([1.5, 4.0]))]
+    pub radius_range: [f32; 2],
+    /// `[min, max]` growth steps per seed.
+    #[serde(default = "default_growth_steps")]
+    #[schema(default = json!([2, 6]))]
+    pub growth_step_range: [u32; 2],
+    /// `[min, max]` spheres carved at each growth step.
+    #[serde(default = "default_growth_spheres")]
+    #[schema(default = json!([1, 3]))]
+    pub growth_sphere_range: [u32; 2],
+}
+
+impl Default for Erosion {
+    fn default() -> Self {
+        serde_json::from_str("{}").expect("defaults")
+    }
+}
+
+/// The warp operator: points pushed along the heightfield's horizontal gradient by a 1D noise
+/// of height — horizontal strata and overhangs on cliffs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Warp {
+    /// Metres of push per unit of gradient at the noise's peaks.
+    pub amplitude_m: f32,
+    /// Noise cycles per metre of height.
+    pub frequency_per_m: f32,
+}
+
+/// `POST /v1/jobs/carve-coast`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CarveCoastParams {
+    pub terrain: TerrainSource,
+    /// Metres; must lie within the terrain's heights.
+    #[serde(default)]
+    pub sea_level: f32,
+    /// Edge of a meshing voxel, metres; default the terrain's cell size.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub voxel_size_m: Option<f32>,
+    #[serde(default)]
+    pub erosion: Erosion,
+    #[serde(default = "default_passes")]
+    #[schema(default = 3, minimum = 1, maximum = 16)]
+    pub passes: u32,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warp: Option<Warp>,
+    /// Remove rock that floats free of the ground after carving and warping.
+    #[serde(default = "default_true")]
+    #[schema(default = true)]
+    pub remove_fragments: bool,
+}
+
+fn range_ok(v: &mut Validator, leaf: &str, r: [f32; 2], min: f32, max: f32) {
+    if !r.iter().all(|x| x.is_finite()) {
+        v.error(leaf, "must be finite numbers");
+    } else if r[0] > r[1] {
+        v.error(leaf, format!("is inverted: {} > {}", r[0], r[1]));
+    } else if r[0] < min || r[1] > max {
+        v.error(leaf, format!("must lie within [{min}, {max}]"));
+    }
+}
+
+fn count_range_ok(v: &mut Validator, leaf: &str, r: [u32; 2]) {
+    if r[0] > r[1] {
+        v.error(leaf, format!("is inverted: {} > {}", r[0], r[1]));
+    } else if r[1] > MAX_GROWTH {
+        v.too_large(leaf, format!("must be at most {MAX_GROWTH}"));
+    }
+}
+
+impl Validate for CarveCoastParams {
+    fn validate(&self, v: &mut Validator, limits: &Limits) {
+        v.field("terrain", |v| self.terrain.validate(v, limits));
+        v.finite("sea_level", self.sea_level as f64);
+        if let Some(size) = self.voxel_size_m {
+            v.positive("voxel_size_m", size as f64);
+            if let (Some((cols, rows)), Some(cell), Some(relief)) =
+                (self.terrain.known_dimensions(), self.terrain.known_cell_size(), self.known_relief())
+            {
+                if size > 0.0 && size.is_finite() {
+                    let voxels = estimate_voxels(cols, rows, cell, relief, size, self.erosion.radius_range[1]);
+                    if voxels > limits.max_voxels {
+                        v.too_large(
+                            "voxel_size_m",
+                            format!(
+                                "meshing would take about {voxels} voxels, more than the cap of {}",
+                                limits.max_voxels
+                            ),
+                        );
+                    }
+                }
+            }
+        }
+        v.field("erosion", |v| {
+            let e = &self.erosion;
+            v.in_range("seed_min_slope", e.seed_min_slope as f64, 0.0, 90.0);
+            let big = 1e5;
+            range_ok(v, "seed_elevation_range", e.seed_elevation_range, -big, big);
+            v.in_range("seed_acceptance_probability", e.seed_acceptance_probability as f64, 0.0, 1.0);
+            range_ok(v, "radius_range", e.radius_range, 0.0, MAX_RADIUS_M);
+            if e.radius_range[0] <= 0.0 && e.radius_range[0].is_finite() {
+                v.error("radius_range", "must be greater than 0");
+            }
+            count_range_ok(v, "growth_step_range", e.growth_step_range);
+            count_range_ok(v, "growth_sphere_range", e.growth_sphere_range);
+        });
+        if self.passes == 0 {
+            v.error("passes", "must be at least 1");
+        } else if self.passes > MAX_PASSES {
+            v.error("passes", format!("must be at most {MAX_PASSES} (got {})", self.passes));
+        }
+        if let Some(w) = &self.warp {
+            v.field("warp", |v| {
+                v.in_range("amplitude_m", w.amplitude_m as f64, 0.0, 1e4);
+                v.in_range("frequency_per_m", w.frequency_per_m as f64, 0.0, 1e3);
+            });
+        }
+    }
+}
+
+impl CarveCoastParams {
+    /// The fractal's relief, when the terrain is one.
+    fn known_relief(&self) -> Option<f32> {
+        match &self.terrain {
+            TerrainSource::Fractal(f) => Some(f.relief),
+            _ => None,
+        }
+    }
+
+    /// How far the warp can push a point, metres per unit of gradient.
+    pub fn warp_amplitude(&self) -> f32 {
+        self.warp.as_ref().map_or(0.0, |w| w.amplitude_m)
+    }
+}
+
+/// Voxels of the meshing box: the terrain's footprint by its relief plus margins.
+pub fn estimate_voxels(cols: u64, rows: u64, cell_m: f32, relief_m: f32, voxel_m: f32, max_radius_m: f32) -> u64 {
+    let side = |n: u64| ((n.saturating_sub(1)) as f64 * cell_m as f64 / voxel_m as f64).ceil() as u64 + 1;
+    let height = ((relief_m as f64 + 2.0 * max_radius_m as f64) / voxel_m as f64).ceil() as u64 + 6;
+    side(cols) * side(rows) * height
+}
