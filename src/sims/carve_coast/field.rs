@@ -186,7 +186,7 @@ fn flood_unreached(values: &[f32], grid: &Grid, bands: &Bands, want_rock: bool) 
             }
         }
     }
-    let mut flood = |queue: &mut VecDeque<usize>, mark: &mut dyn FnMut(usize) -> bool, piece: &mut Vec<usize>| {
+    let flood = |queue: &mut VecDeque<usize>, mark: &mut dyn FnMut(usize) -> bool, piece: &mut Vec<usize>| {
         while let Some(i) = queue.pop_front() {
             piece.push(i);
             for n in neighbours(i).into_iter().flatten() {

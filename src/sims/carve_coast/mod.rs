@@ -91,13 +91,16 @@ fn checked_voxel(params: &CarveCoastParams, hf: &Heightfield, limits: &Limits) -
     Ok(voxel_m)
 }
 
+/// Hears of each finished pass with the spheres so far; may stop the run.
+pub type OnPass<'a> = dyn FnMut(u32, &[Sphere]) -> Result<(), SimError> + 'a;
+
 /// All passes of erosion; `on_pass(pass, spheres so far)` after each.
 pub fn carve(
     params: &CarveCoastParams,
     hf: &Heightfield,
     seed: u64,
     voxel_m: f32,
-    on_pass: &mut dyn FnMut(u32, &[Sphere]) -> Result<(), SimError>,
+    on_pass: &mut OnPass,
 ) -> Result<Vec<Sphere>, SimError> {
     let mut spheres: Vec<Sphere> = Vec::new();
     for pass in 1..=params.passes {
