@@ -196,7 +196,9 @@ pub fn build(
         "fragments_removed": sampled.fragments,
         "air_pockets_filled": sampled.pockets,
         "mesh": { "triangles": triangles, "closed": closed },
-        "grid": { "x": g.nx, "y": g.ny, "z": g.nz, "voxel_m": g.voxel_m },
+        "voxels": { "x": g.nx, "y": g.ny, "z": g.nz, "voxel_m": g.voxel_m },
+        // The topmost surface's grid, as heightfield kinds report it, so later jobs can read it.
+        "grid": { "cols": top.cols, "rows": top.rows, "cell_size_m": top.cell_size_m },
         "z_min": z_min, "z_max": z_max,
     });
     Ok((

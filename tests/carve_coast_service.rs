@@ -1,0 +1,113 @@
+//! The carve-coast job through the real server: an island a deform-terrain job made, carved
+//! through `terrain: {"job": id}` (closed mesh, validator, heightmap, replay), the examples,
+//! and bad input naming the field.
+
+mod common;
+
+use common::server::{artifact_hashes, example, TestServer};
+use serde_json::{json, Value};
+
+#[tokio::test]
+async fn a_deformed_island_is_carved_and_replayed_to_the_same_bytes() {
+    let server = TestServer::start().await;
+    let island = json!({
+        "seed": 4,
+        "terrain": {"fractal": {"size": 65, "relief": 40.0, "seed": 9, "island": true}},
+        "constraints": [{"preserve": {}}],
+        "max_iterations": 5
+    });
+    let deformed = server.run("deform-terrain", &island).await;
+    let carve = json!({
+        "seed": 7,
+        "terrain": {"job": deformed["id"]},
+        "sea_level": 0.0,
+        "passes": 2,
+        "erosion": {"seed_acceptance_probability": 0.15, "radius_range": [1.2, 2.5]}
+    });
+    let job = server.submit("carve-coast", &carve).await;
+    let id = job["id"].as_str().unwrap().to_string();
+    let events =
+        common::sse::read_events(&server.client, &server.url(&format!("/v1/jobs/{id}/events")), None, 10_000).await;
+    assert_eq!(events.last().unwrap().event, "done");
+    assert!(events.iter().any(|e| e.event == "progress" && e.data["stage"] == "carving"), "pass progress");
+    let job = server.wait_done(&id).await;
+    assert_eq!(job["status"], "succeeded", "{job}");
+    let result = &job["result"];
+    assert_eq!(result["mesh"]["closed"], true, "{result}");
+    assert_eq!(result["pieces"], 1, "{result}");
+    assert!(result["spheres"]["total"].as_u64().unwrap() > 0, "{result}");
+    let names: Vec<&str> = job["artifacts"].as_array().unwrap().iter().map(|a| a["name"].as_str().unwrap()).collect();
+    for want in ["mesh.glb", "preview.png", "heightmap.png", "sequence.json"] {
+        assert!(names.contains(&want), "{want} in {names:?}");
+    }
+    let glb = server.artifact(&id, "mesh.glb").await;
+    let report = common::gltf_validator::validate_glb(&glb);
+    assert_eq!(report.errors, 0, "{:?}", report.messages);
+    let gltf = gltf::Gltf::from_slice(&glb).unwrap();
+    let nodes: Vec<_> = gltf.nodes().map(|n| n.name().unwrap_or_default().to_string()).collect();
+    assert_eq!(nodes, ["terrain", "sea"]);
+
+    let (_, replay) = server.post(&format!("/v1/jobs/{id}/replay"), &json!({})).await;
+    let replay = server.wait_done(replay["id"].as_str().unwrap()).await;
+    assert_eq!(replay["status"], "succeeded", "{replay}");
+    assert_eq!(artifact_hashes(&replay), artifact_hashes(&job));
+    let (_, part) = server.post(&format!("/v1/jobs/{id}/replay"), &json!({"until_step": 3})).await;
+    let part = server.wait_done(part["id"].as_str().unwrap()).await;
+    assert_eq!(part["result"]["spheres"]["total"], 3, "{}", part["result"]);
+
+    // The carved topmost surface feeds the next job.
+    server.run("bulldoze", &json!({"terrain": {"job": id}, "operations": []})).await;
+}
+
+#[tokio::test]
+async fn the_quick_example_runs() {
+    let server = TestServer::start().await;
+    let job = server.run("carve-coast", &example("carve-coast", "small-island-one-pass")).await;
+    assert_eq!(job["result"]["mesh"]["closed"], true);
+    for name in ["island-defaults", "cliff-strata"] {
+        let mut body = example("carve-coast", name);
+        // Accepting is what is checked here; the bench and the quick example run the real thing.
+        body["terrain"]["fractal"]["size"] = json!(33);
+        body["passes"] = json!(1);
+        server.run("carve-coast", &body).await;
+    }
+}
+
+#[tokio::test]
+async fn bad_carving_requests_name_their_field() {
+    let server = TestServer::start().await;
+    let base = example("carve-coast", "small-island-one-pass");
+    let with = |path: &[&str], value: Value| {
+        let mut body = base.clone();
+        let mut at = &mut body;
+        for seg in &path[..path.len() - 1] {
+            at = &mut at[*seg];
+        }
+        at[path[path.len() - 1]] = value;
+        body
+    };
+    let cases = [
+        (with(&["erosion", "radius_range"], json!([3.0, 1.0])), 422, "erosion.radius_range"),
+        (with(&["erosion", "seed_elevation_range"], json!([5.0, -5.0])), 422, "erosion.seed_elevation_range"),
+        (with(&["erosion", "growth_step_range"], json!([4, 2])), 422, "erosion.growth_step_range"),
+        (with(&["erosion", "seed_acceptance_probability"], json!(1.5)), 422, "erosion.seed_acceptance_probability"),
+        (with(&["erosion", "seed_acceptance_probability"], json!(-0.1)), 422, "erosion.seed_acceptance_probability"),
+        (with(&["erosion", "radius_range"], json!([0.0, 1.0])), 422, "erosion.radius_range"),
+        (with(&["passes"], json!(0)), 422, "passes"),
+        (with(&["passes"], json!(17)), 422, "passes"),
+        (with(&["voxel_size_m"], json!(0.01)), 413, "voxel_size_m"),
+        (with(&["voxel_size_m"], json!(-1.0)), 422, "voxel_size_m"),
+    ];
+    for (body, status, field) in cases {
+        let (got, problem) = server.post("/v1/jobs/carve-coast", &body).await;
+        assert_eq!(got, status, "{field}: {problem}");
+        let fields: Vec<&str> =
+            problem["errors"].as_array().into_iter().flatten().filter_map(|e| e["field"].as_str()).collect();
+        assert!(fields.contains(&field), "wanted {field:?}: {problem}");
+    }
+    // A sea level above the whole terrain fails the job, naming the field.
+    let job = server.submit("carve-coast", &with(&["sea_level"], json!(500.0))).await;
+    let job = server.wait_done(job["id"].as_str().unwrap()).await;
+    assert_eq!(job["status"], "failed", "{job}");
+    assert!(job["error"].to_string().contains("sea_level"), "{job}");
+}
