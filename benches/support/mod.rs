@@ -18,8 +18,14 @@ impl TerrainLookup for NoStore {
 }
 
 /// Run `f` with a context that never cancels, reports nowhere and has no earlier jobs.
+#[allow(dead_code)] // not every bench uses both
 pub fn with_context<T>(f: impl FnOnce(&RunContext) -> T) -> T {
+    with_limits(&Limits::default(), f)
+}
+
+/// The same with caps of the bench's choosing.
+#[allow(dead_code)]
+pub fn with_limits<T>(limits: &Limits, f: impl FnOnce(&RunContext) -> T) -> T {
     let cancel = AtomicBool::new(false);
-    let limits = Limits::default();
-    f(&RunContext { cancel: &cancel, sink: &SilentProgress, terrain: &NoStore, limits: &limits })
+    f(&RunContext { cancel: &cancel, sink: &SilentProgress, terrain: &NoStore, limits })
 }

@@ -132,3 +132,19 @@ fn finish(
     })?;
     Ok(Outcome { result, sequence, artifacts })
 }
+
+/// For benchmarks: carve a fractal-terrain request, then time sampling and meshing its field in
+/// the narrow band or densely over the whole box. Returns (seconds, triangles).
+pub fn meshing_seconds(params: &CarveCoastParams, seed: u64, dense: bool) -> Result<(f64, usize), SimError> {
+    let TerrainSource::Fractal(f) = &params.terrain else {
+        return Err(SimError::Failed("meshing_seconds takes fractal terrain".into()));
+    };
+    let hf = crate::terrain::generate_fractal(f);
+    let voxel_m = params.voxel_size_m.unwrap_or(hf.cell_size_m);
+    let spheres = carve(params, &hf, seed, voxel_m, &mut |_, _| Ok(()))?;
+    let implicit = Implicit::new(&hf, &spheres, params.warp.as_ref(), seed);
+    let started = std::time::Instant::now();
+    let sampled = outputs::sample(&implicit, params, voxel_m, dense, &mut |_, _| Ok(()))?;
+    let mesh = outputs::surface(&sampled);
+    Ok((started.elapsed().as_secs_f64(), mesh.triangle_count()))
+}
