@@ -87,7 +87,7 @@ impl Mesh {
                 edges.push(((lo as u64) << 32) | hi as u64);
             }
         }
-        edges.sort_unstable();
+        rayon::slice::ParallelSliceMut::par_sort_unstable(&mut edges[..]);
         edges.chunk_by(|a, b| a == b).all(|run| run.len() == 2)
     }
 

@@ -113,10 +113,14 @@ pub fn sample_planes(implicit: &Implicit, grid: &Grid, bands: &Bands, planes: st
             *value = if (bands.lo[k] as usize..bands.hi[k] as usize).contains(&j) {
                 -implicit.distance(p).max(grid.bottom_y - y)
             } else {
-                // Far from any crossing: only the sign matters, and the height difference has it.
-                let walls =
-                    (-x).max(x - implicit.hf.width_m()).max(-z).max(z - implicit.hf.depth_m()).max(grid.bottom_y - y);
-                -(y - implicit.hf.sample(x, z)).max(walls)
+                // Far from any crossing only the sign matters: rock below the band, air above
+                // it, and outside on the box's walls and bottom.
+                let wall = x <= 0.0 || z <= 0.0 || x >= implicit.hf.width_m() || z >= implicit.hf.depth_m();
+                if j == 0 || wall || j >= bands.hi[k] as usize {
+                    -grid.voxel_m
+                } else {
+                    grid.voxel_m
+                }
             };
         }
     });

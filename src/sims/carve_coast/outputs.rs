@@ -122,9 +122,12 @@ pub fn topology(mesh: &Mesh) -> (usize, i64) {
             }
         }
     }
-    let used: std::collections::BTreeSet<u32> = mesh.indices.iter().copied().collect();
-    let pieces = used.iter().filter(|&&i| find(&mut parent, i) == i).count();
-    let (v, f) = (used.len() as i64, mesh.triangle_count() as i64);
+    let mut used = vec![false; n];
+    for &i in &mesh.indices {
+        used[i as usize] = true;
+    }
+    let pieces = (0..n as u32).filter(|&i| used[i as usize] && find(&mut parent, i) == i).count();
+    let (v, f) = (used.iter().filter(|&&u| u).count() as i64, mesh.triangle_count() as i64);
     let euler = v - f * 3 / 2 + f;
     (pieces, pieces as i64 - euler / 2)
 }
