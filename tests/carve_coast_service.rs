@@ -46,6 +46,7 @@ async fn a_deformed_island_is_carved_and_replayed_to_the_same_bytes() {
     let gltf = gltf::Gltf::from_slice(&glb).unwrap();
     let nodes: Vec<_> = gltf.nodes().map(|n| n.name().unwrap_or_default().to_string()).collect();
     assert_eq!(nodes, ["terrain", "sea"]);
+    assert!(common::glb_topology::closed_nodes(&glb).iter().any(|(n, closed)| n == "terrain" && *closed));
 
     let (_, replay) = server.post(&format!("/v1/jobs/{id}/replay"), &json!({})).await;
     let replay = server.wait_done(replay["id"].as_str().unwrap()).await;

@@ -4,6 +4,7 @@
 
 mod common;
 
+use common::glb_topology::closed_nodes;
 use common::server::{artifact_hashes, example, TestServer};
 use serde_json::{json, Value};
 
@@ -19,27 +20,6 @@ fn small_cave(rings: u32) -> Value {
         "height_step_m": 0.05,
         "wind": {"scale": 0.3}
     })
-}
-
-/// Per node of the glb: its name and whether every edge of its triangles is shared by two.
-fn closed_nodes(glb: &[u8]) -> Vec<(String, bool)> {
-    let (doc, buffers, _) = gltf::import_slice(glb).expect("glb imports");
-    doc.nodes()
-        .filter_map(|node| {
-            let mesh = node.mesh()?;
-            let prim = mesh.primitives().next()?;
-            let reader = prim.reader(|b| Some(&buffers[b.index()]));
-            let indices: Vec<u32> = reader.read_indices()?.into_u32().collect();
-            let mut edges: Vec<(u32, u32)> = indices
-                .chunks_exact(3)
-                .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
-                .map(|(a, b)| (a.min(b), a.max(b)))
-                .collect();
-            edges.sort_unstable();
-            let closed = edges.chunk_by(|a, b| a == b).all(|run| run.len() == 2);
-            Some((node.name().unwrap_or_default().to_string(), closed))
-        })
-        .collect()
 }
 
 #[tokio::test]

@@ -7,7 +7,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use super::params::{Co2, Conditions, DripInterval, GrowCaveParams, Pluviometric};
+use super::params::{Co2, Conditions, DripInterval, GrowCaveParams, ManualRing, Pluviometric};
 
 /// Radii below this close the tip (condition ii: the new ring's radius is zero).
 pub const CLOSED_RADIUS_M: f32 = 1e-4;
@@ -210,56 +210,54 @@ impl Grower<'_> {
         let p = self.params;
         let manual = p.manual.as_ref();
         if !site.stalactite_done {
-            if site.stalactite.is_empty() {
-                site.stalactite.push(Ring(pass, [p.stalactite_radius_m, 0.0, 0.0, 0.0, 0.0]));
-            } else {
-                let k = site.stalactite.len() - 1;
-                let m = manual
-                    .filter(|m| !m.stalactite.is_empty())
-                    .map(|m| m.stalactite.get(k).map(|r| (r.radius_m, r.height_m)));
-                if let Some(None) = m {
-                    site.stalactite_done = true; // the manual list is used up
-                } else {
-                    let previous = site.stalactite[k].radius();
-                    let mut ring = self.ring(
-                        rng,
-                        pass,
-                        previous,
-                        p.stalactite_radius_m,
-                        stalactite_row(drawn.co2),
-                        drawn.co2,
-                        m.flatten(),
-                    );
-                    ring.1[0] = ring.1[0].min(previous); // a stalactite never widens
-                    site.stalactite.push(ring);
-                    if ring.radius() < CLOSED_RADIUS_M {
-                        site.stalactite_done = true; // condition (ii)
-                    }
-                }
-            }
+            let list = manual.map(|m| m.stalactite.as_slice());
+            let row = stalactite_row(drawn.co2);
+            let (rings, done) = (&mut site.stalactite, &mut site.stalactite_done);
+            self.extend(rng, pass, rings, done, p.stalactite_radius_m, list, row, drawn.co2, true);
         }
         if drawn.level == 2 && !site.stalagmite_done {
-            if site.stalagmite.is_empty() {
-                site.stalagmite.push(Ring(pass, [p.stalagmite_radius_m, 0.0, 0.0, 0.0, 0.0]));
-            } else {
-                let k = site.stalagmite.len() - 1;
-                let m = manual
-                    .filter(|m| !m.stalagmite.is_empty())
-                    .map(|m| m.stalagmite.get(k).map(|r| (r.radius_m, r.height_m)));
-                if let Some(None) = m {
-                    site.stalagmite_done = true;
-                } else {
-                    let previous = site.stalagmite[k].radius();
-                    let row = stalagmite_row(drawn.drip, drawn.co2);
-                    let ring = self.ring(rng, pass, previous, p.stalagmite_radius_m, row, drawn.co2, m.flatten());
-                    site.stalagmite.push(ring);
-                    if ring.radius() < CLOSED_RADIUS_M {
-                        site.stalagmite_done = true;
-                    }
-                }
-            }
+            let list = manual.map(|m| m.stalagmite.as_slice());
+            let row = stalagmite_row(drawn.drip, drawn.co2);
+            let (rings, done) = (&mut site.stalagmite, &mut site.stalagmite_done);
+            self.extend(rng, pass, rings, done, p.stalagmite_radius_m, list, row, drawn.co2, false);
         }
         self.check_limits(site, pass);
+    }
+
+    /// Add one ring to a speleothem: its initial ring first, then one by `row` (or the manual
+    /// list, whose end stops it); a stalactite (`never_widen`) keeps within the previous radius.
+    #[allow(clippy::too_many_arguments)]
+    fn extend(
+        &self,
+        rng: &mut ChaCha8Rng,
+        pass: u32,
+        rings: &mut Vec<Ring>,
+        done: &mut bool,
+        initial: f32,
+        manual: Option<&[ManualRing]>,
+        row: (i32, u32),
+        co2: Co2,
+        never_widen: bool,
+    ) {
+        let Some(last) = rings.last() else {
+            rings.push(Ring(pass, [initial, 0.0, 0.0, 0.0, 0.0]));
+            return;
+        };
+        let k = rings.len() - 1;
+        let given = manual.filter(|m| !m.is_empty()).map(|m| m.get(k).map(|r| (r.radius_m, r.height_m)));
+        if let Some(None) = given {
+            *done = true; // the manual list is used up
+            return;
+        }
+        let previous = last.radius();
+        let mut ring = self.ring(rng, pass, previous, initial, row, co2, given.flatten());
+        if never_widen {
+            ring.1[0] = ring.1[0].min(previous);
+        }
+        rings.push(ring);
+        if ring.radius() < CLOSED_RADIUS_M {
+            *done = true; // condition (ii)
+        }
     }
 
     /// Conditions (iii) and (iv): a speleothem reaching the floor or roof stops; a stalactite
