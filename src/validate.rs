@@ -17,7 +17,7 @@ pub struct Limits {
 
 pub const DEFAULT_MAX_GRID_CELLS: u64 = 4097 * 4097;
 pub const DEFAULT_MAX_OPERATIONS: u64 = 100_000;
-pub const DEFAULT_MAX_VOXELS: u64 = 64 * 1024 * 1024;
+pub const DEFAULT_MAX_VOXELS: u64 = 192 * 1024 * 1024;
 
 impl Default for Limits {
     fn default() -> Self {

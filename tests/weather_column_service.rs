@@ -186,7 +186,7 @@ async fn bad_weathering_requests_name_their_field() {
             "layers[0].bubble.ellipsoid.radii[1]",
         ),
         (with(&["layers"], json!([])), 422, "layers"),
-        (with(&["grid"], json!({"x": 4096, "y": 4096, "z": 8})), 413, "grid"),
+        (with(&["grid"], json!({"x": 4096, "y": 4096, "z": 16})), 413, "grid"),
         (with(&["grid", "x"], json!(5000)), 413, "grid.x"),
         (with(&["steps"], json!(65_001)), 422, "steps"),
         (with(&["steps"], json!(0)), 422, "steps"),

@@ -137,20 +137,19 @@ impl Validate for CarveCoastParams {
         v.finite("sea_level", self.sea_level as f64);
         if let Some(size) = self.voxel_size_m {
             v.positive("voxel_size_m", size as f64);
-            if let (Some((cols, rows)), Some(cell), Some(relief)) =
-                (self.terrain.known_dimensions(), self.terrain.known_cell_size(), self.known_relief())
-            {
-                if size > 0.0 && size.is_finite() {
-                    let voxels = estimate_voxels(cols, rows, cell, relief, size, self.erosion.radius_range[1]);
-                    if voxels > limits.max_voxels {
-                        v.too_large(
-                            "voxel_size_m",
-                            format!(
-                                "meshing would take about {voxels} voxels, more than the cap of {}",
-                                limits.max_voxels
-                            ),
-                        );
-                    }
+        }
+        // The default voxel is the terrain's cell; either way the box must fit the voxel cap.
+        let voxel = self.voxel_size_m.or(self.terrain.known_cell_size());
+        if let (Some((cols, rows)), Some(cell), Some(relief), Some(size)) =
+            (self.terrain.known_dimensions(), self.terrain.known_cell_size(), self.known_relief(), voxel)
+        {
+            if size > 0.0 && size.is_finite() {
+                let voxels = estimate_voxels(cols, rows, cell, relief, size, self.erosion.radius_range[1]);
+                if voxels > limits.max_voxels {
+                    v.too_large(
+                        "voxel_size_m",
+                        format!("meshing would take about {voxels} voxels, more than the cap of {}", limits.max_voxels),
+                    );
                 }
             }
         }
