@@ -57,26 +57,38 @@ fn assert_row(rings: &[Ring], row: (i32, u32), p: &GrowCaveParams, what: &str) {
     }
 }
 
-#[test]
-fn stalactite_rows_of_table_2() {
-    for (co2, row) in [("low", (-2, 1)), ("normal", (-1, 2)), ("high", (0, 3))] {
-        let p = one_site("1", "standard", co2, 12);
-        let s = &grown(&p, 1).sites[0].growth;
-        assert!(s.stalagmite.is_empty(), "level 1 does not drip");
-        assert_row(&s.stalactite, row, &p, &format!("stalactite at {co2} CO2"));
-    }
+fn stalactite_row_holds(co2: &str, row: (i32, u32)) {
+    let p = one_site("1", "standard", co2, 12);
+    let s = &grown(&p, 1).sites[0].growth;
+    assert!(s.stalagmite.is_empty(), "level 1 does not drip");
+    assert_row(&s.stalactite, row, &p, &format!("stalactite at {co2} CO2"));
 }
 
-#[test]
-fn stalagmite_rows_of_table_2() {
-    for (drip, radius) in [("dry", -1), ("standard", 0), ("wet", 1)] {
-        for (co2, height) in [("low", 1), ("normal", 2), ("high", 3)] {
-            let p = one_site("2", drip, co2, 12);
-            let s = &grown(&p, 2).sites[0].growth;
-            assert_row(&s.stalagmite, (radius, height), &p, &format!("stalagmite {drip} {co2}"));
-            assert_eq!(s.stalagmite[0].pass(), s.stalactite[0].pass(), "the drip falls from the first pass");
-        }
-    }
+fn stalagmite_row_holds(drip: &str, co2: &str, row: (i32, u32)) {
+    let p = one_site("2", drip, co2, 12);
+    let s = &grown(&p, 2).sites[0].growth;
+    assert_row(&s.stalagmite, row, &p, &format!("stalagmite {drip} {co2}"));
+    assert_eq!(s.stalagmite[0].pass(), s.stalactite[0].pass(), "the drip falls from the first pass");
+}
+
+/// One test per row of Table 2: (radius direction × multiple, height multiple).
+macro_rules! table_2 {
+    ($($name:ident: $check:expr;)*) => { $( #[test] fn $name() { $check } )* };
+}
+
+table_2! {
+    table_2_level_1_low_co2_stalactite_radius_down_2_height_1: stalactite_row_holds("low", (-2, 1));
+    table_2_level_1_normal_co2_stalactite_radius_down_1_height_2: stalactite_row_holds("normal", (-1, 2));
+    table_2_level_1_high_co2_stalactite_radius_same_height_3: stalactite_row_holds("high", (0, 3));
+    table_2_level_2_dry_low_stalagmite_radius_down_1_height_1: stalagmite_row_holds("dry", "low", (-1, 1));
+    table_2_level_2_standard_low_stalagmite_radius_same_height_1: stalagmite_row_holds("standard", "low", (0, 1));
+    table_2_level_2_wet_low_stalagmite_radius_up_1_height_1: stalagmite_row_holds("wet", "low", (1, 1));
+    table_2_level_2_dry_normal_stalagmite_radius_down_1_height_2: stalagmite_row_holds("dry", "normal", (-1, 2));
+    table_2_level_2_standard_normal_stalagmite_radius_same_height_2: stalagmite_row_holds("standard", "normal", (0, 2));
+    table_2_level_2_wet_normal_stalagmite_radius_up_1_height_2: stalagmite_row_holds("wet", "normal", (1, 2));
+    table_2_level_2_dry_high_stalagmite_radius_down_1_height_3: stalagmite_row_holds("dry", "high", (-1, 3));
+    table_2_level_2_standard_high_stalagmite_radius_same_height_3: stalagmite_row_holds("standard", "high", (0, 3));
+    table_2_level_2_wet_high_stalagmite_radius_up_1_height_3: stalagmite_row_holds("wet", "high", (1, 3));
 }
 
 #[test]
