@@ -114,9 +114,12 @@ pub fn sample_planes(implicit: &Implicit, grid: &Grid, bands: &Bands, planes: st
                 -implicit.distance(p).max(grid.bottom_y - y)
             } else {
                 // Far from any crossing only the sign matters: rock below the band, air above
-                // it, and outside on the box's walls and bottom.
+                // it. The box's walls and bottom are exactly 0 (outside), as the implicit form
+                // gives there inside the band, so the caps lie flat on the box.
                 let wall = x <= 0.0 || z <= 0.0 || x >= implicit.hf.width_m() || z >= implicit.hf.depth_m();
-                if j == 0 || wall || j >= bands.hi[k] as usize {
+                if j == 0 || wall {
+                    0.0
+                } else if j >= bands.hi[k] as usize {
                     -grid.voxel_m
                 } else {
                     grid.voxel_m

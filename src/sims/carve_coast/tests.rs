@@ -60,6 +60,13 @@ fn without_carving_or_warp_every_column_crosses_once_at_the_heightfield() {
     let mesh = surface(&s);
     assert!(mesh.is_closed());
     assert_eq!(topology(&mesh), (1, 0), "one solid, no through-hole");
+    // The caps lie on the box: nothing below its bottom or beyond its walls, and the bottom flat.
+    let (lo, hi) = mesh.bounds().unwrap();
+    assert_eq!(lo[1], g.bottom_y);
+    assert!(lo[0] >= 0.0 && lo[2] >= 0.0 && hi[0] <= hf.width_m() && hi[2] <= hf.depth_m());
+    let bottom = mesh.positions.iter().filter(|p| p[1] < g.bottom_y + 0.5 * g.voxel_m).count();
+    let flat = mesh.positions.iter().filter(|p| p[1] == g.bottom_y).count();
+    assert_eq!(bottom, flat, "every bottom vertex on the bottom plane");
 }
 
 #[test]
