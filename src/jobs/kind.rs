@@ -130,7 +130,10 @@ pub trait Simulation: Send + Sync + 'static {
 
     /// The terrain sources in the parameters, each with its JSON path. The adapter reads the
     /// earlier jobs and uploads they name from them, and moves inline uploads into the store.
-    fn terrain_sources(params: &mut Self::Params) -> Vec<(String, &mut TerrainSource)>;
+    /// Kinds without a terrain source (volumes, caves) keep the default: none.
+    fn terrain_sources(_params: &mut Self::Params) -> Vec<(String, &mut TerrainSource)> {
+        Vec::new()
+    }
 
     /// Other PNGs the parameters carry (e.g. a joint map), each with its JSON path; stored and
     /// referenced like uploaded heightmaps.

@@ -16,7 +16,6 @@ mod tests;
 use rayon::prelude::*;
 
 use crate::jobs::{Outcome, RunContext, SimError, Simulation};
-use crate::terrain::TerrainSource;
 
 use chamber::{drip_sites, site_mineral, ChamberShape};
 use growth::{site_rng, Grower, SiteGrowth};
@@ -33,10 +32,6 @@ impl Simulation for GrowCave {
         "Grow stalactites, stalagmites and columns ring by ring in a cave chamber from geological parameters (glTF scene)";
     type Params = GrowCaveParams;
     type Sequence = CaveSequence;
-
-    fn terrain_sources(_params: &mut Self::Params) -> Vec<(String, &mut TerrainSource)> {
-        Vec::new()
-    }
 
     fn run(params: &Self::Params, seed: u64, ctx: &RunContext) -> Result<Outcome<Self::Sequence>, SimError> {
         let sequence = grow(params, seed, &mut |pass, sequence| {

@@ -21,7 +21,7 @@ mod weathering;
 mod tests;
 
 use crate::jobs::{Outcome, RunContext, SimError, Simulation};
-use crate::terrain::{ImageUpload, TerrainSource};
+use crate::terrain::ImageUpload;
 
 use bubble::BubbleTable;
 use grid::{layer_of_plane, Grid};
@@ -40,10 +40,6 @@ impl Simulation for WeatherColumn {
         "Weather a rock column into sandstone goblins by spheroidal weathering on a voxel grid (glTF mesh, lit preview)";
     type Params = WeatherColumnParams;
     type Sequence = WeatherSequence;
-
-    fn terrain_sources(_params: &mut Self::Params) -> Vec<(String, &mut TerrainSource)> {
-        Vec::new()
-    }
 
     fn image_uploads(params: &mut Self::Params) -> Vec<(String, &mut ImageUpload)> {
         match &mut params.column.profile {

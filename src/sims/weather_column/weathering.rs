@@ -108,10 +108,8 @@ fn merge_active(rock: &Rock, active: Active, activated: Vec<u32>) -> Active {
         out.resistance.push(active.resistance[k]);
     }
     push_fresh_below(&mut out, u32::MAX, &mut n);
-    if n < activated.len() {
-        // u32::MAX itself is never a voxel index (grids are capped well below it).
-        unreachable!("activated voxel beyond the last index");
-    }
+    // u32::MAX itself is never a voxel index (grids are capped well below it).
+    debug_assert_eq!(n, activated.len());
     out
 }
 
