@@ -3,8 +3,6 @@
 //! 10M-voxel column weathered to nothing with radius 4, in all and at peak memory (paper:
 //! 12 min 33 s and 793 MB). Run with `cargo bench --bench weather_column`.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion};
@@ -13,29 +11,11 @@ use serde_json::json;
 use landform::jobs::Simulation;
 use landform::sims::weather_column::{Stepper, WeatherColumn, WeatherColumnParams};
 
-/// Counts live heap bytes and their peak.
-struct Counting;
-
-static LIVE: AtomicUsize = AtomicUsize::new(0);
-static PEAK: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let p = unsafe { System.alloc(layout) };
-        if !p.is_null() {
-            let live = LIVE.fetch_add(layout.size(), Ordering::Relaxed) + layout.size();
-            PEAK.fetch_max(live, Ordering::Relaxed);
-        }
-        p
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) };
-        LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
-    }
-}
+#[path = "support/counting_alloc.rs"]
+mod counting_alloc;
 
 #[global_allocator]
-static ALLOCATOR: Counting = Counting;
+static ALLOCATOR: counting_alloc::Counting = counting_alloc::Counting;
 
 #[path = "support/mod.rs"]
 mod support;
@@ -90,12 +70,11 @@ fn cube_step(c: &mut Criterion) {
 fn column_to_nothing(c: &mut Criterion) {
     let p = params(160, 400, 160, 0.5, 65_000);
     let run = || support::with_context(|ctx| WeatherColumn::run(&p, 1, ctx).expect("runs"));
-    let before = LIVE.load(Ordering::Relaxed);
-    PEAK.store(before, Ordering::Relaxed);
+    let before = counting_alloc::start();
     let started = Instant::now();
     let out = run();
     let elapsed = started.elapsed();
-    let peak = PEAK.load(Ordering::Relaxed) - before;
+    let peak = counting_alloc::peak_since(before);
     eprintln!(
         "column 10.24M voxels to nothing: {:.2} s, {} steps, active max {} min {}, peak heap {:.1} MB, sequence {} KB",
         elapsed.as_secs_f64(),

@@ -6,9 +6,12 @@ use std::time::Duration;
 use clap::builder::TypedValueParser;
 use clap::Args;
 
-use crate::http::{HttpConfig, DEFAULT_MAX_BODY_BYTES};
-use crate::jobs::{EngineConfig, DEFAULT_JOB_TIMEOUT_S, DEFAULT_QUEUE_CAPACITY};
-use crate::store::{JobStore, SqliteStore};
+use crate::http::auth::{DEFAULT_KEY_ACTIVE_JOBS, DEFAULT_KEY_SUBMISSIONS_PER_MINUTE};
+use crate::http::{ApiKeys, HttpConfig, KeyLimits, DEFAULT_MAX_BODY_BYTES};
+use crate::jobs::{
+    default_memory_budget, EngineConfig, DEFAULT_CONCURRENT_JOBS, DEFAULT_JOB_TIMEOUT_S, DEFAULT_QUEUE_CAPACITY,
+};
+use crate::store::{JobStore, PostgresStore, SqliteStore};
 use crate::validate::{Limits, DEFAULT_MAX_GRID_CELLS, DEFAULT_MAX_OPERATIONS, DEFAULT_MAX_VOXELS};
 
 /// Settings shared by `serve` and `run`.
@@ -23,12 +26,19 @@ pub struct ServiceArgs {
     /// Jobs that may wait in the queue before submissions get 503.
     #[arg(long, env = "LANDFORM_QUEUE_CAPACITY", default_value_t = DEFAULT_QUEUE_CAPACITY, value_parser = clap::value_parser!(u64).range(1..).map(|n| n as usize))]
     pub queue_capacity: usize,
-    /// Jobs run at the same time; each uses the whole pool.
-    #[arg(long, env = "LANDFORM_CONCURRENT_JOBS", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..).map(|n| n as usize))]
+    /// Most jobs run at the same time (they share the pool; the memory budget decides first).
+    #[arg(long, env = "LANDFORM_CONCURRENT_JOBS", default_value_t = DEFAULT_CONCURRENT_JOBS, value_parser = clap::value_parser!(u64).range(1..).map(|n| n as usize))]
     pub concurrent_jobs: usize,
+    /// Bytes the running jobs' estimated peak memory may add up to (default: half the machine's
+    /// memory). A job whose estimate alone is larger is refused with 413.
+    #[arg(long, env = "LANDFORM_MEMORY_BUDGET", value_parser = clap::value_parser!(u64).range(1..))]
+    pub memory_budget: Option<u64>,
     /// A job running longer than this many seconds is stopped and fails.
     #[arg(long, env = "LANDFORM_JOB_TIMEOUT_SECS", default_value_t = DEFAULT_JOB_TIMEOUT_S, value_parser = clap::value_parser!(u64).range(1..))]
     pub job_timeout_secs: u64,
+    /// On SIGTERM, seconds running jobs may take to finish before they go back to the queue.
+    #[arg(long, env = "LANDFORM_SHUTDOWN_DEADLINE_SECS", default_value_t = 30)]
+    pub shutdown_deadline_secs: u64,
     /// Most samples (cols × rows) a heightfield may have; larger requests get 413.
     #[arg(long, env = "LANDFORM_MAX_GRID_CELLS", default_value_t = DEFAULT_MAX_GRID_CELLS)]
     pub max_grid_cells: u64,
@@ -51,7 +61,7 @@ impl ServiceArgs {
     pub fn open_store(&self) -> anyhow::Result<Arc<dyn JobStore>> {
         let location = self.database_location();
         if location.starts_with("postgres://") || location.starts_with("postgresql://") {
-            anyhow::bail!("this build has only the embedded SQLite store; give --database a file path");
+            return Ok(Arc::new(PostgresStore::open(&location)?));
         }
         let path = location.strip_prefix("sqlite://").unwrap_or(&location);
         Ok(Arc::new(SqliteStore::open(path)?))
@@ -62,6 +72,7 @@ impl ServiceArgs {
             workers: self.workers.filter(|&n| n > 0).unwrap_or_else(|| EngineConfig::default().workers),
             queue_capacity: self.queue_capacity,
             concurrent_jobs: self.concurrent_jobs,
+            memory_budget: self.memory_budget.unwrap_or_else(default_memory_budget),
             job_timeout: Duration::from_secs(self.job_timeout_secs),
             limits: Limits {
                 max_grid_cells: self.max_grid_cells,
@@ -84,10 +95,46 @@ pub struct HttpArgs {
     /// Origins allowed by CORS, comma-separated; `*` allows any.
     #[arg(long, env = "LANDFORM_CORS_ORIGINS", value_delimiter = ',', default_value = "*")]
     pub cors_origins: Vec<String>,
+    /// API keys file: `NAME KEY [submissions_per_minute=N] [active_jobs=N] [memory_bytes=N]` a
+    /// line. With keys, every /v1 call needs `Authorization: Bearer KEY`. LANDFORM_API_KEYS may
+    /// instead hold the lines themselves (separated by newlines or `;`).
+    #[arg(long, env = "LANDFORM_API_KEYS_FILE")]
+    pub api_keys: Option<std::path::PathBuf>,
+    /// With keys, `/metrics`, `/docs` and `/openapi.json` need a key too.
+    #[arg(long, env = "LANDFORM_PROTECT_OPERATIONS")]
+    pub protect_operations: bool,
+    /// Each key's submissions (jobs and replays) per minute, unless its line says otherwise.
+    #[arg(long, env = "LANDFORM_KEY_SUBMISSIONS_PER_MINUTE", default_value_t = DEFAULT_KEY_SUBMISSIONS_PER_MINUTE, value_parser = clap::value_parser!(u32).range(1..))]
+    pub key_submissions_per_minute: u32,
+    /// Each key's jobs queued or running at once, unless its line says otherwise.
+    #[arg(long, env = "LANDFORM_KEY_ACTIVE_JOBS", default_value_t = DEFAULT_KEY_ACTIVE_JOBS, value_parser = clap::value_parser!(u32).range(1..))]
+    pub key_active_jobs: u32,
+    /// Each key's estimated memory of queued and running jobs at once, bytes (default: the
+    /// memory budget), unless its line says otherwise.
+    #[arg(long, env = "LANDFORM_KEY_MEMORY_BYTES", value_parser = clap::value_parser!(u64).range(1..))]
+    pub key_memory_bytes: Option<u64>,
 }
 
 impl HttpArgs {
-    pub fn http_config(&self) -> HttpConfig {
-        HttpConfig { max_body_bytes: self.max_body_bytes, cors_origins: self.cors_origins.clone() }
+    /// The HTTP settings; `memory_budget` is the default of each key's memory quota.
+    pub fn http_config(&self, memory_budget: u64) -> anyhow::Result<HttpConfig> {
+        let text = match (&self.api_keys, std::env::var("LANDFORM_API_KEYS").ok().filter(|s| !s.trim().is_empty())) {
+            (Some(path), _) => Some(
+                std::fs::read_to_string(path)
+                    .map_err(|e| anyhow::anyhow!("cannot read the API keys file {}: {e}", path.display()))?,
+            ),
+            (None, Some(inline)) => Some(inline.replace(';', "\n")),
+            (None, None) => None,
+        };
+        let defaults = KeyLimits {
+            submissions_per_minute: self.key_submissions_per_minute,
+            active_jobs: self.key_active_jobs,
+            memory_bytes: self.key_memory_bytes.unwrap_or(memory_budget),
+        };
+        let keys = text.map(|t| ApiKeys::parse(&t, defaults, self.protect_operations)).transpose()?.map(Arc::new);
+        if let Some(k) = &keys {
+            tracing::info!(keys = ?k, "API keys required on /v1");
+        }
+        Ok(HttpConfig { max_body_bytes: self.max_body_bytes, cors_origins: self.cors_origins.clone(), keys })
     }
 }

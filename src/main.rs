@@ -73,19 +73,31 @@ fn engine(service: &ServiceArgs) -> anyhow::Result<Engine> {
 
 async fn serve(http: HttpArgs, service: ServiceArgs) -> anyhow::Result<()> {
     init_tracing("info,tower_http=info");
-    let engine = engine(&service)?;
-    engine.recover()?;
+    // Opening a store and recovering talk to it synchronously (PostgreSQL's client runs a
+    // runtime of its own): off the async threads.
+    let engine = tokio::task::block_in_place(|| engine(&service))?;
+    let http_config = http.http_config(engine.config().memory_budget)?;
+    tokio::task::block_in_place(|| engine.recover())?;
     engine.start();
     let listener = tokio::net::TcpListener::bind(&http.addr).await.with_context(|| format!("binding {}", http.addr))?;
     let addr = listener.local_addr()?;
-    tracing::info!(%addr, database = %service.database_location(), workers = engine.config().workers, "listening");
+    tracing::info!(
+        %addr,
+        database = %service.database_location(),
+        workers = engine.config().workers,
+        memory_budget = engine.config().memory_budget,
+        "listening"
+    );
     println!("listening on http://{addr}");
     std::io::stdout().flush()?;
-    let app = landform::http::app(engine, http.http_config());
+    let (engine_handle, deadline_secs) = (engine.clone(), service.shutdown_deadline_secs);
+    let app = landform::http::app(engine, http_config);
     let (stopping_tx, stopping_rx) = tokio::sync::oneshot::channel::<()>();
+    let (stopping_engine_tx, stopping_engine_rx) = tokio::sync::oneshot::channel::<()>();
     let server = axum::serve(listener, app).with_graceful_shutdown(async move {
         shutdown_signal().await;
         let _ = stopping_tx.send(());
+        let _ = stopping_engine_tx.send(());
     });
     // Open event streams would hold a graceful shutdown for as long as their jobs run: give
     // them a few seconds, then stop. Unfinished jobs run again on the next start.
@@ -93,10 +105,23 @@ async fn serve(http: HttpArgs, service: ServiceArgs) -> anyhow::Result<()> {
         let _ = stopping_rx.await;
         tokio::time::sleep(SHUTDOWN_GRACE).await;
     };
-    tokio::select! {
-        served = server.into_future() => served?,
-        _ = grace => tracing::info!("shut down with streams still open"),
-    }
+    let http = async {
+        tokio::select! {
+            served = server.into_future() => served,
+            _ = grace => {
+                tracing::info!("shut down with streams still open");
+                Ok(())
+            }
+        }
+    };
+    // Meanwhile the engine takes no more jobs and lets the running ones finish (or returns
+    // them to the queue at the deadline).
+    let drained = async {
+        let _ = stopping_engine_rx.await;
+        engine_handle.shutdown(std::time::Duration::from_secs(deadline_secs)).await;
+    };
+    let (served, ()) = tokio::join!(http, drained);
+    served?;
     Ok(())
 }
 
@@ -138,9 +163,9 @@ async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: 
     } else {
         None
     };
-    let engine = engine(&service)?;
+    let engine = tokio::task::block_in_place(|| engine(&service))?;
     engine.start();
-    let job = match engine.submit(&kind, body, None).await {
+    let job = match engine.submit(&kind, body, None, &Default::default()).await {
         Ok(Submitted::Created(j) | Submitted::Existing(j)) => j,
         Err(landform::jobs::EngineError::Invalid { errors, .. }) => {
             for e in errors {
@@ -153,7 +178,7 @@ async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: 
 
     let bar = ProgressBar::new(1000);
     bar.set_style(ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {percent:>3}% {msg}")?);
-    if let EventFeed::Live { backlog, mut rx, .. } = engine.events(&job.id, None).await? {
+    if let EventFeed::Live { backlog, mut rx, .. } = engine.events(&job.id, None, None).await? {
         let mut backlog = backlog.into_iter();
         loop {
             let ev = match backlog.next() {
@@ -181,7 +206,7 @@ async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: 
         }
     }
     bar.finish_and_clear();
-    let job = engine.get(&job.id).await?;
+    let job = engine.get(&job.id, None).await?;
     if job.status != JobStatus::Succeeded {
         anyhow::bail!(
             "job {}: {}",

@@ -41,8 +41,10 @@ pub struct FieldError {
 pub struct Validator {
     path: Vec<String>,
     pub errors: Vec<FieldError>,
-    /// Set when a size exceeds a configured cap: the answer is 413, not 422.
+    /// Set when a size exceeds a configured cap.
     pub too_large: bool,
+    /// How many of `errors` are sizes over a cap.
+    size_errors: usize,
 }
 
 impl Validator {
@@ -87,7 +89,14 @@ impl Validator {
     /// Report a size over a configured cap (HTTP 413).
     pub fn too_large(&mut self, leaf: &str, message: impl Into<String>) {
         self.too_large = true;
+        self.size_errors += 1;
         self.error(leaf, message);
+    }
+
+    /// The answer is 413 when every error is a size over a cap; any other bad value makes it
+    /// 422, as a request that is wrong is wrong whatever its size.
+    pub fn only_too_large(&self) -> bool {
+        self.too_large && self.size_errors == self.errors.len()
     }
 
     pub fn finite(&mut self, leaf: &str, v: f64) -> bool {

@@ -140,7 +140,13 @@ async fn cancel_stops_a_running_job_and_a_finished_one_answers_409() {
 
 #[tokio::test]
 async fn a_full_queue_answers_503_with_retry_after() {
-    let server = TestServer::start_with(Options { queue_capacity: 1, workers: 1, ..Options::default() }).await;
+    let server = TestServer::start_with(Options {
+        queue_capacity: 1,
+        workers: 1,
+        extra: vec!["--concurrent-jobs".into(), "1".into()],
+        ..Options::default()
+    })
+    .await;
     let mut statuses = Vec::new();
     let mut retry_after = None;
     for _ in 0..4 {
@@ -236,7 +242,8 @@ fn the_committed_openapi_yaml_is_what_the_binary_prints() {
 
 #[tokio::test]
 async fn a_job_over_the_time_limit_fails() {
-    let server = TestServer::start_with(Options { job_timeout_secs: 1, ..Options::default() }).await;
+    // The estimate admits it (its least time is under the limit) but the run takes longer.
+    let server = TestServer::start_with(Options { job_timeout_secs: 2, ..Options::default() }).await;
     let job = server.submit("bulldoze", &slow_bulldoze()).await;
     let done = server.wait_done(job["id"].as_str().unwrap()).await;
     assert_eq!(done["status"], "failed");
@@ -255,12 +262,52 @@ async fn errors_outside_the_job_routes_are_problems_too() {
     let (status, p) = server.get_json("/v1/jobs?limit=lots").await;
     assert_eq!(status, 422);
     assert_eq!(p["errors"][0]["field"], "limit");
+    // The largest event id the schema allows (19 digits) reaches the job lookup; 20 digits
+    // (u64::MAX among them) are not an event id, as the schema's pattern says.
+    let events = |last: String| {
+        server
+            .client
+            .get(server.url("/v1/jobs/01920000-0000-7000-8000-000000000000/events"))
+            .header("last-event-id", last)
+            .send()
+    };
+    assert_eq!(events("9".repeat(19)).await.unwrap().status(), 404);
+    let res = events(u64::MAX.to_string()).await.unwrap();
+    assert_eq!(res.status(), 400);
+    assert_eq!(res.headers()["content-type"], "application/problem+json");
+}
+
+#[tokio::test]
+async fn artifacts_serve_byte_ranges() {
+    let server = TestServer::start().await;
+    let job = server.run("bulldoze", &common::bodies::small_bulldoze()).await;
+    let id = job["id"].as_str().unwrap();
+    let whole = server.artifact(id, "mesh.glb").await;
+    let get = |range: &'static str| {
+        server.client.get(server.url(&format!("/v1/jobs/{id}/artifacts/mesh.glb"))).header("range", range).send()
+    };
+    let res = get("bytes=0-3").await.unwrap();
+    assert_eq!(res.status(), 206);
+    assert_eq!(res.headers()["content-range"], format!("bytes 0-3/{}", whole.len()));
+    assert_eq!(res.headers()["accept-ranges"], "bytes");
+    assert_eq!(&res.bytes().await.unwrap()[..], b"glTF");
+    let res = get("bytes=-10").await.unwrap();
+    assert_eq!(res.status(), 206);
+    assert_eq!(res.bytes().await.unwrap(), whole[whole.len() - 10..]);
+    let res = get("bytes=100-").await.unwrap();
+    assert_eq!(res.bytes().await.unwrap(), whole[100..]);
+    let past = format!("bytes={}-", whole.len());
     let res = server
         .client
-        .get(server.url("/v1/jobs/01920000-0000-7000-8000-000000000000/events"))
-        .header("last-event-id", u64::MAX.to_string())
+        .get(server.url(&format!("/v1/jobs/{id}/artifacts/mesh.glb")))
+        .header("range", past)
         .send()
         .await
         .unwrap();
-    assert_eq!(res.status(), 404);
+    assert_eq!(res.status(), 416);
+    assert_eq!(res.headers()["content-range"], format!("bytes */{}", whole.len()));
+    // Several ranges, or another unit: the whole artifact.
+    let res = get("bytes=0-1,5-6").await.unwrap();
+    assert_eq!(res.status(), 200);
+    assert_eq!(res.bytes().await.unwrap().len(), whole.len());
 }

@@ -207,10 +207,10 @@ async fn bad_weathering_requests_name_their_field() {
             problem["errors"].as_array().into_iter().flatten().filter_map(|e| e["field"].as_str()).collect();
         assert!(fields.contains(&field), "wanted {field:?}: {problem}");
     }
-    // A profile that covers no voxel centre fails the job with a problem naming the field.
+    // A profile that covers no voxel centre is refused at submission (the estimate sizes the
+    // footprint), with a problem naming the field.
     let tiny = with(&["column", "profile"], json!({"box": {"width_m": 0.01, "depth_m": 0.01}}));
-    let job = server.submit("weather-column", &tiny).await;
-    let job = server.wait_done(job["id"].as_str().unwrap()).await;
-    assert_eq!(job["status"], "failed", "{job}");
-    assert!(job["error"].to_string().contains("column.profile"), "{job}");
+    let (status, problem) = server.post("/v1/jobs/weather-column", &tiny).await;
+    assert_eq!(status, 422, "{problem}");
+    assert_eq!(problem["errors"][0]["field"], "column.profile", "{problem}");
 }

@@ -90,6 +90,27 @@ pub fn heightfield_artifacts(hf: &Heightfield) -> HeightfieldArtifacts {
     }
 }
 
+/// Peak bytes [`heightfield_artifacts`] allocates for a `cols × rows` grid, with every writer
+/// running at once: the 16-bit samples and their deflated PNG, the preview (a copy of the grid
+/// when it is small enough, its slopes, RGB and PNG), the decimated mesh three times over
+/// (mesh, glb buffer, glb file) and the `.npy`.
+pub fn heightfield_artifacts_peak_bytes(cols: u64, rows: u64) -> u64 {
+    let cells = cols.saturating_mul(rows);
+    let longest = cols.max(rows).max(1);
+    let max_side = PREVIEW_MAX_SIDE_PX as u64;
+    let (w, h) = if longest <= max_side {
+        (cols, rows)
+    } else {
+        let side = |n: u64| ((n * max_side + longest / 2) / longest).clamp(1, n);
+        (side(cols), side(rows))
+    };
+    let preview = 18 * w * h + if longest <= max_side { 4 * cells } else { 0 };
+    let stride = longest.saturating_sub(1).div_ceil(DEFAULT_MAX_SIDE_SAMPLES as u64 - 1).max(1);
+    let (nx, nz) = (cols.saturating_sub(1).div_ceil(stride) + 1, rows.saturating_sub(1).div_ceil(stride) + 1);
+    let mesh = 36 * nx * nz + 24 * (nx - 1) * (nz - 1);
+    cells.saturating_mul(10) + preview + 3 * mesh
+}
+
 /// A small preview for live progress snapshots.
 pub fn snapshot_png(hf: &Heightfield) -> Vec<u8> {
     preview_png(hf, SNAPSHOT_MAX_SIDE_PX)

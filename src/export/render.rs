@@ -12,6 +12,7 @@ use rayon::prelude::*;
 
 use super::srgb::srgb_to_linear;
 use crate::mesh::{MaterialKind, Scene};
+use crate::stop::{Stop, Stopped};
 
 /// A camera for [`render_png`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -55,7 +56,9 @@ const SHADOW_STRENGTH: f32 = 0.75;
 /// The ground is a plane at the scene's lowest y that fades out around the scene's footprint;
 /// it shows only when looking down (elevation above zero). Nodes whose mesh fails
 /// [`Mesh::check`](crate::mesh::Mesh::check) are skipped. A zero width or height is taken as 1.
-pub fn render_png(scene: &Scene, view: &View) -> Vec<u8> {
+///
+/// Looks at `stop` before each band of rows and answers `Err(Stopped)` once it is raised.
+pub fn render_png(scene: &Scene, view: &View, stop: Stop) -> Result<Vec<u8>, Stopped> {
     let (w, h) = (view.width_px.max(1) as usize, view.height_px.max(1) as usize);
     let camera = Camera::new(view);
     let geometry = Geometry::gather(scene);
@@ -72,10 +75,16 @@ pub fn render_png(scene: &Scene, view: &View) -> Vec<u8> {
         Some(bounds) => {
             let frame = Frame::new(&camera, bounds, w, h);
             let screen: Vec<[f32; 3]> = geometry.positions.par_iter().map(|&p| frame.project(&camera, p)).collect();
+            stop.check()?;
             let bands = bin_triangles(&geometry.indices, &screen, w, h);
+            stop.check()?;
             let ground = Ground::new(&camera, &frame, &geometry, bounds);
+            stop.check()?;
             let to_srgb = linear_to_srgb_table();
             rgb.par_chunks_mut(w * 3 * BAND_ROWS).zip(&bands).enumerate().for_each(|(band, (out, triangles))| {
+                if stop.requested() {
+                    return;
+                }
                 let y0 = band * BAND_ROWS;
                 let rows = out.len() / (w * 3);
                 let hits = rasterize_band(triangles, &geometry.indices, &screen, w, y0, rows);
@@ -102,7 +111,8 @@ pub fn render_png(scene: &Scene, view: &View) -> Vec<u8> {
             });
         }
     }
-    encode_png(&rgb, w as u32, h as u32)
+    stop.check()?;
+    Ok(encode_png(&rgb, w as u32, h as u32))
 }
 
 /// Orthonormal camera axes in world coordinates and the sun's direction.
@@ -530,7 +540,12 @@ mod tests {
                 radius_m - d
             })
             .collect();
-        extract_isosurface(&ScalarField { dims: [n; 3], origin_m: origin, spacing_m: spacing, values: &values }, 0.0)
+        extract_isosurface(
+            &ScalarField { dims: [n; 3], origin_m: origin, spacing_m: spacing, values: &values },
+            0.0,
+            Stop::NEVER,
+        )
+        .unwrap()
     }
 
     fn view(width_px: u32, height_px: u32, azimuth_deg: f32, elevation_deg: f32) -> View {
@@ -552,7 +567,8 @@ mod tests {
 
     #[test]
     fn picture_has_the_requested_size_as_rgb8() {
-        let (info, rgb) = decode(&render_png(&Scene::single("ball", sphere(3.0)), &view(320, 200, 30.0, 25.0)));
+        let (info, rgb) =
+            decode(&render_png(&Scene::single("ball", sphere(3.0)), &view(320, 200, 30.0, 25.0), Stop::NEVER).unwrap());
         assert_eq!((info.width, info.height), (320, 200));
         assert_eq!((info.color_type, info.bit_depth), (png::ColorType::Rgb, png::BitDepth::Eight));
         assert_eq!(rgb.len(), 320 * 200 * 3);
@@ -562,7 +578,8 @@ mod tests {
     fn sphere_is_a_disc_of_its_framed_area_lit_from_the_left() {
         // Level with the ground's plane, which then shows no area.
         let (w, h) = (400, 300);
-        let (_, rgb) = decode(&render_png(&Scene::single("ball", sphere(5.0)), &view(w, h, 0.0, 0.0)));
+        let (_, rgb) =
+            decode(&render_png(&Scene::single("ball", sphere(5.0)), &view(w, h, 0.0, 0.0), Stop::NEVER).unwrap());
         let disc = foreground(&rgb, w as usize);
         // The bounds are framed to (1 - 2 margin) of the shorter side.
         let radius_px = h as f64 * (1.0 - 2.0 * MARGIN as f64) / 2.0;
@@ -584,7 +601,7 @@ mod tests {
     #[test]
     fn empty_scene_is_the_sky_gradient() {
         for scene in [Scene::default(), Scene::single("nothing", Mesh::default())] {
-            let (_, rgb) = decode(&render_png(&scene, &view(64, 48, 10.0, 30.0)));
+            let (_, rgb) = decode(&render_png(&scene, &view(64, 48, 10.0, 30.0), Stop::NEVER).unwrap());
             let rows: Vec<&[u8]> = rgb.chunks_exact(64 * 3).collect();
             for row in &rows {
                 assert!(row.chunks_exact(3).all(|px| px == &row[..3]));
@@ -603,7 +620,7 @@ mod tests {
             (Scene::single("red", red), 0),
             (Scene { nodes: vec![SceneNode::new("sea", blue, MaterialKind::Water)] }, 2),
         ] {
-            let (_, rgb) = decode(&render_png(&scene, &view(100, 100, 0.0, 0.0)));
+            let (_, rgb) = decode(&render_png(&scene, &view(100, 100, 0.0, 0.0), Stop::NEVER).unwrap());
             let center = &rgb[(50 * 100 + 45) * 3..][..3];
             assert!((0..3).all(|k| k == channel || center[channel] > center[k] + 30), "centre {center:?}");
         }
@@ -626,7 +643,7 @@ mod tests {
         };
         let (w, h) = (200usize, 200usize);
         let v = view(w as u32, h as u32, 0.0, 60.0);
-        let (_, rgb) = decode(&render_png(&scene, &v));
+        let (_, rgb) = decode(&render_png(&scene, &v, Stop::NEVER).unwrap());
         let camera = Camera::new(&v);
         let geometry = Geometry::gather(&scene);
         let bounds = geometry.bounds().unwrap();
@@ -662,6 +679,9 @@ mod tests {
         let v = view(300, 220, 35.0, 30.0);
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-        assert_eq!(one.install(|| render_png(&scene, &v)), two.install(|| render_png(&scene, &v)));
+        assert_eq!(
+            one.install(|| render_png(&scene, &v, Stop::NEVER).unwrap()),
+            two.install(|| render_png(&scene, &v, Stop::NEVER).unwrap())
+        );
     }
 }

@@ -1,22 +1,27 @@
 //! Routes, handlers, problem errors, server-sent events and the OpenAPI document.
 
+pub mod auth;
 mod body;
 mod jobs;
 mod openapi;
+mod openapi_bounds;
 mod ops;
 mod problem;
 
 use std::sync::Arc;
 use std::time::Duration;
 
-use axum::extract::DefaultBodyLimit;
+use axum::extract::{DefaultBodyLimit, State};
 use axum::http::{header, HeaderName, HeaderValue, Method};
+use axum::middleware;
 use axum::routing::{get, post};
 use axum::Router;
 use tower_http::catch_panic::CatchPanicLayer;
 use tower_http::cors::{AllowOrigin, CorsLayer};
+use tower_http::sensitive_headers::SetSensitiveRequestHeadersLayer;
 use tower_http::trace::TraceLayer;
 
+pub use auth::{ApiKeys, Caller, KeyLimits};
 pub use openapi::{openapi_document, openapi_yaml};
 pub use problem::Problem;
 
@@ -29,13 +34,15 @@ pub struct HttpConfig {
     pub max_body_bytes: usize,
     /// Origins allowed by CORS; `*` allows any.
     pub cors_origins: Vec<String>,
+    /// API keys; none: every call is anonymous.
+    pub keys: Option<Arc<ApiKeys>>,
 }
 
 pub const DEFAULT_MAX_BODY_BYTES: usize = 64 * 1024 * 1024;
 
 impl Default for HttpConfig {
     fn default() -> Self {
-        Self { max_body_bytes: DEFAULT_MAX_BODY_BYTES, cors_origins: vec!["*".into()] }
+        Self { max_body_bytes: DEFAULT_MAX_BODY_BYTES, cors_origins: vec!["*".into()], keys: None }
     }
 }
 
@@ -60,23 +67,36 @@ pub fn app(engine: Engine, config: HttpConfig) -> Router {
     let cors = cors_layer(&config.cors_origins);
     let max_body = config.max_body_bytes;
     let state = AppState(Arc::new(App { engine, config }));
-    let doc = openapi_document(&state.engine.kinds());
-    Router::new()
+    let doc = openapi_document(&state.engine.kinds(), state.config.keys.is_some());
+    let protect_operations = state.config.keys.as_ref().is_some_and(|k| k.protect_operations);
+    let needs_key = middleware::from_fn_with_state(state.clone(), auth::require_key);
+    let mut v1 = Router::new()
         .route("/v1/jobs", get(jobs::list::list_jobs))
-        .route(
-            "/v1/jobs/{kind_or_id}",
-            post(jobs::submit::submit_job).get(jobs::get::get_job).delete(jobs::delete::delete_job),
-        )
+        .route("/v1/jobs/{id}", get(jobs::get::get_job).delete(jobs::delete::delete_job))
         .route("/v1/jobs/{id}/events", get(jobs::events::job_events))
         .route("/v1/jobs/{id}/live.png", get(jobs::live::live_png))
         .route("/v1/jobs/{id}/artifacts/{name}", get(jobs::artifacts::get_artifact))
         .route("/v1/jobs/{id}/sequence", get(jobs::sequence::get_sequence))
         .route("/v1/jobs/{id}/replay", post(jobs::replay::replay_job))
-        .route("/v1/jobs/{id}/cancel", post(jobs::cancel::cancel_job))
+        .route("/v1/jobs/{id}/cancel", post(jobs::cancel::cancel_job));
+    for kind in state.engine.kind_names() {
+        let submit = move |State(state): State<AppState>, caller: Caller, headers, body| {
+            jobs::submit::submit_job(state, caller, kind.to_string(), headers, body)
+        };
+        v1 = v1.route(&format!("/v1/jobs/{kind}"), post(submit));
+    }
+    let v1 = v1.route_layer(needs_key.clone());
+    let mut operations = Router::new()
+        .route("/metrics", get(ops::metrics))
+        .merge(utoipa_swagger_ui::SwaggerUi::new("/docs").url("/openapi.json", doc));
+    if protect_operations {
+        operations = operations.route_layer(needs_key);
+    }
+    Router::new()
+        .merge(v1)
+        .merge(operations)
         .route("/healthz", get(ops::healthz))
         .route("/readyz", get(ops::readyz))
-        .route("/metrics", get(ops::metrics))
-        .merge(utoipa_swagger_ui::SwaggerUi::new("/docs").url("/openapi.json", doc))
         .fallback(ops::not_found)
         .method_not_allowed_fallback(ops::method_not_allowed)
         .layer(DefaultBodyLimit::max(max_body))
@@ -86,6 +106,8 @@ pub fn app(engine: Engine, config: HttpConfig) -> Router {
             problem::internal().into_response()
         }))
         .layer(TraceLayer::new_for_http())
+        // Keys never reach a log, whatever the trace level.
+        .layer(SetSensitiveRequestHeadersLayer::new([header::AUTHORIZATION]))
         .with_state(state)
 }
 
@@ -101,6 +123,7 @@ fn cors_layer(origins: &[String]) -> CorsLayer {
         .allow_headers([
             header::CONTENT_TYPE,
             header::IF_NONE_MATCH,
+            header::AUTHORIZATION,
             HeaderName::from_static("prefer"),
             HeaderName::from_static("idempotency-key"),
             HeaderName::from_static("last-event-id"),
@@ -109,6 +132,7 @@ fn cors_layer(origins: &[String]) -> CorsLayer {
             header::LOCATION,
             header::ETAG,
             header::RETRY_AFTER,
+            header::WWW_AUTHENTICATE,
             HeaderName::from_static("preference-applied"),
         ])
         .max_age(Duration::from_secs(3600))

@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use utoipa::openapi::path::{HttpMethod, OperationBuilder, ParameterBuilder, ParameterIn};
 use utoipa::openapi::request_body::RequestBodyBuilder;
-use utoipa::openapi::schema::{AllOfBuilder, ObjectBuilder, SchemaType, Type};
+use utoipa::openapi::schema::{ObjectBuilder, SchemaType, Type};
 use utoipa::openapi::{Content, OpenApi as OpenApiDoc, Ref, RefOr, Required, ResponseBuilder};
 use utoipa::OpenApi;
 
@@ -41,51 +41,51 @@ use crate::jobs::JobKind;
 )]
 struct ApiDoc;
 
-fn problem_response(description: &str) -> utoipa::openapi::Response {
+pub(super) fn problem_response(description: &str) -> utoipa::openapi::Response {
     ResponseBuilder::new()
         .description(description)
         .content("application/problem+json", Content::new(Some(Ref::from_schema_name("Problem"))))
         .build()
 }
 
-/// The whole document for the given kinds.
-pub fn openapi_document(kinds: &[Arc<dyn JobKind>]) -> OpenApiDoc {
+/// The whole document for the given kinds; with `keys_required`, every `/v1` operation needs
+/// the bearer key (the served document says so when the server has keys).
+pub fn openapi_document(kinds: &[Arc<dyn JobKind>], keys_required: bool) -> OpenApiDoc {
     let mut doc = ApiDoc::openapi();
     doc.info.version = env!("CARGO_PKG_VERSION").to_string();
     let components = doc.components.get_or_insert_with(Default::default);
-    let common = ObjectBuilder::new()
-        .property(
-            "seed",
-            ObjectBuilder::new()
-                .schema_type(SchemaType::new(Type::Integer))
-                .format(Some(utoipa::openapi::SchemaFormat::KnownFormat(utoipa::openapi::KnownFormat::Int64)))
-                .minimum(Some(0))
-                .description(Some(
-                    "Seed of every random choice the kind makes (default 0): the same request gives the same bytes. A fractal terrain source has its own `seed`.",
-                )),
-        )
-        .property(
-            "label",
-            ObjectBuilder::new()
-                .schema_type(SchemaType::new(Type::String))
-                .max_length(Some(200))
-                .description(Some("Free text kept with the job")),
-        )
-        .build();
-    components.schemas.insert("CommonJobFields".into(), RefOr::T(common.into()));
+    let seed: utoipa::openapi::schema::Schema = ObjectBuilder::new()
+        .schema_type(SchemaType::new(Type::Integer))
+        .format(Some(utoipa::openapi::SchemaFormat::KnownFormat(utoipa::openapi::KnownFormat::Int64)))
+        .minimum(Some(0))
+        .maximum(Some(u64::MAX as f64))
+        .description(Some(
+            "Seed of every random choice the kind makes (default 0): the same request gives the same bytes. A fractal terrain source has its own `seed`.",
+        ))
+        .into();
+    let label: utoipa::openapi::schema::Schema = ObjectBuilder::new()
+        .schema_type(SchemaType::new(Type::String))
+        .max_length(Some(200))
+        .description(Some("Free text kept with the job, at most 200 characters"))
+        .into();
 
     for kind in kinds {
-        let (name, schema, refs) = kind.request_schema();
-        components.schemas.insert(name.clone(), schema);
-        for (n, s) in refs {
+        let (name, mut schema, refs) = kind.request_schema();
+        super::openapi_bounds::close_objects(&mut schema);
+        for (n, mut s) in refs {
+            super::openapi_bounds::close_objects(&mut s);
             components.schemas.insert(n, s);
         }
+        // The body is the kind's parameters with the common fields beside them, one closed
+        // object (an allOf of closed objects would refuse every field of the other).
         let body_name = format!("{name}Body");
-        let body = AllOfBuilder::new()
-            .item(Ref::from_schema_name(&name))
-            .item(Ref::from_schema_name("CommonJobFields"))
-            .build();
-        components.schemas.insert(body_name.clone(), RefOr::T(body.into()));
+        let mut body = schema.clone();
+        if let RefOr::T(utoipa::openapi::schema::Schema::Object(o)) = &mut body {
+            o.properties.insert("seed".into(), RefOr::T(seed.clone()));
+            o.properties.insert("label".into(), RefOr::T(label.clone()));
+        }
+        components.schemas.insert(name.clone(), schema);
+        components.schemas.insert(body_name.clone(), body);
 
         let op = OperationBuilder::new()
             .tag("jobs")
@@ -128,18 +128,30 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>]) -> OpenApiDoc {
                     .content("application/json", Content::new(Some(Ref::from_schema_name("Job"))))
                     .build(),
             )
-            .response("400", problem_response("The body is not JSON"))
+            .response("400", problem_response("The body is not JSON, or a header is malformed"))
+            .response("404", problem_response("No job kind of that name"))
             .response("409", problem_response("Idempotency-Key reused with a different body"))
-            .response("413", problem_response("The body or the grid it asks for is too large"))
-            .response("422", problem_response("Invalid fields; `errors` names each by its JSON path"))
+            .response(
+                "413",
+                problem_response(
+                    "The body, the grid it asks for, or the memory the job would need (`memory_estimate_bytes` over `memory_budget_bytes`) is too large",
+                ),
+            )
+            .response(
+                "422",
+                problem_response(
+                    "Invalid fields, or work over the time limit; `errors` names each field by its JSON path",
+                ),
+            )
             .response("503", problem_response("The queue is full; see Retry-After"))
             .build();
         doc.paths.add_path_operation(format!("/v1/jobs/{}", kind.name()), vec![HttpMethod::Post], op);
     }
+    super::openapi_bounds::complete(&mut doc, keys_required);
     doc
 }
 
 /// The document as YAML: what `landform openapi` prints and `openapi.yaml` holds.
 pub fn openapi_yaml(kinds: &[Arc<dyn JobKind>]) -> String {
-    openapi_document(kinds).to_yaml().expect("the OpenAPI document serialises")
+    openapi_document(kinds, false).to_yaml().expect("the OpenAPI document serialises")
 }

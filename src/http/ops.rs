@@ -35,7 +35,21 @@ pub async fn metrics(State(state): State<AppState>) -> Result<Response, Problem>
     Ok(([(header::CONTENT_TYPE, "text/plain; version=0.0.4; charset=utf-8")], text).into_response())
 }
 
-pub async fn method_not_allowed() -> Problem {
+/// 405 (axum adds `Allow`), except a POST to `/v1/jobs/<name>` that names no kind: that is a
+/// kind that does not exist, 404.
+pub async fn method_not_allowed(
+    State(state): State<AppState>,
+    method: axum::http::Method,
+    uri: axum::http::Uri,
+) -> Problem {
+    if let Some(name) = uri.path().strip_prefix("/v1/jobs/").filter(|n| !n.contains('/')) {
+        if method == axum::http::Method::POST {
+            return Problem::not_found(format!(
+                "no job kind named {name}; kinds: {}",
+                state.engine.kind_names().join(", ")
+            ));
+        }
+    }
     Problem::new(
         StatusCode::METHOD_NOT_ALLOWED,
         "method-not-allowed",

@@ -9,7 +9,7 @@ use crate::jobs::EngineError;
 use crate::validate::FieldError;
 
 /// An RFC 9457 problem. Validation problems list each bad field by its JSON path.
-#[derive(Debug, Serialize, ToSchema)]
+#[derive(Debug, Serialize)]
 pub struct Problem {
     #[serde(rename = "type")]
     pub type_uri: String,
@@ -18,9 +18,80 @@ pub struct Problem {
     pub detail: String,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub errors: Vec<FieldError>,
+    /// What a job would cost against what the server allows, when that is why it was refused.
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub cost: Option<Box<CostProblem>>,
     #[serde(skip)]
-    #[schema(ignore)]
-    pub retry_after_s: Option<u64>,
+    pub retry_after_s: Option<u32>,
+}
+
+/// The problem's schema written out, so the cost figures are plain optional members.
+impl utoipa::PartialSchema for Problem {
+    fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
+        use utoipa::openapi::schema::{ArrayBuilder, ObjectBuilder, SchemaType, Type};
+        use utoipa::openapi::{KnownFormat, Ref, SchemaFormat};
+        let text = |d: &str| ObjectBuilder::new().schema_type(SchemaType::new(Type::String)).description(Some(d));
+        let whole = |d: &str| {
+            ObjectBuilder::new()
+                .schema_type(SchemaType::new(Type::Integer))
+                .format(Some(SchemaFormat::KnownFormat(KnownFormat::Int64)))
+                .minimum(Some(0))
+                .description(Some(d))
+        };
+        ObjectBuilder::new()
+            .description(Some("An RFC 9457 problem. Validation problems list each bad field by its JSON path."))
+            .property("type", text("A URI naming the kind of problem"))
+            .required("type")
+            .property("title", text("A short summary of the kind of problem"))
+            .required("title")
+            .property(
+                "status",
+                ObjectBuilder::new()
+                    .schema_type(SchemaType::new(Type::Integer))
+                    .minimum(Some(400))
+                    .maximum(Some(599))
+                    .description(Some("The HTTP status")),
+            )
+            .required("status")
+            .property("detail", text("What went wrong, for a person"))
+            .required("detail")
+            .property(
+                "errors",
+                ArrayBuilder::new()
+                    .items(Ref::from_schema_name("FieldError"))
+                    .description(Some("Each bad field by its JSON path (validation problems)")),
+            )
+            .property("memory_estimate_bytes", whole("Over the memory budget (413): the job's estimated peak memory"))
+            .property("memory_budget_bytes", whole("Over the memory budget (413): the server's budget"))
+            .property(
+                "work_estimate_seconds",
+                ObjectBuilder::new()
+                    .schema_type(SchemaType::new(Type::Number))
+                    .minimum(Some(0))
+                    .description(Some("Over the time limit (422): the least time the job's work would take")),
+            )
+            .property("time_limit_seconds", whole("Over the time limit (422): the job time limit"))
+            .into()
+    }
+}
+
+impl ToSchema for Problem {}
+
+/// The figures of a request refused for its cost.
+#[derive(Debug, Default, Serialize)]
+pub struct CostProblem {
+    /// Over the memory budget (413): the job's estimated peak memory, bytes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub memory_estimate_bytes: Option<u64>,
+    /// Over the memory budget (413): the budget, bytes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub memory_budget_bytes: Option<u64>,
+    /// Over the time limit (422): the least time the job's work would take, seconds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub work_estimate_seconds: Option<f64>,
+    /// Over the time limit (422): the job time limit, seconds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time_limit_seconds: Option<u64>,
 }
 
 impl Problem {
@@ -31,6 +102,7 @@ impl Problem {
             status: status.as_u16(),
             detail: detail.into(),
             errors: Vec::new(),
+            cost: None,
             retry_after_s: None,
         }
     }
@@ -90,6 +162,37 @@ impl From<EngineError> for Problem {
                     format!("{n} jobs are already waiting; try again shortly"),
                 )
             },
+            EngineError::OverBudget { field, needed, budget } => {
+                let message = format!(
+                    "the job would need about {} of memory (an estimate from this field and the ones it \
+                     derives); the server's memory budget is {}",
+                    human_bytes(needed),
+                    human_bytes(budget)
+                );
+                Problem {
+                    cost: Some(Box::new(CostProblem {
+                        memory_estimate_bytes: Some(needed),
+                        memory_budget_bytes: Some(budget),
+                        ..CostProblem::default()
+                    })),
+                    ..Problem::invalid(vec![FieldError { field, message }], true)
+                }
+            }
+            EngineError::OverTime { field, seconds, limit } => {
+                let message = format!(
+                    "the job's work would take at least {seconds:.0} s at the fastest this server runs; the job \
+                     time limit is {limit} s"
+                );
+                Problem {
+                    cost: Some(Box::new(CostProblem {
+                        work_estimate_seconds: Some(seconds),
+                        time_limit_seconds: Some(limit),
+                        ..CostProblem::default()
+                    })),
+                    ..Problem::invalid(vec![FieldError { field, message }], false)
+                }
+            }
+            EngineError::OverQuota(m) => super::auth::too_many(m, std::time::Duration::from_secs(5)),
             EngineError::Malformed(m) => Problem::bad_request(m),
             EngineError::Invalid { errors, too_large } => Problem::invalid(errors, too_large),
             EngineError::Store(err) => {
@@ -101,6 +204,22 @@ impl From<EngineError> for Problem {
                 internal()
             }
         }
+    }
+}
+
+/// Bytes for a person: `1.5 GiB`.
+pub fn human_bytes(n: u64) -> String {
+    const UNITS: [&str; 5] = ["bytes", "KiB", "MiB", "GiB", "TiB"];
+    let mut v = n as f64;
+    let mut unit = 0;
+    while v >= 1024.0 && unit + 1 < UNITS.len() {
+        v /= 1024.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{n} bytes")
+    } else {
+        format!("{v:.1} {}", UNITS[unit])
     }
 }
 

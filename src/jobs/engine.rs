@@ -1,9 +1,10 @@
-//! The engine: accepts jobs into a bounded queue, runs them on a Rayon pool (never on tokio's
-//! threads), publishes progress, and records outcomes in the store.
+//! The engine: accepts jobs into a bounded queue, admits them by their estimated memory against
+//! a budget, runs each on a thread of its own whose parallel work shares the one Rayon pool
+//! (never on tokio's threads), publishes progress, and records outcomes in the store.
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use chrono::Utc;
 use parking_lot::Mutex;
@@ -31,11 +32,42 @@ pub struct EngineConfig {
     pub workers: usize,
     /// Jobs that may wait in the queue; beyond it submissions get 503.
     pub queue_capacity: usize,
-    /// Jobs run at the same time (each uses the whole pool).
+    /// Most jobs run at the same time (their parallel work shares the pool).
     pub concurrent_jobs: usize,
+    /// Jobs run together while the sum of their estimated peak memory fits this many bytes;
+    /// a request whose estimate alone exceeds it is refused (413).
+    pub memory_budget: u64,
     /// A job still running after this long is stopped and fails.
     pub job_timeout: Duration,
     pub limits: Limits,
+}
+
+/// Default `--concurrent-jobs`: enough for many small jobs side by side on a small machine; the
+/// memory budget is what bounds them.
+pub const DEFAULT_CONCURRENT_JOBS: usize = 16;
+
+/// Half the memory this process may use: the machine's physical memory (`/proc/meminfo`), or
+/// the container's limit when a cgroup sets a smaller one (a container sees the host's
+/// `MemTotal`); 4 GiB where neither can be read.
+pub fn default_memory_budget() -> u64 {
+    let total = std::fs::read_to_string("/proc/meminfo").ok().and_then(|text| {
+        text.lines()
+            .find_map(|l| l.strip_prefix("MemTotal:"))
+            .and_then(|rest| rest.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+            .map(|kib| kib.saturating_mul(1024))
+    });
+    // cgroup v2, then v1; "max" (or v1's huge sentinel) means no limit.
+    let limit = ["/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes"]
+        .iter()
+        .find_map(|path| std::fs::read_to_string(path).ok()?.trim().parse::<u64>().ok())
+        .filter(|&bytes| bytes < 1 << 60);
+    let usable = match (total, limit) {
+        (Some(t), Some(l)) => t.min(l),
+        (Some(t), None) => t,
+        (None, Some(l)) => l,
+        (None, None) => 8 << 30,
+    };
+    usable / 2
 }
 
 impl Default for EngineConfig {
@@ -43,7 +75,8 @@ impl Default for EngineConfig {
         Self {
             workers: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(2),
             queue_capacity: DEFAULT_QUEUE_CAPACITY,
-            concurrent_jobs: 1,
+            concurrent_jobs: DEFAULT_CONCURRENT_JOBS,
+            memory_budget: default_memory_budget(),
             job_timeout: Duration::from_secs(DEFAULT_JOB_TIMEOUT_S),
             limits: Limits::default(),
         }
@@ -60,6 +93,15 @@ pub enum EngineError {
     Conflict(String),
     #[error("the queue is full ({0} jobs waiting)")]
     QueueFull(usize),
+    /// Over an API key's quota of jobs or memory at once (429).
+    #[error("{0}")]
+    OverQuota(String),
+    /// The job's estimated peak memory exceeds the budget (413).
+    #[error("{field}: the job would need about {needed} bytes of memory; the budget is {budget}")]
+    OverBudget { field: String, needed: u64, budget: u64 },
+    /// The job's work can't be done within the time limit (422).
+    #[error("{field}: the job would take at least {seconds:.0} s; the time limit is {limit} s")]
+    OverTime { field: String, seconds: f64, limit: u64 },
     #[error("the request body is not valid JSON: {0}")]
     Malformed(String),
     #[error("the request has invalid fields")]
@@ -94,6 +136,14 @@ pub enum EventFeed {
     Ended(Box<Job>),
 }
 
+/// Who submits a job: the API key name that will own it, and what that key may hold at once.
+#[derive(Clone, Debug, Default)]
+pub struct Submitter {
+    pub owner: Option<String>,
+    pub max_active_jobs: Option<u32>,
+    pub max_memory_bytes: Option<u64>,
+}
+
 /// What a submission did.
 pub enum Submitted {
     Created(Job),
@@ -101,20 +151,32 @@ pub enum Submitted {
     Existing(Job),
 }
 
-/// Jobs waiting, and places promised to submissions still being stored.
+/// A job waiting to run, with the memory it will reserve.
+pub(super) struct Waiting {
+    pub id: String,
+    pub memory: u64,
+    pub since: Instant,
+}
+
+/// Jobs waiting, places promised to submissions still being stored, and what running jobs hold.
 #[derive(Default)]
 pub(super) struct Queue {
-    pub items: VecDeque<String>,
+    pub items: VecDeque<Waiting>,
     reserved: usize,
+    /// Jobs taken off the queue and not yet ended.
+    pub running: usize,
+    /// The sum of their estimated memory.
+    pub memory_reserved: u64,
 }
 
 pub(super) struct Inner {
     pub store: Arc<dyn JobStore>,
     pub kinds: HashMap<&'static str, Arc<dyn JobKind>>,
-    pub pool: rayon::ThreadPool,
     pub queue: Mutex<Queue>,
     pub queue_notify: Notify,
     pub live: Mutex<HashMap<String, Arc<LiveJob>>>,
+    /// Set on shutdown: the dispatcher takes no more jobs.
+    pub draining: std::sync::atomic::AtomicBool,
     pub metrics: Metrics,
     pub config: EngineConfig,
 }
@@ -149,21 +211,28 @@ impl Engine {
         kinds: Vec<Box<dyn JobKind>>,
         config: EngineConfig,
     ) -> Result<Self, EngineError> {
-        let pool = rayon::ThreadPoolBuilder::new()
+        // Each job runs on a thread of its own and its parallel iterators use the global pool,
+        // so jobs running side by side share its threads. Sized once per process: a second
+        // engine in the same process (tests) finds it built and uses it as it is.
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
             .num_threads(config.workers.max(1))
             .thread_name(|i| format!("landform-sim-{i}"))
-            .build()
-            .map_err(|e| EngineError::Internal(e.to_string()))?;
+            .build_global()
+        {
+            tracing::debug!(error = %e, "the Rayon pool was already built");
+        }
         let kinds = kinds.into_iter().map(|k| (k.name(), Arc::from(k))).collect();
+        let metrics = Metrics::new();
+        metrics.set_memory_budget(config.memory_budget);
         Ok(Engine {
             inner: Arc::new(Inner {
                 store,
                 kinds,
-                pool,
                 queue: Mutex::new(Queue::default()),
                 queue_notify: Notify::new(),
                 live: Mutex::new(HashMap::new()),
-                metrics: Metrics::new(),
+                draining: std::sync::atomic::AtomicBool::new(false),
+                metrics,
                 config,
             }),
         })
@@ -194,17 +263,44 @@ impl Engine {
                 self.inner.store.update(&job)?;
             }
             tracing::info!(job = %job.id, kind = %job.kind, "re-queued after restart");
-            self.enqueue(&job.id);
+            self.enqueue_with(&job, None);
         }
         Ok(())
     }
 
-    /// Spawn the dispatchers that take jobs off the queue.
-    pub fn start(&self) {
-        for _ in 0..self.inner.config.concurrent_jobs.max(1) {
-            let engine = self.clone();
-            tokio::spawn(async move { engine.dispatch_loop().await });
+    /// Graceful shutdown: take no more jobs, let the running ones finish until `deadline`,
+    /// then stop the rest and put them back in the queue (stored as queued), so the next start
+    /// (or another worker) runs them at once. Queued jobs stay queued in the store.
+    pub async fn shutdown(&self, deadline: Duration) {
+        self.inner.draining.store(true, std::sync::atomic::Ordering::SeqCst);
+        self.inner.queue_notify.notify_one();
+        let started = Instant::now();
+        while self.inner.queue.lock().running > 0 && started.elapsed() < deadline {
+            tokio::time::sleep(Duration::from_millis(50)).await;
         }
+        let running: Vec<Arc<LiveJob>> = {
+            let q = self.inner.queue.lock();
+            if q.running == 0 {
+                return;
+            }
+            let waiting: std::collections::HashSet<&str> = q.items.iter().map(|w| w.id.as_str()).collect();
+            self.inner.live.lock().values().filter(|l| !waiting.contains(l.id.as_str())).cloned().collect()
+        };
+        tracing::info!(jobs = running.len(), "shutdown deadline passed; returning running jobs to the queue");
+        for live in &running {
+            live.stop(StopReason::ShuttingDown);
+        }
+        // Each stops at its next check and is stored as queued.
+        let stopped = Instant::now();
+        while self.inner.queue.lock().running > 0 && stopped.elapsed() < Duration::from_secs(10) {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    }
+
+    /// Spawn the dispatcher that takes jobs off the queue as the budget allows.
+    pub fn start(&self) {
+        let engine = self.clone();
+        tokio::spawn(async move { engine.dispatch_loop().await });
     }
 
     pub fn config(&self) -> &EngineConfig {
@@ -246,13 +342,15 @@ impl Engine {
     }
 
     /// Put a stored job on the queue (using `slot` when one was reserved for it).
-    fn enqueue_with(&self, id: &str, slot: Option<Slot<'_>>) {
+    fn enqueue_with(&self, job: &Job, slot: Option<Slot<'_>>) {
+        let (id, owner) = (job.id.as_str(), job.owner.clone());
+        let memory = job.cost.as_ref().map_or(self.inner.config.memory_budget, |c| c.memory_bytes);
         let live = self
             .inner
             .live
             .lock()
             .entry(id.to_string())
-            .or_insert_with(|| Arc::new(LiveJob::new(id.to_string())))
+            .or_insert_with(|| Arc::new(LiveJob::for_job(id.to_string(), owner, memory)))
             .clone();
         live.emit_status(JobStatus::Queued);
         let depth = {
@@ -261,22 +359,28 @@ impl Engine {
                 q.reserved -= 1;
                 slot.used();
             }
-            q.items.push_back(id.to_string());
+            q.items.push_back(Waiting { id: id.to_string(), memory, since: Instant::now() });
             q.items.len()
         };
         self.inner.metrics.set_queue_depth(depth);
         self.inner.queue_notify.notify_one();
     }
 
-    fn enqueue(&self, id: &str) {
-        self.enqueue_with(id, None);
+    /// Jobs queued or running for `owner`, and the memory their estimates reserve.
+    pub fn usage(&self, owner: Option<&str>) -> (u32, u64) {
+        self.inner
+            .live
+            .lock()
+            .values()
+            .filter(|l| l.owner.as_deref() == owner)
+            .fold((0, 0), |(n, m), l| (n + 1, m.saturating_add(l.memory)))
     }
 
     /// Take a job off the queue if it is still there; true when it was.
     pub(super) fn dequeue(&self, id: &str) -> bool {
         let mut q = self.inner.queue.lock();
         let before = q.items.len();
-        q.items.retain(|q| q != id);
+        q.items.retain(|w| w.id != id);
         let removed = before != q.items.len();
         self.inner.metrics.set_queue_depth(q.items.len());
         removed
@@ -300,7 +404,9 @@ impl Engine {
         kind: &str,
         body: Value,
         idempotency: Option<(String, String)>,
+        who: &Submitter,
     ) -> Result<Submitted, EngineError> {
+        let owner = who.owner.clone();
         let kind_impl =
             self.inner.kinds.get(kind).cloned().ok_or_else(|| EngineError::UnknownKind(kind.to_string()))?;
         let Value::Object(mut body) = body else {
@@ -311,8 +417,10 @@ impl Engine {
         let prepared = tokio::task::spawn_blocking(move || kind_impl.prepare(Value::Object(body), &limits))
             .await
             .map_err(|e| EngineError::Internal(e.to_string()))??;
-        self.check_references(&prepared.references).await?;
-        self.store_uploads(prepared.references.uploads).await?;
+        self.check_references(&prepared.references, owner.clone()).await?;
+        let (cost, uploads) = self.estimate(kind, &prepared.params, prepared.references.uploads, owner.clone()).await?;
+        self.check_quota(who, &cost)?;
+        self.store_uploads(uploads).await?;
 
         let mut request = match prepared.params {
             Value::Object(m) => m,
@@ -322,13 +430,82 @@ impl Engine {
         if let Some(l) = &label {
             request.insert("label".into(), Value::String(l.clone()));
         }
-        let job = new_job(kind, label, Value::Object(request), None);
+        let mut job = new_job(kind, label, Value::Object(request), None);
+        job.cost = Some(cost);
+        job.owner = owner;
         self.admit(job, idempotency).await
     }
 
+    /// A key's jobs at once: how many are queued or running, and the memory they reserve.
+    fn check_quota(&self, who: &Submitter, cost: &super::Cost) -> Result<(), EngineError> {
+        let (jobs, memory) = self.usage(who.owner.as_deref());
+        if let Some(max) = who.max_active_jobs {
+            if jobs >= max {
+                return Err(EngineError::OverQuota(format!(
+                    "this key has {jobs} jobs queued or running, its limit; submit again when one ends"
+                )));
+            }
+        }
+        if let Some(max) = who.max_memory_bytes {
+            if memory.saturating_add(cost.memory_bytes) > max {
+                return Err(EngineError::OverQuota(format!(
+                    "this key's queued and running jobs reserve {memory} bytes; with this job's {} the key's \
+                     limit of {max} bytes would be exceeded",
+                    cost.memory_bytes
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The cost of a prepared request, checked against the memory budget and the time limit.
+    /// Uploads sent with the request (not stored yet) are sized from `uploads`, which is
+    /// handed back.
+    async fn estimate(
+        &self,
+        kind: &str,
+        params: &Value,
+        uploads: Vec<(String, Vec<u8>)>,
+        owner: Option<String>,
+    ) -> Result<(super::Cost, Vec<(String, Vec<u8>)>), EngineError> {
+        let kind_impl = self.inner.kinds.get(kind).cloned().ok_or_else(|| EngineError::UnknownKind(kind.into()))?;
+        let store = self.inner.store.clone();
+        let params = params.clone();
+        let (cost, uploads) = tokio::task::spawn_blocking(move || {
+            let lookup = PendingUploads { uploads: &uploads, store: StoreTerrain { store, owner: owner.clone() } };
+            let cost = kind_impl.estimate(&params, &lookup);
+            (cost, uploads)
+        })
+        .await
+        .map_err(|e| EngineError::Internal(e.to_string()))?;
+        let cost = cost.map_err(|e| match e {
+            super::SimError::Invalid { field, message } => EngineError::field(&field, message),
+            super::SimError::Terrain(t) => EngineError::field("terrain", t.to_string()),
+            other => EngineError::Internal(other.to_string()),
+        })?;
+        self.check_cost(&cost)?;
+        Ok((cost, uploads))
+    }
+
+    fn check_cost(&self, cost: &super::Cost) -> Result<(), EngineError> {
+        let budget = self.inner.config.memory_budget;
+        if cost.memory_bytes > budget {
+            return Err(EngineError::OverBudget {
+                field: cost.memory_field.clone(),
+                needed: cost.memory_bytes,
+                budget,
+            });
+        }
+        let limit = self.inner.config.job_timeout.as_secs();
+        if cost.min_seconds > self.inner.config.job_timeout.as_secs_f64() {
+            return Err(EngineError::OverTime { field: cost.work_field.clone(), seconds: cost.min_seconds, limit });
+        }
+        Ok(())
+    }
+
     /// A new job that rebuilds `id`'s result from its recorded sequence, up to `until_step`.
-    pub async fn replay(&self, id: &str, until_step: Option<u64>) -> Result<Job, EngineError> {
-        let original = self.get(id).await?;
+    pub async fn replay(&self, id: &str, until_step: Option<u64>, who: &Submitter) -> Result<Job, EngineError> {
+        let original = self.get(id, who.owner.as_deref()).await?;
         if original.status != JobStatus::Succeeded {
             return Err(EngineError::Conflict(format!(
                 "job {id} is {}; only a succeeded job can be replayed",
@@ -355,22 +532,26 @@ impl Engine {
         }
         // The earlier jobs the original read must still be there to read again.
         let prepared = kind.prepare(original.params(), &self.inner.config.limits)?;
-        self.check_references(&prepared.references).await.map_err(|e| match e {
+        self.check_references(&prepared.references, original.owner.clone()).await.map_err(|e| match e {
             EngineError::Invalid { errors, .. } => EngineError::Conflict(format!(
                 "job {id} can no longer be replayed: {}",
                 errors.into_iter().map(|e| e.message).collect::<Vec<_>>().join("; ")
             )),
             other => other,
         })?;
+        let (cost, _) = self.estimate(&original.kind, &prepared.params, Vec::new(), original.owner.clone()).await?;
+        self.check_quota(who, &cost)?;
         let replay_of = Some((id.to_string(), until_step));
-        let job = new_job(&original.kind, original.label.clone(), original.request.clone(), replay_of);
+        let mut job = new_job(&original.kind, original.label.clone(), original.request.clone(), replay_of);
+        job.cost = Some(cost);
+        job.owner = original.owner.clone();
         match self.admit(job, None).await? {
             Submitted::Created(j) | Submitted::Existing(j) => Ok(j),
         }
     }
 
     /// Every earlier job and upload the request names must be there.
-    async fn check_references(&self, refs: &super::References) -> Result<(), EngineError> {
+    async fn check_references(&self, refs: &super::References, owner: Option<String>) -> Result<(), EngineError> {
         if refs.jobs.is_empty() && refs.inputs.is_empty() {
             return Ok(());
         }
@@ -388,7 +569,7 @@ impl Engine {
                     }
                 }
             }
-            let lookup = StoreTerrain(store);
+            let lookup = StoreTerrain { store, owner: owner.clone() };
             for (field, id) in jobs {
                 match lookup.unusable_reason(&id) {
                     Ok(None) => {}
@@ -432,7 +613,7 @@ impl Engine {
             ))),
             IdempotentInsert::Inserted => match slot {
                 Some(slot) => {
-                    self.enqueue_with(&job.id, Some(slot));
+                    self.enqueue_with(&job, Some(slot));
                     Ok(Submitted::Created(job))
                 }
                 None => {
@@ -444,8 +625,18 @@ impl Engine {
         }
     }
 
-    /// The job, with live progress when it is running.
-    pub async fn get(&self, id: &str) -> Result<Job, EngineError> {
+    /// The job, if `owner` may see it: a job made with an API key is visible to that key only
+    /// (and one made without keys to callers without keys); to anyone else it does not exist.
+    pub async fn get(&self, id: &str, owner: Option<&str>) -> Result<Job, EngineError> {
+        let job = self.get_any(id).await?;
+        if job.owner.as_deref() != owner {
+            return Err(EngineError::NotFound(id.to_string()));
+        }
+        Ok(job)
+    }
+
+    /// The job whoever owns it, with live progress when it is running.
+    pub(super) async fn get_any(&self, id: &str) -> Result<Job, EngineError> {
         let sid = id.to_string();
         let mut job =
             self.blocking(move |s| s.get(&sid)).await?.ok_or_else(|| EngineError::NotFound(id.to_string()))?;
@@ -468,8 +659,8 @@ impl Engine {
     }
 
     /// Stop a queued or running job. Returns the job as it is after the request.
-    pub async fn cancel(&self, id: &str) -> Result<Job, EngineError> {
-        let job = self.get(id).await?;
+    pub async fn cancel(&self, id: &str, owner: Option<&str>) -> Result<Job, EngineError> {
+        let job = self.get(id, owner).await?;
         let ended = || EngineError::Conflict(format!("job {id} has already ended"));
         if job.status.is_terminal() {
             return Err(ended());
@@ -487,12 +678,12 @@ impl Engine {
             let mut done = live.done_receiver();
             let _ = tokio::time::timeout(Duration::from_secs(5), done.wait_for(|d| *d)).await;
         }
-        self.get(id).await
+        self.get_any(id).await
     }
 
     /// Cancel if needed, then remove the job and its artifacts.
-    pub async fn delete(&self, id: &str) -> Result<(), EngineError> {
-        let job = self.get(id).await?;
+    pub async fn delete(&self, id: &str, owner: Option<&str>) -> Result<(), EngineError> {
+        let job = self.get(id, owner).await?;
         if let Some(live) = self.live_job(id) {
             live.stop(StopReason::Deleted);
             if self.dequeue(id) {
@@ -513,33 +704,41 @@ impl Engine {
             let mut done = live.done_receiver();
             let _ = tokio::time::timeout(timeout, done.wait_for(|d| *d)).await;
         }
-        self.get(id).await
+        self.get_any(id).await
     }
 
     /// A job's event stream from after `last_event_id`: live events while it runs, or just the
     /// finished job once it has ended.
-    pub async fn events(&self, id: &str, last_event_id: Option<u64>) -> Result<EventFeed, EngineError> {
-        if let Some(live) = self.live_job(id) {
+    /// Another owner's job is not there (`NotFound`).
+    pub async fn events(
+        &self,
+        id: &str,
+        last_event_id: Option<u64>,
+        owner: Option<&str>,
+    ) -> Result<EventFeed, EngineError> {
+        let mine = |l: &Arc<LiveJob>| l.owner.as_deref() == owner;
+        if let Some(live) = self.live_job(id).filter(mine) {
             let (backlog, rx) = live.subscribe(last_event_id);
             return Ok(EventFeed::Live { backlog, rx, live });
         }
-        let job = self.get(id).await?;
+        let job = self.get(id, owner).await?;
         if job.status.is_terminal() {
             return Ok(EventFeed::Ended(Box::new(job)));
         }
         // Ended between the two looks: the store has its final state by now.
-        match self.live_job(id) {
+        match self.live_job(id).filter(mine) {
             Some(live) => {
                 let (backlog, rx) = live.subscribe(last_event_id);
                 Ok(EventFeed::Live { backlog, rx, live })
             }
-            None => Ok(EventFeed::Ended(Box::new(self.get(id).await?))),
+            None => Ok(EventFeed::Ended(Box::new(self.get_any(id).await?))),
         }
     }
 
-    /// The latest live snapshot of a running job.
-    pub fn live_snapshot(&self, id: &str) -> Option<(u64, bytes::Bytes)> {
-        self.live_job(id).and_then(|l| l.snapshot())
+    /// The latest live snapshot of a running job `owner` may see (from memory: no store read
+    /// on this often-polled path).
+    pub fn live_snapshot(&self, id: &str, owner: Option<&str>) -> Option<(u64, bytes::Bytes)> {
+        self.live_job(id).filter(|l| l.owner.as_deref() == owner).and_then(|l| l.snapshot())
     }
 
     /// Prometheus text for `/metrics`.
@@ -591,5 +790,30 @@ fn new_job(kind: &str, label: Option<String>, request: Value, replay_of: Option<
         error: None,
         replay_of,
         replay_until_step,
+        cost: None,
+        owner: None,
+    }
+}
+
+/// The store's terrain, with the uploads a request sent inline (not stored yet) in front.
+struct PendingUploads<'a> {
+    uploads: &'a [(String, Vec<u8>)],
+    store: StoreTerrain,
+}
+
+impl crate::terrain::TerrainLookup for PendingUploads<'_> {
+    fn job_heightfield(&self, job_id: &str) -> Result<crate::terrain::Heightfield, String> {
+        self.store.job_heightfield(job_id)
+    }
+
+    fn input(&self, sha256: &str) -> Result<Vec<u8>, String> {
+        match self.uploads.iter().find(|(sha, _)| sha == sha256) {
+            Some((_, png)) => Ok(png.clone()),
+            None => self.store.input(sha256),
+        }
+    }
+
+    fn job_extent(&self, job_id: &str) -> Result<crate::terrain::TerrainExtent, String> {
+        self.store.job_extent(job_id)
     }
 }

@@ -24,6 +24,11 @@ impl JobKind for StandIn {
     fn prepare(&self, params: Value, _: &Limits) -> Result<Prepared, RequestError> {
         Ok(Prepared { params, references: Default::default() })
     }
+    fn estimate(&self, params: &Value, _: &dyn crate::terrain::TerrainLookup) -> Result<super::Cost, SimError> {
+        let mut cost = super::CostBuilder::new();
+        cost.memory("memory", params["memory"].as_u64().unwrap_or(1 << 20));
+        Ok(cost.work("steps", params["steps"].as_u64().unwrap_or(1) * 10).build("ms", 1000.0))
+    }
     fn run(&self, params: &Value, _seed: u64, ctx: &RunContext) -> Result<JobOutput, SimError> {
         if params["panic"].as_bool() == Some(true) {
             panic!("a bug inside a simulation");
@@ -51,15 +56,18 @@ impl JobKind for StandIn {
 }
 
 fn engine(dir: &tempfile::TempDir) -> Engine {
+    engine_with(dir, EngineConfig { workers: 2, concurrent_jobs: 1, ..EngineConfig::default() })
+}
+
+fn engine_with(dir: &tempfile::TempDir, config: EngineConfig) -> Engine {
     let store = Arc::new(SqliteStore::open(dir.path().join("t.db").to_str().unwrap()).unwrap());
-    let engine = Engine::new(store, vec![Box::new(StandIn)], EngineConfig { workers: 2, ..EngineConfig::default() })
-        .expect("engine");
+    let engine = Engine::new(store, vec![Box::new(StandIn)], config).expect("engine");
     engine.start();
     engine
 }
 
 async fn submit(engine: &Engine, body: Value) -> String {
-    match engine.submit("stand-in", body, None).await.expect("submit") {
+    match engine.submit("stand-in", body, None, &Default::default()).await.expect("submit") {
         super::Submitted::Created(j) | super::Submitted::Existing(j) => j.id,
     }
 }
@@ -86,12 +94,12 @@ async fn cancelling_a_queued_job_ends_it_at_once_and_the_queue_moves_on() {
     let long = submit(&engine, json!({ "steps": 300 })).await;
     let queued = submit(&engine, json!({ "n": 1 })).await;
     let after = submit(&engine, json!({ "n": 2 })).await;
-    let cancelled = engine.cancel(&queued).await.unwrap();
+    let cancelled = engine.cancel(&queued, None).await.unwrap();
     assert_eq!(cancelled.status, JobStatus::Cancelled);
-    engine.cancel(&long).await.unwrap();
+    engine.cancel(&long, None).await.unwrap();
     assert_eq!(engine.wait(&long, Duration::from_secs(30)).await.unwrap().status, JobStatus::Cancelled);
     assert_eq!(engine.wait(&after, Duration::from_secs(30)).await.unwrap().status, JobStatus::Succeeded);
-    assert!(matches!(engine.cancel(&after).await, Err(super::EngineError::Conflict(_))));
+    assert!(matches!(engine.cancel(&after, None).await, Err(super::EngineError::Conflict(_))));
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -100,9 +108,9 @@ async fn deleting_a_running_job_stops_it_and_leaves_nothing() {
     let engine = engine(&dir);
     let long = submit(&engine, json!({ "steps": 300 })).await;
     tokio::time::sleep(Duration::from_millis(100)).await;
-    engine.delete(&long).await.unwrap();
+    engine.delete(&long, None).await.unwrap();
     tokio::time::sleep(Duration::from_millis(200)).await;
-    assert!(matches!(engine.get(&long).await, Err(super::EngineError::NotFound(_))));
+    assert!(matches!(engine.get(&long, None).await, Err(super::EngineError::NotFound(_))));
     let next = submit(&engine, json!({ "n": 3 })).await;
     assert_eq!(engine.wait(&next, Duration::from_secs(30)).await.unwrap().status, JobStatus::Succeeded);
 }
@@ -113,14 +121,14 @@ async fn deleting_a_queued_job_ends_its_stream_and_frees_its_place() {
     let engine = engine(&dir);
     let long = submit(&engine, json!({ "steps": 300 })).await;
     let queued = submit(&engine, json!({ "n": 1 })).await;
-    while engine.get(&long).await.unwrap().status != JobStatus::Running {
+    while engine.get(&long, None).await.unwrap().status != JobStatus::Running {
         tokio::time::sleep(Duration::from_millis(5)).await;
     }
-    let super::EventFeed::Live { mut rx, .. } = engine.events(&queued, None).await.unwrap() else {
+    let super::EventFeed::Live { mut rx, .. } = engine.events(&queued, None, None).await.unwrap() else {
         panic!("a queued job has a live feed");
     };
     assert_eq!(engine.queue_depth(), 1);
-    engine.delete(&queued).await.unwrap();
+    engine.delete(&queued, None).await.unwrap();
     assert_eq!(engine.queue_depth(), 0);
     let done = tokio::time::timeout(Duration::from_secs(5), async {
         loop {
@@ -133,7 +141,7 @@ async fn deleting_a_queued_job_ends_its_stream_and_frees_its_place() {
     .await
     .expect("the stream ends at once");
     assert_eq!(done.data["status"], "cancelled");
-    engine.cancel(&long).await.unwrap();
+    engine.cancel(&long, None).await.unwrap();
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -143,7 +151,7 @@ async fn a_job_interrupted_too_often_is_failed_not_run_again() {
     let store = Arc::new(SqliteStore::open(path.to_str().unwrap()).unwrap());
     let mut job = {
         let engine = Engine::new(store.clone(), vec![Box::new(StandIn)], EngineConfig::default()).unwrap();
-        match engine.submit("stand-in", json!({ "n": 1 }), None).await.unwrap() {
+        match engine.submit("stand-in", json!({ "n": 1 }), None, &Default::default()).await.unwrap() {
             super::Submitted::Created(j) | super::Submitted::Existing(j) => j,
         }
     };
@@ -157,7 +165,7 @@ async fn a_job_interrupted_too_often_is_failed_not_run_again() {
     }
     let engine = Engine::new(store.clone(), vec![Box::new(StandIn)], EngineConfig::default()).unwrap();
     engine.recover().unwrap();
-    let after = engine.get(&job.id).await.unwrap();
+    let after = engine.get(&job.id, None).await.unwrap();
     assert_eq!(after.status, JobStatus::Failed);
     assert_eq!(after.error.unwrap()["title"], "Job interrupted repeatedly");
     assert_eq!(engine.queue_depth(), 0);

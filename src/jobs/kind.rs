@@ -2,24 +2,15 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use serde::{de::DeserializeOwned, Deserialize, Serialize};
+use serde::{de::DeserializeOwned, Serialize};
 use serde_json::Value;
 use utoipa::openapi::{RefOr, Schema};
 use utoipa::ToSchema;
 
 pub use crate::export::Artifact;
+pub use crate::model::{Cost, Progress};
 use crate::terrain::{Heightfield, ImageUpload, TerrainError, TerrainLookup, TerrainSource};
 use crate::validate::{FieldError, Limits, Validate, Validator};
-
-/// Where a job is: `fraction` in [0, 1], `step` of `steps` within `stage`.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct Progress {
-    pub fraction: f64,
-    pub step: u64,
-    pub steps: u64,
-    pub stage: String,
-    pub message: String,
-}
 
 /// What a run or a replay produced: kind-specific summary figures, the recorded sequence, and
 /// the artifacts (the adapter adds `sequence.json`).
@@ -41,6 +32,12 @@ pub enum SimError {
     Terrain(#[from] TerrainError),
     #[error("{0}")]
     Failed(String),
+}
+
+impl From<crate::stop::Stopped> for SimError {
+    fn from(_: crate::stop::Stopped) -> Self {
+        SimError::Cancelled
+    }
 }
 
 /// Receives progress from a running job. Implemented by the engine.
@@ -81,22 +78,31 @@ impl RunContext<'_> {
         }
     }
 
+    /// The job's stop request, for meshing and export to look at between chunks.
+    pub fn stop(&self) -> crate::stop::Stop<'_> {
+        crate::stop::Stop::new(self.cancel)
+    }
+
     pub fn report(&self, stage: &str, step: u64, steps: u64, message: impl Into<String>) {
         self.sink.progress(progress(stage, step, steps, message.into()));
     }
 
-    /// Report progress and, if one is due, a live snapshot rendered by `render` (PNG bytes).
+    /// Report progress and, if one is due, a live snapshot rendered by `render` (PNG bytes; a
+    /// render the job's stop request cut short publishes progress alone).
     pub fn report_with_snapshot(
         &self,
         stage: &str,
         step: u64,
         steps: u64,
         message: impl Into<String>,
-        render: impl FnOnce() -> Vec<u8>,
+        render: impl FnOnce() -> Result<Vec<u8>, crate::stop::Stopped>,
     ) {
         let p = progress(stage, step, steps, message.into());
         if self.sink.snapshot_due() {
-            self.sink.snapshot(render(), p);
+            match render() {
+                Ok(png) => self.sink.snapshot(png, p),
+                Err(crate::stop::Stopped) => self.sink.progress(p),
+            }
         } else {
             self.sink.progress(p);
         }
@@ -140,6 +146,11 @@ pub trait Simulation: Send + Sync + 'static {
     fn image_uploads(_params: &mut Self::Params) -> Vec<(String, &mut ImageUpload)> {
         Vec::new()
     }
+
+    /// The job's cost from its validated parameters: peak memory (an upper bound of the real
+    /// peak, at most 3 × it) and work, every derived size included. Terrain sources are sized
+    /// through `terrain` (uploads and earlier jobs without reading their heights).
+    fn estimate(params: &Self::Params, terrain: &dyn TerrainLookup) -> Result<Cost, SimError>;
 
     fn run(params: &Self::Params, seed: u64, ctx: &RunContext) -> Result<Outcome<Self::Sequence>, SimError>;
 
@@ -219,6 +230,8 @@ pub trait JobKind: Send + Sync {
     fn summary(&self) -> &'static str;
     /// Parse and validate the kind's parameters (the body without `seed` and `label`).
     fn prepare(&self, params: Value, limits: &Limits) -> Result<Prepared, RequestError>;
+    /// The cost of a prepared request (see [`Simulation::estimate`]).
+    fn estimate(&self, params: &Value, terrain: &dyn TerrainLookup) -> Result<Cost, SimError>;
     fn run(&self, params: &Value, seed: u64, ctx: &RunContext) -> Result<JobOutput, SimError>;
     /// Number of steps in a stored `sequence.json`.
     fn sequence_steps(&self, sequence_json: &[u8]) -> Result<u64, SimError>;
@@ -295,7 +308,8 @@ impl<S: Simulation> JobKind for Kind<S> {
         let mut v = Validator::new();
         typed.validate(&mut v, limits);
         if !v.is_ok() {
-            return Err(RequestError::Invalid { errors: v.errors, too_large: v.too_large });
+            let too_large = v.only_too_large();
+            return Err(RequestError::Invalid { errors: v.errors, too_large });
         }
         let mut references = References::default();
         for (path, source) in S::terrain_sources(&mut typed) {
@@ -311,6 +325,10 @@ impl<S: Simulation> JobKind for Kind<S> {
         }
         let params = serde_json::to_value(&typed).map_err(|e| RequestError::Malformed(e.to_string()))?;
         Ok(Prepared { params, references })
+    }
+
+    fn estimate(&self, params: &Value, terrain: &dyn TerrainLookup) -> Result<Cost, SimError> {
+        S::estimate(&stored_params(params)?, terrain)
     }
 
     fn run(&self, params: &Value, seed: u64, ctx: &RunContext) -> Result<JobOutput, SimError> {

@@ -32,6 +32,8 @@ pub enum StopReason {
     Cancelled,
     TimedOut,
     Deleted,
+    /// The process is shutting down: the job goes back to the queue for the next start.
+    ShuttingDown,
 }
 
 /// Event ids grow across process restarts too (a re-run job's events follow the ones a client
@@ -49,6 +51,10 @@ struct Throttle {
 
 pub struct LiveJob {
     pub id: String,
+    /// The API key name that owns the job (none without keys).
+    pub owner: Option<String>,
+    /// The memory its estimate reserves while it is queued or running.
+    pub memory: u64,
     pub cancel: AtomicBool,
     stop_reason: Mutex<Option<StopReason>>,
     log: Mutex<VecDeque<JobEvent>>,
@@ -63,10 +69,16 @@ pub struct LiveJob {
 
 impl LiveJob {
     pub fn new(id: String) -> Self {
+        Self::for_job(id, None, 0)
+    }
+
+    pub fn for_job(id: String, owner: Option<String>, memory: u64) -> Self {
         let (tx, _) = broadcast::channel(1024);
         let (done_tx, _) = watch::channel(false);
         Self {
             id,
+            owner,
+            memory,
             cancel: AtomicBool::new(false),
             stop_reason: Mutex::new(None),
             log: Mutex::new(VecDeque::new()),

@@ -12,6 +12,9 @@ pub struct Metrics {
     queue_depth: IntGauge,
     running: IntGauge,
     duration: HistogramVec,
+    memory_reserved: IntGauge,
+    memory_budget: IntGauge,
+    queue_wait: prometheus::Histogram,
 }
 
 impl Default for Metrics {
@@ -34,15 +37,53 @@ impl Metrics {
             &["kind", "status"],
         )
         .expect("metric");
+        let memory_reserved = IntGauge::new(
+            "landform_memory_reserved_bytes",
+            "Estimated peak memory of the jobs running now, reserved against the budget",
+        )
+        .expect("metric");
+        let memory_budget =
+            IntGauge::new("landform_memory_budget_bytes", "Memory the running jobs' estimates may add up to")
+                .expect("metric");
+        let queue_wait = prometheus::Histogram::with_opts(
+            HistogramOpts::new("landform_queue_wait_seconds", "Time jobs waited in the queue before they ran")
+                .buckets(vec![0.001, 0.01, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0, 300.0, 600.0]),
+        )
+        .expect("metric");
         for c in [
             Box::new(jobs.clone()) as Box<dyn prometheus::core::Collector>,
             Box::new(queue_depth.clone()),
             Box::new(running.clone()),
             Box::new(duration.clone()),
+            Box::new(memory_reserved.clone()),
+            Box::new(memory_budget.clone()),
+            Box::new(queue_wait.clone()),
         ] {
             registry.register(c).expect("register metric");
         }
-        Self { render_lock: parking_lot::Mutex::new(()), registry, jobs, queue_depth, running, duration }
+        Self {
+            render_lock: parking_lot::Mutex::new(()),
+            registry,
+            jobs,
+            queue_depth,
+            running,
+            duration,
+            memory_reserved,
+            memory_budget,
+            queue_wait,
+        }
+    }
+
+    pub fn set_memory_reserved(&self, bytes: u64) {
+        self.memory_reserved.set(i64::try_from(bytes).unwrap_or(i64::MAX));
+    }
+
+    pub fn set_memory_budget(&self, bytes: u64) {
+        self.memory_budget.set(i64::try_from(bytes).unwrap_or(i64::MAX));
+    }
+
+    pub fn observe_queue_wait(&self, seconds: f64) {
+        self.queue_wait.observe(seconds);
     }
 
     pub fn set_queue_depth(&self, n: usize) {

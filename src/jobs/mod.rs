@@ -1,13 +1,13 @@
-//! The job model, the engine, and the `JobKind` trait every kind implements.
+//! The engine and the `JobKind` trait every kind implements; the job model they use is
+//! `crate::model`, re-exported here for the kinds.
 
 mod kind;
-mod model;
 
+pub use crate::model::{bytes, ArtifactMeta, CostBuilder, Job, JobStatus, ReplaySpec};
 pub use kind::{
-    parse_params, path_string, Artifact, JobKind, JobOutput, Kind, Outcome, Prepared, Progress, ProgressSink,
+    parse_params, path_string, Artifact, Cost, JobKind, JobOutput, Kind, Outcome, Prepared, Progress, ProgressSink,
     References, RequestError, RunContext, Sequence, SilentProgress, SimError, Simulation,
 };
-pub use model::{ArtifactMeta, Job, JobStatus, ReplaySpec};
 
 mod engine;
 mod live;
@@ -16,8 +16,8 @@ mod runner;
 mod store_terrain;
 
 pub use engine::{
-    Engine, EngineConfig, EngineError, EventFeed, Submitted, DEFAULT_JOB_TIMEOUT_S, DEFAULT_QUEUE_CAPACITY,
-    MAX_ATTEMPTS,
+    default_memory_budget, Engine, EngineConfig, EngineError, EventFeed, Submitted, Submitter, DEFAULT_CONCURRENT_JOBS,
+    DEFAULT_JOB_TIMEOUT_S, DEFAULT_QUEUE_CAPACITY, MAX_ATTEMPTS,
 };
 pub use live::{JobEvent, LiveJob, StopReason};
 pub use runner::{problem, PROBLEM_TYPE_BASE};

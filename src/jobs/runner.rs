@@ -1,4 +1,4 @@
-//! Taking jobs off the queue and running them on the Rayon pool.
+//! Taking jobs off the queue as the memory budget allows and running each on a thread of its own.
 
 use std::panic::AssertUnwindSafe;
 use std::sync::atomic::Ordering;
@@ -22,24 +22,52 @@ pub fn problem(slug: &str, title: &str, detail: &str, status: u16) -> Value {
 }
 
 impl Engine {
+    /// Take jobs off the queue in order while the next one fits: the sum of the running jobs'
+    /// estimated memory stays within the budget (a job alone always runs) and at most
+    /// `concurrent_jobs` run at once. The rest wait in order, so a large job is not passed over.
     pub(super) async fn dispatch_loop(&self) {
+        let cap = self.inner.config.concurrent_jobs.max(1);
+        let budget = self.inner.config.memory_budget;
         loop {
+            if self.inner.draining.load(Ordering::SeqCst) {
+                return;
+            }
             let next = {
                 let mut q = self.inner.queue.lock();
-                let id = q.items.pop_front();
-                self.inner.metrics.set_queue_depth(q.items.len());
-                // Notify keeps one permit however many jobs arrived: pass the word on so
-                // another dispatcher takes the next job.
-                if id.is_some() && !q.items.is_empty() {
-                    self.inner.queue_notify.notify_one();
+                let fits = q.items.front().is_some_and(|w| {
+                    q.running < cap && (q.running == 0 || q.memory_reserved.saturating_add(w.memory) <= budget)
+                });
+                let next = if fits { q.items.pop_front() } else { None };
+                if let Some(w) = &next {
+                    q.running += 1;
+                    q.memory_reserved = q.memory_reserved.saturating_add(w.memory);
                 }
-                id
+                self.inner.metrics.set_queue_depth(q.items.len());
+                self.inner.metrics.set_memory_reserved(q.memory_reserved);
+                next
             };
             match next {
-                Some(id) => self.run_job(&id).await,
+                Some(w) => {
+                    self.inner.metrics.observe_queue_wait(w.since.elapsed().as_secs_f64());
+                    let engine = self.clone();
+                    tokio::spawn(async move {
+                        engine.run_job(&w.id).await;
+                        engine.release(w.memory);
+                    });
+                }
                 None => self.inner.queue_notify.notified().await,
             }
         }
+    }
+
+    /// A dispatched job has ended: give back its memory and let the dispatcher look again.
+    fn release(&self, memory: u64) {
+        let mut q = self.inner.queue.lock();
+        q.running -= 1;
+        q.memory_reserved = q.memory_reserved.saturating_sub(memory);
+        self.inner.metrics.set_memory_reserved(q.memory_reserved);
+        drop(q);
+        self.inner.queue_notify.notify_one();
     }
 
     async fn run_job(&self, id: &str) {
@@ -80,10 +108,15 @@ impl Engine {
         let engine = self.clone();
         let run_job = job.clone();
         let run_live = live.clone();
-        self.inner.pool.spawn(move || {
+        // A thread of its own: the job's serial parts run beside other jobs', and its parallel
+        // iterators share the global Rayon pool with theirs.
+        let spawned = std::thread::Builder::new().name(format!("landform-job-{}", short_id(id))).spawn(move || {
             let out = std::panic::catch_unwind(AssertUnwindSafe(|| engine.compute(&run_job, &run_live)));
             let _ = tx.send(out);
         });
+        if let Err(e) = spawned {
+            tracing::error!(job = %id, error = %e, "could not start a job thread");
+        }
 
         let timeout = self.inner.config.job_timeout;
         let timer_live = live.clone();
@@ -109,14 +142,14 @@ impl Engine {
         self.end(job, &live, outcome, started.elapsed().as_secs_f64()).await
     }
 
-    /// The CPU work of one job, on a pool thread.
+    /// The CPU work of one job, on its own thread.
     fn compute(&self, job: &Job, live: &Arc<LiveJob>) -> Result<JobOutput, SimError> {
         let kind = self
             .inner
             .kinds
             .get(job.kind.as_str())
             .ok_or_else(|| SimError::Failed(format!("no job kind named {}", job.kind)))?;
-        let lookup = StoreTerrain(self.inner.store.clone());
+        let lookup = StoreTerrain { store: self.inner.store.clone(), owner: job.owner.clone() };
         let ctx = RunContext {
             cancel: &live.cancel,
             sink: live.as_ref(),
@@ -147,6 +180,20 @@ impl Engine {
         outcome: Result<JobOutput, SimError>,
         seconds: f64,
     ) {
+        if live.stop_reason() == Some(StopReason::ShuttingDown) && outcome.is_err() {
+            // Back to the queue, as it was before it started: the next start runs it again.
+            job.status = JobStatus::Queued;
+            job.started_at = None;
+            job.progress = super::Progress { stage: "queued".into(), ..super::Progress::default() };
+            let stored = job.clone();
+            if let Err(e) = self.blocking(move |s| s.update(&stored)).await {
+                tracing::error!(job = %job.id, error = %e, "could not return a job to the queue");
+            }
+            tracing::info!(job = %job.id, "returned to the queue at shutdown");
+            live.emit_status(JobStatus::Queued);
+            self.forget(&job.id);
+            return;
+        }
         if live.stop_reason() == Some(StopReason::Deleted) {
             self.forget(&job.id);
             job.status = JobStatus::Cancelled;
@@ -191,6 +238,11 @@ impl Engine {
         self.inner.live.lock().remove(id);
         self.dequeue(id);
     }
+}
+
+/// The end of a job id (UUIDv7's random part), to name its thread.
+fn short_id(id: &str) -> &str {
+    &id[id.len().saturating_sub(8)..]
 }
 
 const STORE_FAILED: &str = "the job store failed; the server's log has the details";

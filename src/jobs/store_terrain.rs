@@ -4,14 +4,18 @@ use std::sync::Arc;
 
 use crate::export::read_heightfield_npy;
 use crate::store::{JobStore, StoreError};
-use crate::terrain::{Heightfield, TerrainLookup};
+use crate::terrain::{Heightfield, TerrainExtent, TerrainLookup};
 
 use super::{Job, JobStatus};
 
 /// The artifact holding a heightfield job's exact heights.
 pub const HEIGHTFIELD_ARTIFACT: &str = "heightfield.npy";
 
-pub struct StoreTerrain(pub Arc<dyn JobStore>);
+/// Reads for a job of `owner`: another key's jobs are not there for it.
+pub struct StoreTerrain {
+    pub store: Arc<dyn JobStore>,
+    pub owner: Option<String>,
+}
 
 /// Store failures are logged; the job or the client hears only that the store failed.
 fn store_failed(e: StoreError) -> String {
@@ -22,7 +26,8 @@ fn store_failed(e: StoreError) -> String {
 impl StoreTerrain {
     /// The job, when it can serve as terrain; otherwise why not.
     fn usable(&self, job_id: &str) -> Result<Result<Job, String>, String> {
-        Ok(match self.0.get(job_id).map_err(store_failed)? {
+        Ok(match self.store.get(job_id).map_err(store_failed)? {
+            Some(j) if j.owner != self.owner => Err(format!("no job with id {job_id}")),
             None => Err(format!("no job with id {job_id}")),
             Some(j) if j.status != JobStatus::Succeeded => {
                 Err(format!("job {job_id} has not succeeded (it is {})", j.status.as_str()))
@@ -50,7 +55,7 @@ impl TerrainLookup for StoreTerrain {
             .and_then(|v| v.as_f64())
             .ok_or_else(|| format!("job {job_id} has no grid cell size in its result"))?;
         let (_, bytes) = self
-            .0
+            .store
             .artifact(job_id, HEIGHTFIELD_ARTIFACT)
             .map_err(store_failed)?
             .ok_or_else(|| format!("job {job_id} has no {HEIGHTFIELD_ARTIFACT}"))?;
@@ -58,6 +63,23 @@ impl TerrainLookup for StoreTerrain {
     }
 
     fn input(&self, sha256: &str) -> Result<Vec<u8>, String> {
-        self.0.input(sha256).map_err(store_failed)?.ok_or_else(|| format!("no upload with sha256 {sha256}"))
+        self.store.input(sha256).map_err(store_failed)?.ok_or_else(|| format!("no upload with sha256 {sha256}"))
+    }
+
+    fn job_extent(&self, job_id: &str) -> Result<TerrainExtent, String> {
+        let job = self.usable(job_id)??;
+        let result = job.result.unwrap_or_default();
+        let number = |pointer: &str| {
+            result
+                .pointer(pointer)
+                .and_then(|v| v.as_f64())
+                .ok_or_else(|| format!("job {job_id} has no {pointer} in its result"))
+        };
+        Ok(TerrainExtent {
+            cols: number("/grid/cols")? as u64,
+            rows: number("/grid/rows")? as u64,
+            cell_size_m: number("/grid/cell_size_m")?,
+            z_span_m: (number("/z_max")? - number("/z_min")?).abs(),
+        })
     }
 }

@@ -13,6 +13,7 @@ use rayon::prelude::*;
 
 use super::normals::recompute_normals;
 use super::Mesh;
+use crate::stop::{Stop, Stopped};
 
 /// A dense scalar volume: `dims = [nx, ny, nz]` samples, sample (x, y, z) at
 /// `origin_m + [x, y, z] * spacing_m`, stored at index `x + nx * (z + nz * y)` (x fastest,
@@ -39,16 +40,22 @@ pub struct ScalarField<'a> {
 /// # Panics
 /// When `values.len()` is not `nx * ny * nz`, or the surface needs more than `u32::MAX`
 /// vertices.
-pub fn extract_isosurface(field: &ScalarField, iso: f32) -> Mesh {
+///
+/// Looks at `stop` before each layer of cubes and answers `Err(Stopped)` once it is raised.
+pub fn extract_isosurface(field: &ScalarField, iso: f32, stop: Stop) -> Result<Mesh, Stopped> {
     let [nx, ny, nz] = field.dims;
     assert_eq!(field.values.len(), nx * ny * nz, "scalar field of {nx}x{ny}x{nz} samples");
     if nx == 0 || ny == 0 || nz == 0 {
-        return Mesh::default();
+        return Ok(Mesh::default());
     }
     let grid = PaddedGrid::new(field, iso);
     // Cube layer (and edge base plane) `py` in padded coordinates spans samples py..=py+1; the
     // base plane ny + 1 lies wholly in the padding and has no crossings.
-    let layers: Vec<Layer> = (0..=ny).into_par_iter().map(|py| grid.crossings(py)).collect();
+    let layers: Vec<Layer> = (0..=ny)
+        .into_par_iter()
+        .map(|py| if stop.requested() { Layer::default() } else { grid.crossings(py) })
+        .collect();
+    stop.check()?;
     let mut first_vertex = Vec::with_capacity(layers.len());
     let mut total = 0usize;
     for layer in &layers {
@@ -56,12 +63,15 @@ pub fn extract_isosurface(field: &ScalarField, iso: f32) -> Mesh {
         total += layer.positions.len();
     }
     if total == 0 {
-        return Mesh::default();
+        return Ok(Mesh::default());
     }
     assert!(total <= u32::MAX as usize, "isosurface of {total} vertices exceeds u32 indices");
     let first_vertex: Vec<u32> = first_vertex.into_iter().map(|v| v as u32).collect();
-    let triangles: Vec<Vec<u32>> =
-        (0..=ny).into_par_iter().map(|py| grid.triangles(py, &layers, &first_vertex)).collect();
+    let triangles: Vec<Vec<u32>> = (0..=ny)
+        .into_par_iter()
+        .map(|py| if stop.requested() { Vec::new() } else { grid.triangles(py, &layers, &first_vertex) })
+        .collect();
+    stop.check()?;
 
     let mut positions = Vec::with_capacity(total);
     for layer in &layers {
@@ -75,7 +85,7 @@ pub fn extract_isosurface(field: &ScalarField, iso: f32) -> Mesh {
     let uvs = positions.iter().map(|p| [uv(p[0], field.origin_m[0], ex), uv(p[2], field.origin_m[2], ez)]).collect();
     let mut mesh = Mesh { positions, normals: Vec::new(), uvs, colors: None, indices };
     recompute_normals(&mut mesh);
-    mesh
+    Ok(mesh)
 }
 
 /// The six Kuhn tetrahedra of a cube as corner numbers (`dx | dy << 1 | dz << 2`), each
@@ -107,6 +117,7 @@ struct PaddedGrid<'a> {
 
 /// The surface vertices on edges based in one padded plane y, and that plane's cubes that
 /// straddle the surface.
+#[derive(Default)]
 struct Layer {
     /// `(px, pz, corner bits)` of the plane's mixed cubes, z-major.
     mixed: Vec<(u32, u32, u8)>,
@@ -328,7 +339,12 @@ pub(crate) mod tests {
         for &[x, y, z] in filled {
             values[x + n * (z + n * y)] = 1.0;
         }
-        extract_isosurface(&ScalarField { dims: [n; 3], origin_m: [0.0; 3], spacing_m: 1.0, values: &values }, 0.5)
+        extract_isosurface(
+            &ScalarField { dims: [n; 3], origin_m: [0.0; 3], spacing_m: 1.0, values: &values },
+            0.5,
+            Stop::NEVER,
+        )
+        .unwrap()
     }
 
     fn assert_closed_outwards(mesh: &Mesh) {
@@ -346,7 +362,9 @@ pub(crate) mod tests {
         let mesh = extract_isosurface(
             &ScalarField { dims: [n; 3], origin_m: origin, spacing_m: spacing, values: &values },
             0.0,
-        );
+            Stop::NEVER,
+        )
+        .unwrap();
         assert_closed_outwards(&mesh);
         let exact = 4.0 / 3.0 * std::f64::consts::PI * (r as f64).powi(3);
         let volume = mesh.signed_volume();
@@ -410,7 +428,7 @@ pub(crate) mod tests {
     fn region_reaching_the_grid_side_closes_half_a_sample_beyond() {
         let values = vec![1.0f32; 3 * 4 * 5];
         let field = ScalarField { dims: [3, 4, 5], origin_m: [10.0, 0.0, -2.0], spacing_m: 2.0, values: &values };
-        let mesh = extract_isosurface(&field, 0.0);
+        let mesh = extract_isosurface(&field, 0.0, Stop::NEVER).unwrap();
         assert_closed_outwards(&mesh);
         assert_eq!(mesh.bounds().unwrap(), ([9.0, -1.0, -3.0], [15.0, 7.0, 7.0]));
         // The box 6 × 8 × 10 m less small chamfers along its edges.
@@ -423,9 +441,9 @@ pub(crate) mod tests {
         let values = vec![0.5f32; 27];
         let field = ScalarField { dims: [3, 3, 3], origin_m: [0.0; 3], spacing_m: 1.0, values: &values };
         // Samples equal to iso are outside.
-        assert_eq!(extract_isosurface(&field, 0.5), Mesh::default());
+        assert_eq!(extract_isosurface(&field, 0.5, Stop::NEVER).unwrap(), Mesh::default());
         let field = ScalarField { dims: [0, 3, 3], values: &[], ..field };
-        assert_eq!(extract_isosurface(&field, 0.5), Mesh::default());
+        assert_eq!(extract_isosurface(&field, 0.5, Stop::NEVER).unwrap(), Mesh::default());
     }
 
     #[test]
@@ -440,8 +458,8 @@ pub(crate) mod tests {
         let field = ScalarField { dims: [n; 3], origin_m: [0.0; 3], spacing_m: 0.25, values: &values };
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-        let a = one.install(|| extract_isosurface(&field, 0.0));
-        let b = two.install(|| extract_isosurface(&field, 0.0));
+        let a = one.install(|| extract_isosurface(&field, 0.0, Stop::NEVER).unwrap());
+        let b = two.install(|| extract_isosurface(&field, 0.0, Stop::NEVER).unwrap());
         assert_closed_outwards(&a);
         assert_eq!(a, b);
     }

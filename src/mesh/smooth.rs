@@ -6,6 +6,7 @@ use rayon::prelude::*;
 
 use super::normals::recompute_normals;
 use super::Mesh;
+use crate::stop::{Stop, Stopped};
 
 /// How much to smooth. Each iteration is one step with `lambda` (> 0, shrinks) and one with
 /// `mu` (< −lambda, inflates); the pass band is set by `1/lambda + 1/mu` (≈ 0.1 with the
@@ -28,7 +29,8 @@ impl Default for Smoothing {
 /// Smooth the positions with umbrella (uniform-weight) Taubin steps over the triangles' edges,
 /// then recompute the normals. Vertices on no triangle stay where they are. The triangles are
 /// unchanged, so a closed mesh stays closed. Identical output whatever the thread count.
-pub fn smooth(mesh: &mut Mesh, s: &Smoothing) {
+/// Looks at `stop` before each pass; once it is raised the mesh is left as it was.
+pub fn smooth(mesh: &mut Mesh, s: &Smoothing, stop: Stop) -> Result<(), Stopped> {
     let n = mesh.positions.len();
     let neighbours = Neighbours::from_triangles(&mesh.indices, n);
     let on_floor: Vec<bool> = match s.floor_y {
@@ -38,6 +40,7 @@ pub fn smooth(mesh: &mut Mesh, s: &Smoothing) {
     let mut current = mesh.positions.clone();
     let mut next = vec![[0.0f32; 3]; n];
     for _ in 0..s.iterations {
+        stop.check()?;
         for factor in [s.lambda, s.mu] {
             next.par_iter_mut().enumerate().for_each(|(v, out)| {
                 let p = current[v];
@@ -64,6 +67,7 @@ pub fn smooth(mesh: &mut Mesh, s: &Smoothing) {
     }
     mesh.positions = current;
     recompute_normals(mesh);
+    Ok(())
 }
 
 /// Each vertex's distinct neighbours along triangle edges, in increasing index order
@@ -139,7 +143,12 @@ mod tests {
                 }
             }
         }
-        extract_isosurface(&ScalarField { dims: [n; 3], origin_m: [0.0; 3], spacing_m: 1.0, values: &values }, 0.5)
+        extract_isosurface(
+            &ScalarField { dims: [n; 3], origin_m: [0.0; 3], spacing_m: 1.0, values: &values },
+            0.5,
+            Stop::NEVER,
+        )
+        .unwrap()
     }
 
     fn rms_radius_error(mesh: &Mesh, center: [f32; 3], radius: f32) -> f64 {
@@ -159,7 +168,7 @@ mod tests {
         let (center, radius) = ([12.3, 12.6, 11.8], 10.0);
         let mut mesh = voxel_ball(26, center, radius);
         let (before_rms, before_volume) = (rms_radius_error(&mesh, center, radius), mesh.signed_volume());
-        smooth(&mut mesh, &Smoothing::default());
+        smooth(&mut mesh, &Smoothing::default(), Stop::NEVER).unwrap();
         let (after_rms, after_volume) = (rms_radius_error(&mesh, center, radius), mesh.signed_volume());
         // Ten default iterations take about a third off the staircase (0.28 → 0.20 samples).
         assert!(after_rms < 0.8 * before_rms, "RMS radius error {before_rms} → {after_rms}");
@@ -176,7 +185,7 @@ mod tests {
         let base: Vec<usize> = (0..mesh.vertex_count()).filter(|&v| mesh.positions[v][1] <= floor_y + 1e-4).collect();
         assert!(base.len() > 50);
         let before = mesh.positions.clone();
-        smooth(&mut mesh, &Smoothing { floor_y: Some(floor_y), ..Smoothing::default() });
+        smooth(&mut mesh, &Smoothing { floor_y: Some(floor_y), ..Smoothing::default() }, Stop::NEVER).unwrap();
         for &v in &base {
             assert_eq!(mesh.positions[v][1], before[v][1]);
         }
@@ -193,7 +202,7 @@ mod tests {
         let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
         let run = |pool: &rayon::ThreadPool| {
             let mut m = mesh.clone();
-            pool.install(|| smooth(&mut m, &Smoothing::default()));
+            pool.install(|| smooth(&mut m, &Smoothing::default(), Stop::NEVER).unwrap());
             m
         };
         assert_eq!(run(&one), run(&two));
@@ -203,7 +212,7 @@ mod tests {
     fn zero_iterations_only_recompute_normals() {
         let mut mesh = voxel_ball(12, [6.0; 3], 4.0);
         let before = mesh.clone();
-        smooth(&mut mesh, &Smoothing { iterations: 0, ..Smoothing::default() });
+        smooth(&mut mesh, &Smoothing { iterations: 0, ..Smoothing::default() }, Stop::NEVER).unwrap();
         assert_eq!(mesh, before);
     }
 }

@@ -1,10 +1,16 @@
-//! Where jobs live: the `JobStore` trait and its embedded SQLite form.
+//! Where jobs live: the `JobStore` trait, its embedded SQLite form and its PostgreSQL form.
 
+#[cfg(test)]
+pub(crate) mod contract;
+mod postgres;
+mod row;
 mod sqlite;
 
+pub use postgres::PostgresStore;
 pub use sqlite::SqliteStore;
 
-use crate::jobs::{Artifact, Job, JobStatus};
+use crate::export::Artifact;
+use crate::model::{Job, JobStatus};
 
 #[derive(Debug, thiserror::Error)]
 pub enum StoreError {
@@ -22,6 +28,8 @@ pub struct ListFilter {
     pub status: Option<JobStatus>,
     pub before_id: Option<String>,
     pub limit: u32,
+    /// Only the jobs of this API key (by name), when set.
+    pub owner: Option<String>,
 }
 
 /// Outcome of an insert carrying an idempotency key.

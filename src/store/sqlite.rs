@@ -9,18 +9,18 @@
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
 
-use chrono::{DateTime, SecondsFormat, Utc};
+use chrono::Utc;
 use parking_lot::{Mutex, MutexGuard};
 use rusqlite::types::Value as SqlValue;
 use rusqlite::{params, Connection, OpenFlags, OptionalExtension, Row, TransactionBehavior};
-use serde_json::Value;
-use sha2::{Digest, Sha256};
 
+use super::row::{describe, JobRow, RawJob, JOB_COLUMNS};
 use super::{IdempotentInsert, JobStore, ListFilter, StoreError};
-use crate::jobs::{Artifact, ArtifactMeta, Job, JobStatus, Progress};
+use crate::export::Artifact;
+use crate::model::{ArtifactMeta, Job, JobStatus};
 
 /// The schema version this build writes (`PRAGMA user_version`).
-pub const SCHEMA_VERSION: i64 = 2;
+pub const SCHEMA_VERSION: i64 = 3;
 
 /// Migrations in order: `MIGRATIONS[n]` takes the schema from version `n` to `n + 1`.
 const MIGRATIONS: [&str; SCHEMA_VERSION as usize] = [
@@ -74,6 +74,12 @@ CREATE TABLE inputs (
     data        BLOB NOT NULL
 );
 "#,
+    r#"
+-- The cost estimate a job was admitted by (JSON), and the API key name that owns it.
+ALTER TABLE jobs ADD COLUMN cost TEXT;
+ALTER TABLE jobs ADD COLUMN owner TEXT;
+CREATE INDEX jobs_by_owner ON jobs (owner, id);
+"#,
 ];
 
 /// Read connections opened beside the writer (none for an in-memory database, whose
@@ -82,9 +88,6 @@ const READERS: usize = 4;
 const BUSY_TIMEOUT: Duration = Duration::from_secs(5);
 /// The WAL is truncated back to this size after a checkpoint (large artifacts pass through it).
 const JOURNAL_SIZE_LIMIT_BYTES: i64 = 32 * 1024 * 1024;
-
-const JOB_COLUMNS: &str = "id, kind, status, label, created_at, started_at, finished_at, progress, \
-                           request, result, error, replay_of, replay_until_step";
 
 /// The SQLite job store. See the module documentation.
 pub struct SqliteStore {
@@ -210,60 +213,13 @@ fn db(e: rusqlite::Error) -> StoreError {
     }
 }
 
-fn timestamp(t: &DateTime<Utc>) -> String {
-    // Fixed width (nanoseconds, `Z`): lossless, and text order is time order.
-    t.to_rfc3339_opts(SecondsFormat::Nanos, true)
-}
-
-fn to_json<T: serde::Serialize>(what: &str, v: &T) -> Result<String, StoreError> {
-    serde_json::to_string(v).map_err(|e| StoreError::Backend(format!("cannot encode {what}: {e}")))
-}
-
-/// A job's columns, encoded before any connection is locked.
-struct JobRow<'a> {
-    job: &'a Job,
-    created_at: String,
-    started_at: Option<String>,
-    finished_at: Option<String>,
-    progress: String,
-    request: String,
-    result: Option<String>,
-    error: Option<String>,
-    replay_until_step: Option<i64>,
-}
-
-impl<'a> JobRow<'a> {
-    fn encode(job: &'a Job) -> Result<Self, StoreError> {
-        let mut progress = job.progress.clone();
-        if !progress.fraction.is_finite() {
-            // JSON has no NaN: serde_json would write `null`, which reads back as an error.
-            progress.fraction = 0.0;
-        }
-        let replay_until_step = job
-            .replay_until_step
-            .map(|s| {
-                i64::try_from(s).map_err(|_| StoreError::Backend(format!("replay_until_step {s} is out of range")))
-            })
-            .transpose()?;
-        Ok(Self {
-            job,
-            created_at: timestamp(&job.created_at),
-            started_at: job.started_at.as_ref().map(timestamp),
-            finished_at: job.finished_at.as_ref().map(timestamp),
-            progress: to_json("progress", &progress)?,
-            request: to_json("request", &job.request)?,
-            result: job.result.as_ref().map(|v| to_json("result", v)).transpose()?,
-            error: job.error.as_ref().map(|v| to_json("error", v)).transpose()?,
-            replay_until_step,
-        })
-    }
-
+impl JobRow<'_> {
     fn insert(&self, conn: &Connection) -> rusqlite::Result<()> {
         let j = self.job;
         conn.prepare_cached(
             "INSERT INTO jobs (id, kind, status, label, created_at, started_at, finished_at, \
-             progress, request, result, error, replay_of, replay_until_step, attempts) \
-             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)",
+             progress, request, result, error, replay_of, replay_until_step, attempts, cost, owner) \
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)",
         )?
         .execute(params![
             j.id,
@@ -280,6 +236,8 @@ impl<'a> JobRow<'a> {
             j.replay_of,
             self.replay_until_step,
             i64::from(j.status == JobStatus::Running),
+            self.cost,
+            j.owner,
         ])?;
         Ok(())
     }
@@ -309,23 +267,6 @@ impl<'a> JobRow<'a> {
     }
 }
 
-/// A job row as read, before its text is parsed.
-struct RawJob {
-    id: String,
-    kind: String,
-    status: String,
-    label: Option<String>,
-    created_at: String,
-    started_at: Option<String>,
-    finished_at: Option<String>,
-    progress: String,
-    request: String,
-    result: Option<String>,
-    error: Option<String>,
-    replay_of: Option<String>,
-    replay_until_step: Option<i64>,
-}
-
 impl RawJob {
     /// Columns in `JOB_COLUMNS` order.
     fn from_row(row: &Row<'_>) -> rusqlite::Result<Self> {
@@ -343,40 +284,8 @@ impl RawJob {
             error: row.get(10)?,
             replay_of: row.get(11)?,
             replay_until_step: row.get(12)?,
-        })
-    }
-
-    fn into_job(self, artifacts: Vec<ArtifactMeta>) -> Result<Job, StoreError> {
-        let id = self.id;
-        let bad = |field: &str, why: String| StoreError::Corrupt(format!("job {id}: {field}: {why}"));
-        let time = |field: &str, s: &str| {
-            DateTime::parse_from_rfc3339(s)
-                .map(|t| t.with_timezone(&Utc))
-                .map_err(|e| bad(field, format!("{s:?}: {e}")))
-        };
-        let json = |field: &str, s: &str| serde_json::from_str::<Value>(s).map_err(|e| bad(field, e.to_string()));
-        let status =
-            JobStatus::parse(&self.status).ok_or_else(|| bad("status", format!("unknown status {:?}", self.status)))?;
-        let progress: Progress = serde_json::from_str(&self.progress).map_err(|e| bad("progress", e.to_string()))?;
-        let replay_until_step = self
-            .replay_until_step
-            .map(|s| u64::try_from(s).map_err(|_| bad("replay_until_step", s.to_string())))
-            .transpose()?;
-        Ok(Job {
-            kind: self.kind,
-            status,
-            label: self.label,
-            created_at: time("created_at", &self.created_at)?,
-            started_at: self.started_at.map(|s| time("started_at", &s)).transpose()?,
-            finished_at: self.finished_at.map(|s| time("finished_at", &s)).transpose()?,
-            progress,
-            request: json("request", &self.request)?,
-            result: self.result.map(|s| json("result", &s)).transpose()?,
-            artifacts,
-            error: self.error.map(|s| json("error", &s)).transpose()?,
-            replay_of: self.replay_of,
-            replay_until_step,
-            id,
+            cost: row.get(13)?,
+            owner: row.get(14)?,
         })
     }
 }
@@ -448,23 +357,6 @@ fn read_snapshot<T>(
     Ok(out)
 }
 
-fn describe(artifacts: &[Artifact]) -> Result<Vec<ArtifactMeta>, StoreError> {
-    let mut metas: Vec<ArtifactMeta> = Vec::with_capacity(artifacts.len());
-    for a in artifacts {
-        if metas.iter().any(|m| m.name == a.name) {
-            return Err(StoreError::Backend(format!("two artifacts are named {:?}", a.name)));
-        }
-        metas.push(ArtifactMeta {
-            name: a.name.clone(),
-            media_type: a.media_type.clone(),
-            bytes: a.bytes.len() as u64,
-            sha256: hex::encode(Sha256::digest(&a.bytes)),
-            href: String::new(),
-        });
-    }
-    Ok(metas)
-}
-
 impl JobStore for SqliteStore {
     fn attempts(&self, id: &str) -> Result<Option<u32>, StoreError> {
         self.attempts_count(id)
@@ -518,6 +410,10 @@ impl JobStore for SqliteStore {
         if let Some(status) = filter.status {
             conditions.push("status = ?");
             values.push(SqlValue::Text(status.as_str().to_string()));
+        }
+        if let Some(owner) = &filter.owner {
+            conditions.push("owner = ?");
+            values.push(SqlValue::Text(owner.clone()));
         }
         if let Some(before) = &filter.before_id {
             conditions.push("id < ?");
@@ -642,195 +538,23 @@ impl JobStore for SqliteStore {
 mod tests {
     use std::sync::Arc;
 
-    use chrono::TimeZone;
-    use serde_json::json;
-
     use super::*;
+    use crate::model::Progress;
+    use crate::store::contract::*;
+    use chrono::TimeZone;
 
-    /// UUIDv7 ids whose order is `n`'s order, as the engine's would be.
-    fn id(n: u64) -> String {
-        uuid::Builder::from_unix_timestamp_millis(1_750_000_000_000 + n * 1000, &[n as u8; 10]).into_uuid().to_string()
+    fn fixture() -> Option<Fixture> {
+        let (dir, _path, store) = temp_store();
+        Some(Fixture { store: Box::new(store), _guard: Box::new(dir) })
     }
 
-    fn job(n: u64, kind: &str, status: JobStatus) -> Job {
-        Job {
-            id: id(n),
-            kind: kind.to_string(),
-            status,
-            label: None,
-            created_at: Utc.timestamp_opt(1_750_000_000 + n as i64, 0).unwrap(),
-            started_at: None,
-            finished_at: None,
-            progress: Progress::default(),
-            request: json!({ "seed": n }),
-            result: None,
-            artifacts: Vec::new(),
-            error: None,
-            replay_of: None,
-            replay_until_step: None,
-        }
-    }
+    crate::store_contract_tests!(fixture);
 
     fn temp_store() -> (tempfile::TempDir, String, SqliteStore) {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("landform.db").to_str().unwrap().to_string();
         let store = SqliteStore::open(&path).unwrap();
         (dir, path, store)
-    }
-
-    fn ids(jobs: &[Job]) -> Vec<String> {
-        jobs.iter().map(|j| j.id.clone()).collect()
-    }
-
-    fn artifacts() -> Vec<Artifact> {
-        vec![
-            Artifact::new("mesh.glb", "model/gltf-binary", vec![7; 1000]),
-            Artifact::new("heightmap.png", "image/png", b"abc".to_vec()),
-            Artifact::new("a-last.json", "application/json", Vec::new()),
-        ]
-    }
-
-    const SHA256_ABC: &str = "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad";
-    const SHA256_EMPTY: &str = "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855";
-
-    #[test]
-    fn insert_then_get_round_trips_every_field() {
-        let (_dir, _path, store) = temp_store();
-        let mut j = job(1, "deform-terrain", JobStatus::Failed);
-        j.label = Some("ridge «north»".into());
-        j.created_at = Utc.timestamp_opt(1_750_000_001, 123_456_789).unwrap();
-        j.started_at = Some(Utc.timestamp_opt(1_750_000_002, 5).unwrap());
-        j.finished_at = Some(Utc.timestamp_opt(1_750_000_003, 999_999_999).unwrap());
-        j.progress =
-            Progress { fraction: 0.25, step: 3, steps: 12, stage: "search".into(), message: "iteration 3".into() };
-        j.request = json!({ "seed": 18446744073709551615u64, "terrain": { "fractal": { "size": 65 } } });
-        j.result = Some(json!({ "z_min": -1.5, "z_max": 99.25 }));
-        j.error = Some(json!({ "type": "about:blank", "status": 500 }));
-        j.replay_of = Some(id(0));
-        j.replay_until_step = Some(7);
-
-        assert!(matches!(store.insert(&j, None).unwrap(), IdempotentInsert::Inserted));
-        assert_eq!(store.get(&j.id).unwrap(), Some(j.clone()));
-        assert_eq!(store.get(&id(99)).unwrap(), None);
-        assert_eq!(store.attempts(&j.id).unwrap(), Some(0));
-    }
-
-    #[test]
-    fn list_pages_newest_first_with_filters() {
-        let (_dir, _path, store) = temp_store();
-        let statuses = [JobStatus::Queued, JobStatus::Succeeded, JobStatus::Failed];
-        let mut all = Vec::new();
-        for n in 0..10u64 {
-            let kind = if n % 2 == 0 { "bulldoze" } else { "grow-cave" };
-            let j = job(n, kind, statuses[n as usize % 3]);
-            store.insert(&j, None).unwrap();
-            all.push(j);
-        }
-        let newest: Vec<String> = all.iter().rev().map(|j| j.id.clone()).collect();
-
-        let page = |filter: ListFilter| ids(&store.list(&filter).unwrap());
-        let first = page(ListFilter { limit: 4, ..Default::default() });
-        assert_eq!(first, newest[..4]);
-        let second = page(ListFilter { limit: 4, before_id: first.last().cloned(), ..Default::default() });
-        assert_eq!(second, newest[4..8]);
-        let third = page(ListFilter { limit: 4, before_id: second.last().cloned(), ..Default::default() });
-        assert_eq!(third, newest[8..]);
-        assert_eq!(page(ListFilter::default()), newest, "limit 0 is no limit");
-
-        let expect = |pred: &dyn Fn(&Job) -> bool| -> Vec<String> {
-            all.iter().rev().filter(|j| pred(j)).map(|j| j.id.clone()).collect()
-        };
-        let caves = page(ListFilter { kind: Some("grow-cave".into()), limit: 100, ..Default::default() });
-        assert_eq!(caves, expect(&|j| j.kind == "grow-cave"));
-        let failed = page(ListFilter { status: Some(JobStatus::Failed), limit: 100, ..Default::default() });
-        assert_eq!(failed, expect(&|j| j.status == JobStatus::Failed));
-        let both = page(ListFilter {
-            kind: Some("bulldoze".into()),
-            status: Some(JobStatus::Queued),
-            before_id: Some(id(6)),
-            limit: 100,
-        });
-        assert_eq!(both, vec![id(0)]);
-        assert!(page(ListFilter { kind: Some("nope".into()), limit: 5, ..Default::default() }).is_empty());
-    }
-
-    #[test]
-    fn idempotency_key_returns_the_first_job_and_compares_the_body() {
-        let (_dir, _path, store) = temp_store();
-        let first = job(1, "bulldoze", JobStatus::Queued);
-        let retry = job(2, "bulldoze", JobStatus::Queued);
-        let key = Some(("key-1", "aa11"));
-
-        assert!(matches!(store.insert(&first, key).unwrap(), IdempotentInsert::Inserted));
-        match store.insert(&retry, key).unwrap() {
-            IdempotentInsert::Existing { job, same_body } => {
-                assert_eq!(*job, first);
-                assert!(same_body);
-            }
-            other => panic!("expected Existing, got {other:?}"),
-        }
-        match store.insert(&retry, Some(("key-1", "bb22"))).unwrap() {
-            IdempotentInsert::Existing { job, same_body } => {
-                assert_eq!(job.id, first.id);
-                assert!(!same_body);
-            }
-            other => panic!("expected Existing, got {other:?}"),
-        }
-        assert_eq!(store.get(&retry.id).unwrap(), None, "a repeated key writes nothing");
-
-        // Another key is another job; deleting a job frees its key.
-        assert!(matches!(store.insert(&retry, Some(("key-2", "aa11"))).unwrap(), IdempotentInsert::Inserted));
-        assert!(store.delete(&first.id).unwrap());
-        let third = job(3, "bulldoze", JobStatus::Queued);
-        assert!(matches!(store.insert(&third, key).unwrap(), IdempotentInsert::Inserted));
-    }
-
-    #[test]
-    fn finish_stores_artifacts_with_sha256_in_production_order() {
-        let (_dir, _path, store) = temp_store();
-        let mut j = job(1, "carve-coast", JobStatus::Running);
-        store.insert(&j, None).unwrap();
-        j.status = JobStatus::Succeeded;
-        j.finished_at = Some(Utc.timestamp_opt(1_750_000_100, 0).unwrap());
-        j.result = Some(json!({ "caves": 3 }));
-        store.finish(&j, &artifacts()).unwrap();
-
-        let got = store.get(&j.id).unwrap().unwrap();
-        assert_eq!(got.status, JobStatus::Succeeded);
-        assert_eq!(got.result, j.result);
-        let names: Vec<&str> = got.artifacts.iter().map(|a| a.name.as_str()).collect();
-        assert_eq!(names, ["mesh.glb", "heightmap.png", "a-last.json"]);
-        let png = &got.artifacts[1];
-        assert_eq!((png.media_type.as_str(), png.bytes, png.sha256.as_str()), ("image/png", 3, SHA256_ABC));
-        assert_eq!(got.artifacts[2].sha256, SHA256_EMPTY);
-        assert_eq!(got.artifacts[0].bytes, 1000);
-        assert!(got.artifacts.iter().all(|a| a.href.is_empty()));
-
-        assert_eq!(store.artifact(&j.id, "heightmap.png").unwrap(), Some(("image/png".into(), b"abc".to_vec())));
-        assert_eq!(store.artifact(&j.id, "a-last.json").unwrap(), Some(("application/json".into(), Vec::new())));
-        assert_eq!(store.artifact(&j.id, "nope.bin").unwrap(), None);
-
-        // Finishing again replaces the artifacts.
-        store.finish(&j, &[Artifact::new("sequence.json", "application/json", b"[]".to_vec())]).unwrap();
-        let got = store.get(&j.id).unwrap().unwrap();
-        assert_eq!(ids_of_artifacts(&got), ["sequence.json"]);
-        assert_eq!(store.artifact(&j.id, "mesh.glb").unwrap(), None);
-    }
-
-    fn ids_of_artifacts(j: &Job) -> Vec<&str> {
-        j.artifacts.iter().map(|a| a.name.as_str()).collect()
-    }
-
-    #[test]
-    fn finish_refuses_duplicate_names_and_leaves_the_job_untouched() {
-        let (_dir, _path, store) = temp_store();
-        let j = job(1, "bulldoze", JobStatus::Running);
-        store.insert(&j, None).unwrap();
-        let mut done = j.clone();
-        done.status = JobStatus::Succeeded;
-        let twice = [Artifact::new("a", "x/y", vec![1]), Artifact::new("a", "x/y", vec![2])];
-        assert!(matches!(store.finish(&done, &twice), Err(StoreError::Backend(_))));
-        assert_eq!(store.get(&j.id).unwrap(), Some(j));
     }
 
     #[test]
@@ -890,46 +614,6 @@ mod tests {
         store.update(&j).unwrap();
         store.finish(&j, &artifacts()).unwrap();
         assert_eq!(store.get(&j.id).unwrap(), None);
-    }
-
-    #[test]
-    fn unfinished_is_oldest_first_and_counts_group_by_kind_and_status() {
-        let (_dir, _path, store) = temp_store();
-        let plan = [
-            ("bulldoze", JobStatus::Running),
-            ("grow-cave", JobStatus::Succeeded),
-            ("bulldoze", JobStatus::Queued),
-            ("bulldoze", JobStatus::Queued),
-            ("grow-cave", JobStatus::Cancelled),
-            ("grow-cave", JobStatus::Queued),
-        ];
-        for (n, (kind, status)) in plan.iter().enumerate() {
-            store.insert(&job(n as u64, kind, *status), None).unwrap();
-        }
-        assert_eq!(ids(&store.unfinished().unwrap()), vec![id(0), id(2), id(3), id(5)]);
-        assert_eq!(
-            store.counts().unwrap(),
-            vec![
-                ("bulldoze".to_string(), JobStatus::Queued, 2),
-                ("bulldoze".to_string(), JobStatus::Running, 1),
-                ("grow-cave".to_string(), JobStatus::Cancelled, 1),
-                ("grow-cave".to_string(), JobStatus::Queued, 1),
-                ("grow-cave".to_string(), JobStatus::Succeeded, 1),
-            ]
-        );
-    }
-
-    #[test]
-    fn attempts_count_each_entry_into_running() {
-        let (_dir, _path, store) = temp_store();
-        let mut j = job(1, "bulldoze", JobStatus::Queued);
-        store.insert(&j, None).unwrap();
-        for status in [JobStatus::Running, JobStatus::Running, JobStatus::Queued, JobStatus::Running] {
-            j.status = status;
-            store.update(&j).unwrap();
-        }
-        assert_eq!(store.attempts(&j.id).unwrap(), Some(2));
-        assert_eq!(store.attempts("missing").unwrap(), None);
     }
 
     #[test]

@@ -128,6 +128,12 @@ pub fn png_dimensions(png_base64: &str) -> Result<(u64, u64), HeightmapDecodeErr
     Ok((header.width, header.height))
 }
 
+/// Width and height from a PNG file's header, without decoding its pixels.
+pub fn png_header_dimensions(png: &[u8]) -> Result<(u64, u64), HeightmapDecodeError> {
+    let header = read_header(png)?;
+    Ok((header.width, header.height))
+}
+
 struct Header {
     width: u64,
     height: u64,

@@ -14,11 +14,13 @@ use crate::validate::{Limits, Validator};
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ImageUpload {
-    /// The PNG file, base64-encoded (standard alphabet).
+    /// The PNG file, base64-encoded (standard alphabet). Its width × height must be at most the
+    /// server's grid cap (4097 × 4097 pixels by default; more is answered with 413).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub png_base64: Option<String>,
     /// The sha256 (lowercase hex) of a PNG this server was sent before.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(pattern = "^[0-9a-f]{64}$")]
     pub png_sha256: Option<String>,
 }
 

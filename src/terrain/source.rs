@@ -13,7 +13,7 @@ pub enum TerrainSource {
     Fractal(FractalParams),
     /// An uploaded 8- or 16-bit grayscale PNG, black = `z_min`, white = `z_max`.
     Heightmap(HeightmapUpload),
-    /// The heightfield an earlier, succeeded job produced (its id).
+    /// The heightfield an earlier, succeeded job produced (its id, a UUID).
     Job(String),
 }
 
@@ -44,24 +44,27 @@ fn default_z_max() -> f32 {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct FractalParams {
-    /// Samples along each side (the grid is size × size).
+    /// Samples along each side (the grid is size × size). size × size must be at most the
+    /// server's grid cap (4097 × 4097 samples by default; more is answered with 413).
     #[serde(default = "default_size")]
     #[schema(default = 257, minimum = 2)]
     pub size: u32,
     /// Metres between samples.
     #[serde(default = "default_cell_size")]
-    #[schema(default = 1.0)]
+    // 10000 = MAX_CELL_SIZE_M
+    #[schema(default = 1.0, exclusive_minimum = 0.0, maximum = 10000.0)]
     pub cell_size: f32,
     /// Height range in metres from the lowest to the highest possible point.
     #[serde(default = "default_relief")]
-    #[schema(default = 120.0)]
+    // 100000 = MAX_RELIEF_M
+    #[schema(default = 120.0, minimum = 0.0, maximum = 100000.0)]
     pub relief: f32,
     #[serde(default = "default_octaves")]
     #[schema(default = 8, minimum = 1, maximum = 16)]
     pub octaves: u32,
     /// Amplitude ratio between successive octaves, in (0, 1].
     #[serde(default = "default_roughness")]
-    #[schema(default = 0.5)]
+    #[schema(default = 0.5, exclusive_minimum = 0.0, maximum = 1.0)]
     pub roughness: f32,
     #[serde(default = "default_fractal_seed")]
     #[schema(default = 7)]
@@ -87,22 +90,28 @@ impl Default for FractalParams {
 #[serde(deny_unknown_fields)]
 pub struct HeightmapUpload {
     /// The PNG file, base64-encoded (standard alphabet): grayscale, 8 or 16 bits (1, 2 and 4
-    /// bits are read too).
+    /// bits are read too). Its width × height must be at most the server's grid cap (4097 ×
+    /// 4097 samples by default; more is answered with 413).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub png_base64: Option<String>,
     /// The sha256 (lowercase hex) of a PNG this server was sent before.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(pattern = "^[0-9a-f]{64}$")]
     pub png_sha256: Option<String>,
+    /// Metres between samples.
     #[serde(default = "default_cell_size")]
-    #[schema(default = 1.0)]
+    // 10000 = MAX_CELL_SIZE_M
+    #[schema(default = 1.0, exclusive_minimum = 0.0, maximum = 10000.0)]
     pub cell_size: f32,
     /// Height in metres of a black pixel.
     #[serde(default)]
-    #[schema(default = 0.0)]
+    // ±1e6 = MAX_HEIGHTMAP_Z_M
+    #[schema(default = 0.0, minimum = -1e6, maximum = 1e6)]
     pub z_min: f32,
-    /// Height in metres of a white pixel.
+    /// Height in metres of a white pixel; not below `z_min`.
     #[serde(default = "default_z_max")]
-    #[schema(default = 100.0)]
+    // ±1e6 = MAX_HEIGHTMAP_Z_M
+    #[schema(default = 100.0, minimum = -1e6, maximum = 1e6)]
     pub z_max: f32,
 }
 
@@ -125,6 +134,18 @@ pub trait TerrainLookup: Sync {
     fn job_heightfield(&self, job_id: &str) -> Result<Heightfield, String>;
     /// An uploaded file by its sha256, or why there is none.
     fn input(&self, sha256: &str) -> Result<Vec<u8>, String>;
+    /// The size of a succeeded job's final heightfield. The store reads it from the job's
+    /// result without the heights; this default builds the heightfield.
+    fn job_extent(&self, job_id: &str) -> Result<super::TerrainExtent, String> {
+        let hf = self.job_heightfield(job_id)?;
+        let (lo, hi) = hf.min_max();
+        Ok(super::TerrainExtent {
+            cols: hf.cols as u64,
+            rows: hf.rows as u64,
+            cell_size_m: hf.cell_size_m as f64,
+            z_span_m: (hi - lo) as f64,
+        })
+    }
 }
 
 /// Build the heightfield a source describes.

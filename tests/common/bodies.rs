@@ -49,7 +49,7 @@ pub fn small_bulldoze_first_steps(k: usize) -> Value {
 /// A job that runs for seconds and checks for cancellation often: many large mounds over a
 /// 1025² grid.
 pub fn slow_bulldoze() -> Value {
-    let ops: Vec<Value> = (0..3000)
+    let ops: Vec<Value> = (0..2000)
         .map(|i| {
             json!({"primitive": {"shape": {"mound": {
                 "center": {"x": 100 + (i * 37) % 800, "z": 100 + (i * 53) % 800},

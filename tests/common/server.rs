@@ -16,6 +16,10 @@ pub struct Options {
     pub job_timeout_secs: u64,
     pub max_body_bytes: usize,
     pub max_grid_cells: u64,
+    /// More flags, as given (e.g. `--memory-budget`, `--api-keys`).
+    pub extra: Vec<String>,
+    /// A database URL (PostgreSQL) to use instead of the SQLite file.
+    pub database_url: Option<String>,
 }
 
 impl Default for Options {
@@ -26,6 +30,8 @@ impl Default for Options {
             job_timeout_secs: 120,
             max_body_bytes: 8 * 1024 * 1024,
             max_grid_cells: 1025 * 1025,
+            extra: Vec::new(),
+            database_url: None,
         }
     }
 }
@@ -55,12 +61,13 @@ impl TestServer {
     pub async fn start_on(db: &Path, options: &Options) -> Self {
         let mut child = Command::new(env!("CARGO_BIN_EXE_landform"))
             .args(["serve", "--addr", "127.0.0.1:0", "--database"])
-            .arg(db)
+            .arg(options.database_url.as_deref().map_or(db.as_os_str(), std::ffi::OsStr::new))
             .args(["--workers", &options.workers.to_string()])
             .args(["--queue-capacity", &options.queue_capacity.to_string()])
             .args(["--job-timeout-secs", &options.job_timeout_secs.to_string()])
             .args(["--max-body-bytes", &options.max_body_bytes.to_string()])
             .args(["--max-grid-cells", &options.max_grid_cells.to_string()])
+            .args(&options.extra)
             .env("RUST_LOG", "warn")
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
@@ -82,6 +89,20 @@ impl TestServer {
 
     pub fn url(&self, path: &str) -> String {
         format!("{}{}", self.base, path)
+    }
+
+    /// SIGTERM, as an orchestrator stops a service; waits (at most `within`) for the process
+    /// to exit and says whether it did.
+    pub fn terminate(mut self, within: Duration) -> bool {
+        let _ = Command::new("kill").args(["-TERM", &self.child.id().to_string()]).status();
+        let start = Instant::now();
+        while start.elapsed() < within {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        false
     }
 
     /// Stop the process at once (like a crash), leaving the database as it is.

@@ -2,7 +2,7 @@ use axum::extract::{Path, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 
-use crate::http::{AppState, Problem};
+use crate::http::{AppState, Caller, Problem};
 use crate::jobs::Job;
 
 #[utoipa::path(
@@ -11,19 +11,23 @@ use crate::jobs::Job;
         ("id" = String, Path, description = "Job id"),
         ("name" = String, Path, description = "Artifact name, e.g. mesh.glb, heightmap.png, preview.png, sequence.json"),
         ("If-None-Match" = Option<String>, Header, description = "An ETag from before: 304 when it still matches"),
+        ("Range" = Option<String>, Header, description = "`bytes=FIRST-LAST`, `bytes=FIRST-` or `bytes=-SUFFIX` (one range): 206 with that part. Other forms are ignored (the whole artifact)"),
     ),
     responses(
         (status = 200, description = "The bytes; ETag is their sha256; immutable", content_type = "application/octet-stream", body = Vec<u8>),
+        (status = 206, description = "The requested range of the bytes, with Content-Range", content_type = "application/octet-stream", body = Vec<u8>),
         (status = 304, description = "Not modified"),
+        (status = 416, description = "The range lies past the end; Content-Range gives the length", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "No such job or artifact", body = Problem, content_type = "application/problem+json"),
     )
 )]
 pub async fn get_artifact(
     State(state): State<AppState>,
+    caller: Caller,
     Path((id, name)): Path<(String, String)>,
     headers: HeaderMap,
 ) -> Result<Response, Problem> {
-    let job = state.engine.get(&id).await?;
+    let job = state.engine.get(&id, caller.owner()).await?;
     serve_artifact(&state, &job, &name, &headers)
         .await
         .unwrap_or_else(|| Err(Problem::not_found(format!("job {id} has no artifact named {name}"))))
@@ -64,10 +68,103 @@ async fn serve_immutable(
         .ok_or_else(|| Problem::not_found(format!("job {id} has no artifact named {name}")))?;
     let content_type =
         HeaderValue::from_str(&media_type).unwrap_or(HeaderValue::from_static("application/octet-stream"));
-    Ok((
-        StatusCode::OK,
-        [(header::CONTENT_TYPE, content_type), (header::ETAG, etag_value), (header::CACHE_CONTROL, cache)],
-        bytes,
-    )
-        .into_response())
+    let len = bytes.len() as u64;
+    let range = headers.get(header::RANGE).and_then(|v| v.to_str().ok()).and_then(parse_range);
+    let mut res = match range.map(|r| r.within(len)) {
+        None => (StatusCode::OK, bytes).into_response(),
+        Some(Some((first, last))) => {
+            let part = bytes[first as usize..=last as usize].to_vec();
+            let mut res = (StatusCode::PARTIAL_CONTENT, part).into_response();
+            if let Ok(v) = HeaderValue::from_str(&format!("bytes {first}-{last}/{len}")) {
+                res.headers_mut().insert(header::CONTENT_RANGE, v);
+            }
+            res
+        }
+        Some(None) => {
+            let mut res = Problem::new(
+                StatusCode::RANGE_NOT_SATISFIABLE,
+                "range-not-satisfiable",
+                "Range not satisfiable",
+                format!("{name} has {len} bytes"),
+            )
+            .into_response();
+            if let Ok(v) = HeaderValue::from_str(&format!("bytes */{len}")) {
+                res.headers_mut().insert(header::CONTENT_RANGE, v);
+            }
+            return Ok(res);
+        }
+    };
+    let h = res.headers_mut();
+    h.insert(header::CONTENT_TYPE, content_type);
+    h.insert(header::ETAG, etag_value);
+    h.insert(header::CACHE_CONTROL, cache);
+    h.insert(header::ACCEPT_RANGES, HeaderValue::from_static("bytes"));
+    Ok(res)
+}
+
+/// One byte range of RFC 9110 §14.1.2.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ByteRange {
+    /// `first-last` (last inclusive) or `first-` (last: None).
+    From(u64, Option<u64>),
+    /// `-n`: the last n bytes.
+    Suffix(u64),
+}
+
+impl ByteRange {
+    /// The inclusive bounds within `len` bytes, or None when the range lies past the end.
+    fn within(self, len: u64) -> Option<(u64, u64)> {
+        match self {
+            ByteRange::From(first, _) if first >= len => None,
+            ByteRange::From(first, last) => Some((first, last.map_or(len - 1, |l| l.min(len - 1)))),
+            ByteRange::Suffix(0) => None,
+            ByteRange::Suffix(_) if len == 0 => None,
+            ByteRange::Suffix(n) => Some((len.saturating_sub(n), len - 1)),
+        }
+    }
+}
+
+/// A single `bytes=` range; anything else (several ranges, other units, bad syntax) is None,
+/// and the whole artifact is sent, as RFC 9110 lets a server do.
+fn parse_range(value: &str) -> Option<ByteRange> {
+    let spec = value.trim().strip_prefix("bytes=")?.trim();
+    if spec.contains(',') {
+        return None;
+    }
+    let (a, b) = spec.split_once('-')?;
+    let number = |t: &str| -> Option<u64> {
+        let t = t.trim();
+        (!t.is_empty() && t.bytes().all(|c| c.is_ascii_digit())).then(|| t.parse().ok()).flatten()
+    };
+    match (a.trim().is_empty(), b.trim().is_empty()) {
+        (true, false) => number(b).map(ByteRange::Suffix),
+        (false, true) => number(a).map(|first| ByteRange::From(first, None)),
+        (false, false) => {
+            let (first, last) = (number(a)?, number(b)?);
+            (first <= last).then_some(ByteRange::From(first, Some(last)))
+        }
+        (true, true) => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_parse_and_fit_the_length_as_rfc_9110_says() {
+        assert_eq!(parse_range("bytes=0-99"), Some(ByteRange::From(0, Some(99))));
+        assert_eq!(parse_range("bytes=100-"), Some(ByteRange::From(100, None)));
+        assert_eq!(parse_range("bytes=-5"), Some(ByteRange::Suffix(5)));
+        for bad in ["bytes=5-1", "bytes=0-1,3-4", "items=0-1", "bytes=-", "bytes=a-b", "0-1"] {
+            assert_eq!(parse_range(bad), None, "{bad}");
+        }
+        let len = 10;
+        assert_eq!(ByteRange::From(0, Some(99)).within(len), Some((0, 9)));
+        assert_eq!(ByteRange::From(3, None).within(len), Some((3, 9)));
+        assert_eq!(ByteRange::Suffix(4).within(len), Some((6, 9)));
+        assert_eq!(ByteRange::Suffix(40).within(len), Some((0, 9)));
+        assert_eq!(ByteRange::From(10, None).within(len), None);
+        assert_eq!(ByteRange::Suffix(0).within(len), None);
+    }
 }

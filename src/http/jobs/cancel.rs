@@ -1,7 +1,7 @@
 use axum::extract::{Path, State};
 use axum::Json;
 
-use crate::http::{AppState, Problem};
+use crate::http::{AppState, Caller, Problem};
 use crate::jobs::Job;
 
 #[utoipa::path(
@@ -13,6 +13,10 @@ use crate::jobs::Job;
         (status = 409, description = "The job has already ended", body = Problem, content_type = "application/problem+json"),
     )
 )]
-pub async fn cancel_job(State(state): State<AppState>, Path(id): Path<String>) -> Result<Json<Job>, Problem> {
-    Ok(Json(state.engine.cancel(&id).await?))
+pub async fn cancel_job(
+    State(state): State<AppState>,
+    caller: Caller,
+    Path(id): Path<String>,
+) -> Result<Json<Job>, Problem> {
+    Ok(Json(state.engine.cancel(&id, caller.owner()).await?))
 }

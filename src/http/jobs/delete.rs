@@ -1,7 +1,7 @@
 use axum::extract::{Path, State};
 use axum::http::StatusCode;
 
-use crate::http::{AppState, Problem};
+use crate::http::{AppState, Caller, Problem};
 
 #[utoipa::path(
     delete, path = "/v1/jobs/{id}", tag = "jobs",
@@ -11,7 +11,11 @@ use crate::http::{AppState, Problem};
         (status = 404, description = "No such job", body = Problem, content_type = "application/problem+json"),
     )
 )]
-pub async fn delete_job(State(state): State<AppState>, Path(id): Path<String>) -> Result<StatusCode, Problem> {
-    state.engine.delete(&id).await?;
+pub async fn delete_job(
+    State(state): State<AppState>,
+    caller: Caller,
+    Path(id): Path<String>,
+) -> Result<StatusCode, Problem> {
+    state.engine.delete(&id, caller.owner()).await?;
     Ok(StatusCode::NO_CONTENT)
 }

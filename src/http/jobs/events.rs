@@ -11,10 +11,26 @@ use futures::stream::{self, Stream, StreamExt};
 use serde::Deserialize;
 use tokio::sync::broadcast::{error::RecvError, Receiver};
 
-use crate::http::{AppState, Problem};
+use crate::http::{AppState, Caller, Problem};
 use crate::jobs::{EventFeed, JobEvent, LiveJob};
 
+/// One server-sent event as a client's parser sees it.
+#[derive(utoipa::ToSchema)]
+#[allow(dead_code)]
+pub struct SseEvent {
+    /// `progress`, `status` or `done`.
+    #[schema(pattern = "^(progress|status|done)$")]
+    event: Option<String>,
+    /// The event id, to resume after with `Last-Event-ID`.
+    #[schema(pattern = "^[0-9]{1,20}$")]
+    id: Option<String>,
+    /// JSON: the progress, the status, or (for `done`) the Job.
+    data: String,
+    retry: Option<u64>,
+}
+
 #[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct EventsQuery {
     /// For clients that cannot set the `Last-Event-ID` header (EventSource polyfills).
     last_event_id: Option<u64>,
@@ -27,24 +43,29 @@ pub struct EventsQuery {
         ("Last-Event-ID" = Option<u64>, Header, description = "Resume after this event"),
     ),
     responses(
-        (status = 200, description = "Server-sent events: `progress` (with `snapshot` when a live picture is new), `status` on each change, and a final `done` carrying the Job; keep-alive comments while idle", content_type = "text/event-stream", body = String),
+        (status = 200, description = "Server-sent events: `progress` (with `snapshot` when a live picture is new), `status` on each change, and a final `done` carrying the Job; keep-alive comments while idle", content_type = "text/event-stream", body = SseEvent),
+        (status = 400, description = "A Last-Event-ID that is not an event id", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "A last_event_id query that is not an event id", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "No such job", body = Problem, content_type = "application/problem+json"),
     )
 )]
 pub async fn job_events(
     State(state): State<AppState>,
+    caller: Caller,
     Path(id): Path<String>,
     query: Result<Query<EventsQuery>, axum::extract::rejection::QueryRejection>,
     headers: HeaderMap,
 ) -> Result<Response, Problem> {
     let Query(q) = query.map_err(|_| Problem::field("last_event_id", "must be an event id (an unsigned integer)"))?;
-    let last = headers
-        .get("last-event-id")
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.trim().parse::<u64>().ok())
-        .or(q.last_event_id);
+    let header = match headers.get("last-event-id") {
+        None => None,
+        Some(v) => Some(v.to_str().ok().and_then(parse_event_id).ok_or_else(|| {
+            Problem::bad_request("Last-Event-ID must be an event id this server sent (1 to 19 digits)")
+        })?),
+    };
+    let last = header.or(q.last_event_id);
     let keep_alive = KeepAlive::new().interval(Duration::from_secs(15)).text("keep-alive");
-    Ok(match state.engine.events(&id, last).await? {
+    Ok(match state.engine.events(&id, last, caller.owner()).await? {
         EventFeed::Ended(job) => {
             let data = serde_json::to_string(&job).unwrap_or_default();
             let done =
@@ -55,6 +76,13 @@ pub async fn job_events(
             Sse::new(live_stream(backlog, rx, live, last.unwrap_or(0))).keep_alive(keep_alive).into_response()
         }
     })
+}
+
+/// An event id as the schema states it (`^[0-9]{1,19}$`): ids this server sends are clock-based
+/// and have at most 19 digits, so anything longer — leading zeros included — is not one of them.
+fn parse_event_id(v: &str) -> Option<u64> {
+    let v = v.trim();
+    (!v.is_empty() && v.len() <= 19 && v.bytes().all(|b| b.is_ascii_digit())).then(|| v.parse().ok()).flatten()
 }
 
 struct Feed {
@@ -97,4 +125,19 @@ fn live_stream(
         }
     })
     .map(|ev| Ok(Event::default().id(ev.id.to_string()).event(ev.event).data(ev.data.to_string())))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_event_id;
+
+    #[test]
+    fn event_ids_are_one_to_nineteen_digits() {
+        assert_eq!(parse_event_id("0"), Some(0));
+        assert_eq!(parse_event_id(" 42 "), Some(42));
+        assert_eq!(parse_event_id("9999999999999999999"), Some(9_999_999_999_999_999_999));
+        for bad in ["", "00000000000000000000", "+1", "-1", "1e3", "١"] {
+            assert_eq!(parse_event_id(bad), None, "{bad:?}");
+        }
+    }
 }

@@ -1,7 +1,7 @@
 use axum::extract::{Path, State};
 use axum::Json;
 
-use crate::http::{AppState, Problem};
+use crate::http::{AppState, Caller, Problem};
 use crate::jobs::Job;
 
 #[utoipa::path(
@@ -12,6 +12,10 @@ use crate::jobs::Job;
         (status = 404, description = "No such job", body = Problem, content_type = "application/problem+json"),
     )
 )]
-pub async fn get_job(State(state): State<AppState>, Path(id): Path<String>) -> Result<Json<Job>, Problem> {
-    Ok(Json(state.engine.get(&id).await?))
+pub async fn get_job(
+    State(state): State<AppState>,
+    caller: Caller,
+    Path(id): Path<String>,
+) -> Result<Json<Job>, Problem> {
+    Ok(Json(state.engine.get(&id, caller.owner()).await?))
 }

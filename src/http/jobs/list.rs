@@ -3,7 +3,7 @@ use axum::Json;
 use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
-use crate::http::{AppState, Problem};
+use crate::http::{AppState, Caller, Problem};
 use crate::jobs::{Job, JobStatus};
 use crate::store::ListFilter;
 
@@ -12,13 +12,14 @@ const MAX_LIMIT: u32 = 100;
 
 #[derive(Debug, Deserialize, IntoParams)]
 #[into_params(parameter_in = Query)]
+#[serde(deny_unknown_fields)]
 pub struct ListQuery {
     /// Only jobs of this kind.
     kind: Option<String>,
     /// Only jobs in this status.
     status: Option<String>,
     /// Page size, 1 to 100 (default 20).
-    #[param(value_type = Option<u32>)]
+    #[param(value_type = Option<u32>, minimum = 1, maximum = 100)]
     limit: Option<String>,
     /// `next_cursor` of the previous page.
     cursor: Option<String>,
@@ -42,6 +43,7 @@ pub struct JobPage {
 )]
 pub async fn list_jobs(
     State(state): State<AppState>,
+    caller: Caller,
     query: Result<Query<ListQuery>, axum::extract::rejection::QueryRejection>,
 ) -> Result<Json<JobPage>, Problem> {
     // Every parameter is read as text, so a bad one is reported by its own name.
@@ -71,7 +73,13 @@ pub async fn list_jobs(
             return Err(Problem::field("cursor", "is not a cursor this server gave"));
         }
     }
-    let filter = ListFilter { kind: q.kind.filter(|k| !k.is_empty()), status, before_id: q.cursor, limit };
+    let filter = ListFilter {
+        kind: q.kind.filter(|k| !k.is_empty()),
+        status,
+        before_id: q.cursor,
+        limit,
+        owner: caller.owner().map(str::to_string),
+    };
     let items = state.engine.list(filter).await?;
     let next_cursor = if items.len() == limit as usize { items.last().map(|j| j.id.clone()) } else { None };
     Ok(Json(JobPage { items, next_cursor }))

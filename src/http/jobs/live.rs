@@ -2,7 +2,7 @@ use axum::extract::{Path, State};
 use axum::http::{header, HeaderMap};
 use axum::response::{IntoResponse, Response};
 
-use crate::http::{AppState, Problem};
+use crate::http::{AppState, Caller, Problem};
 
 #[utoipa::path(
     get, path = "/v1/jobs/{id}/live.png", tag = "jobs",
@@ -14,13 +14,14 @@ use crate::http::{AppState, Problem};
 )]
 pub async fn live_png(
     State(state): State<AppState>,
+    caller: Caller,
     Path(id): Path<String>,
     headers: HeaderMap,
 ) -> Result<Response, Problem> {
-    if let Some((_, png)) = state.engine.live_snapshot(&id) {
+    if let Some((_, png)) = state.engine.live_snapshot(&id, caller.owner()) {
         return Ok(([(header::CONTENT_TYPE, "image/png"), (header::CACHE_CONTROL, "no-store")], png).into_response());
     }
-    let job = state.engine.get(&id).await?;
+    let job = state.engine.get(&id, caller.owner()).await?;
     super::artifacts::serve_artifact(&state, &job, "preview.png", &headers).await.unwrap_or_else(|| {
         Err(Problem::not_found(format!("job {id} has no picture yet (it is {})", job.status.as_str())))
     })

@@ -7,14 +7,15 @@ use serde::Deserialize;
 use utoipa::ToSchema;
 
 use crate::http::body::{json_body, prefer_wait};
-use crate::http::{AppState, Problem};
+use crate::http::{AppState, Caller, Problem};
 use crate::jobs::parse_params;
 
 /// What to replay of a job's recorded sequence.
 #[derive(Debug, Default, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ReplayRequest {
-    /// Stop after this many steps of the sequence (default: all of them).
+    /// Stop after this many steps of the sequence (default: all of them). At most the number of
+    /// steps the job's recorded sequence has (more is answered with 422).
     pub until_step: Option<u64>,
 }
 
@@ -36,6 +37,7 @@ pub struct ReplayRequest {
 )]
 pub async fn replay_job(
     State(state): State<AppState>,
+    caller: Caller,
     Path(id): Path<String>,
     headers: HeaderMap,
     body: Result<Bytes, BytesRejection>,
@@ -44,6 +46,7 @@ pub async fn replay_job(
         None => ReplayRequest::default(),
         Some(v) => parse_params(v)?,
     };
-    let job = state.engine.replay(&id, req.until_step).await?;
+    let who = crate::http::auth::submitter(&state, &caller)?;
+    let job = state.engine.replay(&id, req.until_step, &who).await?;
     super::accepted(&state, job, prefer_wait(&headers), false).await
 }

@@ -2,7 +2,7 @@ use axum::extract::{Path, State};
 use axum::http::HeaderMap;
 use axum::response::Response;
 
-use crate::http::{AppState, Problem};
+use crate::http::{AppState, Caller, Problem};
 
 #[utoipa::path(
     get, path = "/v1/jobs/{id}/sequence", tag = "jobs",
@@ -15,10 +15,11 @@ use crate::http::{AppState, Problem};
 )]
 pub async fn get_sequence(
     State(state): State<AppState>,
+    caller: Caller,
     Path(id): Path<String>,
     headers: HeaderMap,
 ) -> Result<Response, Problem> {
-    let job = state.engine.get(&id).await?;
+    let job = state.engine.get(&id, caller.owner()).await?;
     super::artifacts::serve_artifact(&state, &job, "sequence.json", &headers).await.unwrap_or_else(|| {
         Err(crate::jobs::EngineError::Conflict(format!(
             "job {id} has no recorded sequence (it is {})",

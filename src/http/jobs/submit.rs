@@ -1,11 +1,10 @@
 use axum::body::Bytes;
 use axum::extract::rejection::BytesRejection;
-use axum::extract::{Path, State};
 use axum::http::HeaderMap;
 use axum::response::Response;
 
 use crate::http::body::{canonical_sha256, json_body, prefer_wait};
-use crate::http::{AppState, Problem};
+use crate::http::{AppState, Caller, Problem};
 use crate::jobs::Submitted;
 
 /// Longest Idempotency-Key accepted.
@@ -13,18 +12,15 @@ const MAX_KEY_LEN: usize = 256;
 
 /// `POST /v1/jobs/{kind}`: validate the kind's parameters and queue the job. Documented per kind
 /// in the OpenAPI document (see `openapi.rs`).
+///
+/// Each kind has its own route, `/v1/jobs/<kind>`, so `Allow` on that path says POST only.
 pub async fn submit_job(
-    State(state): State<AppState>,
-    Path(kind): Path<String>,
+    state: AppState,
+    caller: Caller,
+    kind: String,
     headers: HeaderMap,
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Response, Problem> {
-    if !state.engine.has_kind(&kind) {
-        return Err(Problem::not_found(format!(
-            "no job kind named {kind}; kinds: {}",
-            state.engine.kind_names().join(", ")
-        )));
-    }
     let key = match headers.get("idempotency-key") {
         None => None,
         Some(v) => {
@@ -33,8 +29,13 @@ pub async fn submit_job(
             )?)
         }
     };
+    let who = crate::http::auth::submitter(&state, &caller)?;
+    // Idempotency keys are per API key: one key's retry never finds another key's job.
+    let scope = match caller.owner() {
+        Some(owner) => format!("{owner}/{kind}"),
+        None => kind.clone(),
+    };
     // Parsing and hashing a body of many megabytes is CPU work: off the async threads.
-    let scope = kind.clone();
     let (body, idempotency) = tokio::task::spawn_blocking(move || {
         let body =
             json_body(body)?.ok_or_else(|| Problem::bad_request("the body is empty; send the job's parameters"))?;
@@ -44,7 +45,7 @@ pub async fn submit_job(
     .await
     .map_err(|_| crate::http::problem::internal())??;
     let wait = prefer_wait(&headers);
-    match state.engine.submit(&kind, body, idempotency).await? {
+    match state.engine.submit(&kind, body, idempotency, &who).await? {
         Submitted::Created(job) => super::accepted(&state, job, wait, false).await,
         Submitted::Existing(job) => super::accepted(&state, job, wait, true).await,
     }

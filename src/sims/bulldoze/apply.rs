@@ -135,14 +135,17 @@ pub type Cells = ((usize, usize), (usize, usize));
 
 /// The grid rows and columns an operation may touch: its bounds clipped to window and grid.
 pub fn affected_cells(hf: &Heightfield, bounds: Bounds, window: Option<&Window>) -> Option<Cells> {
+    cells_within(hf.cols, hf.rows, hf.cell_size_m as f64, bounds, window)
+}
+
+/// [`affected_cells`] of a `cols × rows` grid `cell_m` apart, before the grid exists (for the
+/// cost estimate).
+pub fn cells_within(cols: usize, rows: usize, cell_m: f64, bounds: Bounds, window: Option<&Window>) -> Option<Cells> {
     let b = match window {
         Some(w) => bounds.clip(w),
         None => bounds,
     };
-    let cell = hf.cell_size_m as f64;
-    let cols = index_range(b.min_x, b.max_x, cell, hf.cols)?;
-    let rows = index_range(b.min_z, b.max_z, cell, hf.rows)?;
-    Some((cols, rows))
+    Some((index_range(b.min_x, b.max_x, cell_m, cols)?, index_range(b.min_z, b.max_z, cell_m, rows)?))
 }
 
 /// A copy of a rectangle of the grid's heights: the surface a group of operations reads

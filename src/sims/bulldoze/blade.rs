@@ -12,6 +12,8 @@ fn default_profile() -> Vec<[f32; 2]> {
 
 /// Largest angle of the blade away from perpendicular to the path, degrees (exclusive).
 pub const MAX_ANGLE_DEG: f32 = 80.0;
+/// Most points of a blade profile: every move of a pass records a copy of it.
+pub const MAX_PROFILE_POINTS: usize = 64;
 
 /// The blade: a cross-section profile pushed along the path.
 ///
@@ -24,23 +26,28 @@ pub const MAX_ANGLE_DEG: f32 = 80.0;
 #[schema(as = BulldozeBlade)]
 pub struct Blade {
     /// Width of the blade in metres, edge to edge.
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub width_m: f32,
     /// The profile: points `[u, height_m]`, u strictly increasing from exactly −1 (left edge)
     /// to exactly +1 (right edge), height in metres relative to the path's height, linear
-    /// between points. At least 2 points; the default is flat (a rectangular blade).
+    /// between points. At least 2 points and at most 64; each point is exactly 2 numbers, u in
+    /// [−1, 1] and height_m within ±1 000 000 m.
     #[serde(default = "default_profile")]
-    #[schema(default = json!([[-1.0, 0.0], [1.0, 0.0]]), min_items = 2)]
+    // 64 = MAX_PROFILE_POINTS; the items' ±1e6 (MAX_METRES) bounds both u and height_m
+    #[schema(default = json!([[-1.0, 0.0], [1.0, 0.0]]), min_items = 2, max_items = 64, minimum = -1e6, maximum = 1e6)]
     pub profile: Vec<[f32; 2]>,
     /// Sideways shift of the blade's centre from the path, metres; positive to the right of
     /// travel.
     #[serde(default)]
-    #[schema(default = 0.0)]
+    // ±1e6 = MAX_METRES
+    #[schema(default = 0.0, minimum = -1e6, maximum = 1e6)]
     pub offset_m: f32,
     /// Rotation of the blade about the vertical away from perpendicular to the path, degrees,
-    /// |angle| < 80; positive brings the blade's right end ahead of its centre.
+    /// |angle| < 80 (exclusive); positive brings the blade's right end ahead of its centre.
     #[serde(default)]
-    #[schema(default = 0.0, minimum = -80.0, maximum = 80.0)]
+    // ±80 = MAX_ANGLE_DEG, exclusive
+    #[schema(default = 0.0, exclusive_minimum = -80.0, exclusive_maximum = 80.0)]
     pub angle_deg: f32,
 }
 
@@ -57,6 +64,10 @@ impl Validate for Blade {
         let p = &self.profile;
         if p.len() < 2 {
             v.error("profile", format!("needs at least 2 points (got {})", p.len()));
+            return;
+        }
+        if p.len() > MAX_PROFILE_POINTS {
+            v.error("profile", format!("may have at most {MAX_PROFILE_POINTS} points (got {})", p.len()));
             return;
         }
         v.field("profile", |v| {

@@ -9,6 +9,7 @@
 mod apply;
 mod blade;
 mod combine;
+mod cost;
 mod params;
 mod path;
 mod primitives;
@@ -29,8 +30,8 @@ pub use path::{MoveStep, PathPoint};
 pub use primitives::{Berm, BoxShape, Cone, HalfCylinder, Mound, Ramp, Shape, Torus};
 pub use sequence::{BulldozeSequence, Step};
 
-use crate::jobs::{Outcome, RunContext, SimError, Simulation};
-use crate::terrain::{Heightfield, TerrainSource};
+use crate::jobs::{Cost, Outcome, RunContext, SimError, Simulation};
+use crate::terrain::{Heightfield, TerrainLookup, TerrainSource};
 use params::{check_resampled, resampled_dimensions};
 use sequence::Group;
 
@@ -48,6 +49,10 @@ impl Simulation for Bulldoze {
 
     fn terrain_sources(params: &mut BulldozeParams) -> Vec<(String, &mut TerrainSource)> {
         vec![("terrain".to_string(), &mut params.terrain)]
+    }
+
+    fn estimate(params: &BulldozeParams, terrain: &dyn TerrainLookup) -> Result<Cost, SimError> {
+        cost::estimate(params, terrain)
     }
 
     fn run(params: &BulldozeParams, _seed: u64, ctx: &RunContext) -> Result<Outcome<BulldozeSequence>, SimError> {
@@ -178,7 +183,9 @@ impl Watcher for RunContext<'_> {
     fn progress(&self, step: u64, total: u64, message: impl FnOnce() -> String, hf: Option<&Heightfield>) {
         match hf {
             // Snapshots are rate-limited by the sink, so offering one per step is cheap.
-            Some(hf) => self.report_with_snapshot(STAGE, step, total, message(), || crate::export::snapshot_png(hf)),
+            Some(hf) => {
+                self.report_with_snapshot(STAGE, step, total, message(), || Ok(crate::export::snapshot_png(hf)))
+            }
             None => self.report(STAGE, step, total, message()),
         }
     }

@@ -31,10 +31,17 @@ pub struct BulldozeParams {
     /// Metres between samples of the output grid. The terrain is resampled (bilinear) to it
     /// over the same extent — coarse for a quick sketch, fine for the final form. Absent: the
     /// terrain's own cell size.
+    ///
+    /// At most 1 000 000 m. The resampled grid must keep at least 2 × 2 samples and hold at most
+    /// the server's grid cap (4097 × 4097 samples by default; larger is answered with 413).
     #[serde(default)]
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub resolution: Option<f32>,
     /// Primitives and passes, applied in order; each acts on the result of the ones before.
+    ///
+    /// Primitives and path vertices together may number at most the server's operation cap
+    /// (100 000 by default; more is answered with 413).
     pub operations: Vec<Operation>,
 }
 
@@ -44,12 +51,20 @@ pub struct BulldozeParams {
 #[schema(as = BulldozeWindow)]
 pub struct Window {
     /// Smallest x, metres.
+    // ±1e6 = MAX_METRES
+    #[schema(minimum = -1e6, maximum = 1e6)]
     pub min_x: f32,
     /// Smallest z, metres.
+    // ±1e6 = MAX_METRES
+    #[schema(minimum = -1e6, maximum = 1e6)]
     pub min_z: f32,
-    /// Largest x, metres.
+    /// Largest x, metres; greater than `min_x`.
+    // ±1e6 = MAX_METRES
+    #[schema(minimum = -1e6, maximum = 1e6)]
     pub max_x: f32,
-    /// Largest z, metres.
+    /// Largest z, metres; greater than `min_z`.
+    // ±1e6 = MAX_METRES
+    #[schema(minimum = -1e6, maximum = 1e6)]
     pub max_z: f32,
 }
 
@@ -96,7 +111,9 @@ pub struct PrimitiveOp {
 #[serde(deny_unknown_fields)]
 #[schema(as = BulldozePass)]
 pub struct PassOp {
-    /// The path: at least 2 vertices, no two consecutive ones at the same place.
+    /// The path: at least 2 vertices, no two consecutive ones at the same place. At most the
+    /// server's operation cap (100 000 by default; more is answered with 413).
+    #[schema(min_items = 2)]
     pub path: Vec<PathVertex>,
     pub blade: Blade,
     /// How each move combines with the surface; `replace` leaves the blade's profile, as a
@@ -112,13 +129,19 @@ pub struct PassOp {
 #[schema(as = BulldozePathVertex)]
 pub struct PathVertex {
     /// Metres along X.
+    // ±1e6 = MAX_METRES
+    #[schema(minimum = -1e6, maximum = 1e6)]
     pub x: f32,
     /// Metres along Z.
+    // ±1e6 = MAX_METRES
+    #[schema(minimum = -1e6, maximum = 1e6)]
     pub z: f32,
     /// Absolute height of the path here, metres. Absent (null): relative — the height of the
     /// terrain at this vertex as it is when the pass starts (bilinear), as a real bulldozer
     /// riding on the ground. A path may mix both.
     #[serde(default)]
+    // ±1e6 = MAX_METRES
+    #[schema(minimum = -1e6, maximum = 1e6)]
     pub height: Option<f32>,
 }
 
@@ -128,8 +151,12 @@ pub struct PathVertex {
 #[schema(as = BulldozePoint)]
 pub struct PlanPoint {
     /// Metres along X.
+    // ±1e6 = MAX_METRES
+    #[schema(minimum = -1e6, maximum = 1e6)]
     pub x: f32,
     /// Metres along Z.
+    // ±1e6 = MAX_METRES
+    #[schema(minimum = -1e6, maximum = 1e6)]
     pub z: f32,
 }
 

@@ -49,10 +49,12 @@ pub struct Mound {
     /// Centre of the footprint.
     pub center: PlanPoint,
     /// Radius of the footprint, metres.
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub radius_m: f32,
     /// Height at the centre, metres.
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub height_m: f32,
     /// Superellipse exponent c: 1 a cone, 2 round (a hemisphere when height = radius),
     /// larger values flatter-topped.
@@ -61,7 +63,8 @@ pub struct Mound {
     pub curvature: f32,
     /// Height of the ground plane the mound stands on, metres.
     #[serde(default)]
-    #[schema(default = 0.0)]
+    // ±1e6 = MAX_METRES
+    #[schema(default = 0.0, minimum = -1e6, maximum = 1e6)]
     pub base_m: f32,
 }
 
@@ -85,22 +88,29 @@ pub struct Berm {
     #[schema(default = 0.0)]
     pub direction_deg: f32,
     /// Length of the axis, metres (arc length when curved).
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub l: f32,
     /// Height (berm) or depth (swale) at the start, metres.
-    #[schema(minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(minimum = 0.0, maximum = 1e6)]
     pub h1: f32,
     /// Half-width of the base at the start, metres.
-    #[schema(minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(minimum = 0.0, maximum = 1e6)]
     pub r1: f32,
-    /// Height (berm) or depth (swale) at the end, metres.
-    #[schema(minimum = 0.0)]
+    /// Height (berm) or depth (swale) at the end, metres. `h1` or `h2` must be greater than 0.
+    // 1e6 = MAX_METRES
+    #[schema(minimum = 0.0, maximum = 1e6)]
     pub h2: f32,
-    /// Half-width of the base at the end, metres.
-    #[schema(minimum = 0.0)]
+    /// Half-width of the base at the end, metres. `r1` or `r2` must be greater than 0.
+    // 1e6 = MAX_METRES
+    #[schema(minimum = 0.0, maximum = 1e6)]
     pub r2: f32,
     /// Plan curvature of the axis, 1/m: 0 straight, otherwise a circular arc of radius 1/|c|
     /// turning toward increasing heading (for an axis heading +X, toward +Z) when positive.
+    /// When not 0: |c| · l at most 2π (no more than a full circle), and 1/|c| greater than
+    /// both `r1` and `r2`.
     #[serde(default)]
     #[schema(default = 0.0)]
     pub c: f32,
@@ -110,7 +120,8 @@ pub struct Berm {
     pub c2: f32,
     /// Height of the ground plane, metres.
     #[serde(default)]
-    #[schema(default = 0.0)]
+    // ±1e6 = MAX_METRES
+    #[schema(default = 0.0, minimum = -1e6, maximum = 1e6)]
     pub base_m: f32,
 }
 
@@ -123,17 +134,21 @@ pub struct Torus {
     /// Centre of the footprint.
     pub center: PlanPoint,
     /// Radius of the ring's crest line, metres.
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub major_radius_m: f32,
     /// Half-width of the ring's cross-section, metres.
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub minor_radius_m: f32,
     /// Height of the crest, metres.
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub height_m: f32,
     /// Height of the ground plane the shape stands on, metres (its base).
     #[serde(default)]
-    #[schema(default = 0.0)]
+    // ±1e6 = MAX_METRES
+    #[schema(default = 0.0, minimum = -1e6, maximum = 1e6)]
     pub base_m: f32,
 }
 
@@ -145,13 +160,16 @@ pub struct BoxShape {
     /// Centre of the footprint.
     pub center: PlanPoint,
     /// Extent along the box's own X axis, metres.
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub size_x_m: f32,
     /// Extent along the box's own Z axis, metres.
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub size_z_m: f32,
     /// Height of the top above the base, metres.
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub height_m: f32,
     /// Rotation about the vertical, degrees from +X toward +Z.
     #[serde(default)]
@@ -159,7 +177,8 @@ pub struct BoxShape {
     pub rotation_deg: f32,
     /// Height of the ground plane the shape stands on, metres (its base).
     #[serde(default)]
-    #[schema(default = 0.0)]
+    // ±1e6 = MAX_METRES
+    #[schema(default = 0.0, minimum = -1e6, maximum = 1e6)]
     pub base_m: f32,
 }
 
@@ -171,18 +190,22 @@ pub struct Cone {
     /// Centre of the footprint.
     pub center: PlanPoint,
     /// Radius of the base, metres.
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub radius_m: f32,
     /// Height of the top above the base, metres.
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub height_m: f32,
-    /// Radius of the flat top, metres, below `radius_m`; 0 a pointed cone.
+    /// Radius of the flat top, metres, below `radius_m` (strictly); 0 a pointed cone.
     #[serde(default)]
-    #[schema(default = 0.0, minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(default = 0.0, minimum = 0.0, maximum = 1e6)]
     pub top_radius_m: f32,
     /// Height of the ground plane the shape stands on, metres (its base).
     #[serde(default)]
-    #[schema(default = 0.0)]
+    // ±1e6 = MAX_METRES
+    #[schema(default = 0.0, minimum = -1e6, maximum = 1e6)]
     pub base_m: f32,
 }
 
@@ -198,14 +221,17 @@ pub struct HalfCylinder {
     #[schema(default = 0.0)]
     pub direction_deg: f32,
     /// Length along the axis, metres.
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub length_m: f32,
     /// Radius, metres.
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub radius_m: f32,
     /// Height of the ground plane the shape stands on, metres (its base).
     #[serde(default)]
-    #[schema(default = 0.0)]
+    // ±1e6 = MAX_METRES
+    #[schema(default = 0.0, minimum = -1e6, maximum = 1e6)]
     pub base_m: f32,
 }
 
@@ -223,21 +249,30 @@ pub struct Ramp {
     #[schema(default = 0.0)]
     pub direction_deg: f32,
     /// Length along the axis, metres.
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub length_m: f32,
     /// Width at the start, metres.
-    #[schema(exclusive_minimum = 0.0)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub width_m: f32,
     /// Width at the end, metres; absent (null): the same as `width_m`.
     #[serde(default)]
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub end_width_m: Option<f32>,
     /// Height of the top above the base at the start, metres.
+    // ±1e6 = MAX_METRES
+    #[schema(minimum = -1e6, maximum = 1e6)]
     pub start_height_m: f32,
     /// Height of the top above the base at the end, metres.
+    // ±1e6 = MAX_METRES
+    #[schema(minimum = -1e6, maximum = 1e6)]
     pub end_height_m: f32,
     /// Height of the ground plane the shape stands on, metres (its base).
     #[serde(default)]
-    #[schema(default = 0.0)]
+    // ±1e6 = MAX_METRES
+    #[schema(default = 0.0, minimum = -1e6, maximum = 1e6)]
     pub base_m: f32,
 }
 
@@ -732,6 +767,11 @@ fn geometry(shape: &Shape) -> Box<dyn Footprint> {
         Shape::HalfCylinder(h) => Box::new(HalfCylinderGeometry::from(h)),
         Shape::Ramp(r) => Box::new(RampGeometry::from(r)),
     }
+}
+
+/// A rectangle holding the shape's whole footprint, metres.
+pub(super) fn shape_bounds(shape: &Shape) -> super::apply::Bounds {
+    geometry(shape).bounds()
 }
 
 /// Combine a primitive with the surface (one step).

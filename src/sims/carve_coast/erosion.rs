@@ -9,6 +9,7 @@ use rayon::prelude::*;
 
 use super::implicit::{Implicit, Sphere};
 use super::params::{CarveCoastParams, Erosion};
+use crate::stop::{Stop, Stopped};
 
 /// A seed: a surface point and its outward normal.
 #[derive(Clone, Copy, Debug)]
@@ -29,7 +30,14 @@ fn accepted(seed: u64, pass: u32, column: usize, k: usize, probability: f32) -> 
 
 /// Every steep surface crossing within the elevation range, on each heightfield column,
 /// scanning down at `step_m` (seed: `GetCoastalErosionSeeds`, on the carved surface).
-pub fn seeds(implicit: &Implicit, params: &CarveCoastParams, seed: u64, pass: u32, step_m: f32) -> Vec<SeedPoint> {
+pub fn seeds(
+    implicit: &Implicit,
+    params: &CarveCoastParams,
+    seed: u64,
+    pass: u32,
+    step_m: f32,
+    stop: Stop,
+) -> Result<Vec<SeedPoint>, Stopped> {
     let e = &params.erosion;
     let hf = implicit.hf;
     let (lo, hi) = (params.sea_level + e.seed_elevation_range[0], params.sea_level + e.seed_elevation_range[1]);
@@ -39,6 +47,9 @@ pub fn seeds(implicit: &Implicit, params: &CarveCoastParams, seed: u64, pass: u3
         .into_par_iter()
         .map(|row| {
             let mut out = Vec::new();
+            if stop.requested() {
+                return out;
+            }
             for col in 0..hf.cols {
                 let h = hf.get(col, row);
                 if h < lo - reach || h > hi + reach {
@@ -52,6 +63,10 @@ pub fn seeds(implicit: &Implicit, params: &CarveCoastParams, seed: u64, pass: u3
                 let mut k = 0;
                 while y > lo {
                     let y2 = (y - step_m).max(lo);
+                    if y2 >= y {
+                        // A step below the float spacing at this height makes no progress.
+                        break;
+                    }
                     let below = implicit.distance_with([x, y2, z], near);
                     if above > 0.0 && below <= 0.0 {
                         let t = above / (above - below);
@@ -72,7 +87,8 @@ pub fn seeds(implicit: &Implicit, params: &CarveCoastParams, seed: u64, pass: u3
             out
         })
         .collect();
-    per_row.concat()
+    stop.check()?;
+    Ok(per_row.concat())
 }
 
 fn uniform(rng: &mut ChaCha8Rng, r: [f32; 2]) -> f32 {
@@ -110,19 +126,43 @@ pub fn grow_from_seed(s: &SeedPoint, e: &Erosion, y_range: (f32, f32), pass: u32
     out
 }
 
-/// The spheres of one pass, from the surface the spheres so far left (seed: `CoastalErosion`).
-pub fn erosion_pass(implicit: &Implicit, params: &CarveCoastParams, seed: u64, pass: u32, step_m: f32) -> Vec<Sphere> {
+/// Seeds grown at a time: enough to keep every thread busy, few enough that a pass stops
+/// growing soon after it reaches its room.
+const SEEDS_PER_CHUNK: usize = 256;
+
+/// The spheres of one pass, from the surface the spheres so far left (seed: `CoastalErosion`),
+/// at most `room` of them: seeds are grown in order, a chunk at a time, until the room is
+/// filled, so no pass builds more spheres than a job may keep.
+pub fn erosion_pass(
+    implicit: &Implicit,
+    params: &CarveCoastParams,
+    seed: u64,
+    pass: u32,
+    step_m: f32,
+    room: usize,
+    stop: Stop,
+) -> Result<Vec<Sphere>, Stopped> {
     let e = &params.erosion;
-    let found = seeds(implicit, params, seed, pass, step_m);
+    let found = seeds(implicit, params, seed, pass, step_m, stop)?;
     let y_range = (params.sea_level + e.seed_elevation_range[0], params.sea_level + e.seed_elevation_range[1]);
-    let grown: Vec<Vec<Sphere>> = found
-        .par_iter()
-        .enumerate()
-        .map(|(i, s)| {
-            let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            rng.set_stream(((pass as u64) << 40) | i as u64);
-            grow_from_seed(s, e, y_range, pass, &mut rng)
-        })
-        .collect();
-    grown.concat()
+    let mut out: Vec<Sphere> = Vec::new();
+    for (c, chunk) in found.chunks(SEEDS_PER_CHUNK).enumerate() {
+        if out.len() >= room {
+            break;
+        }
+        stop.check()?;
+        let grown: Vec<Vec<Sphere>> = chunk
+            .par_iter()
+            .enumerate()
+            .map(|(j, s)| {
+                let i = c * SEEDS_PER_CHUNK + j;
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                rng.set_stream(((pass as u64) << 40) | i as u64);
+                grow_from_seed(s, e, y_range, pass, &mut rng)
+            })
+            .collect();
+        out.extend(grown.into_iter().flatten());
+    }
+    out.truncate(room);
+    Ok(out)
 }

@@ -3,6 +3,7 @@
 //! near sea level are subtracted from it; an optional warp adds strata; the result is meshed
 //! in a narrow band around the surface into a closed solid.
 
+mod cost;
 mod erosion;
 mod field;
 mod implicit;
@@ -17,6 +18,7 @@ use crate::jobs::{Outcome, RunContext, SimError, Simulation};
 use crate::terrain::{Heightfield, TerrainSource};
 use crate::validate::Limits;
 
+use crate::stop::Stop;
 use implicit::{Implicit, Sphere};
 pub use params::CarveCoastParams;
 use params::{estimate_voxels, MAX_SPHERES};
@@ -35,16 +37,23 @@ impl Simulation for CarveCoast {
         vec![("terrain".to_string(), &mut params.terrain)]
     }
 
+    fn estimate(
+        params: &CarveCoastParams,
+        terrain: &dyn crate::terrain::TerrainLookup,
+    ) -> Result<crate::jobs::Cost, SimError> {
+        cost::estimate(params, terrain)
+    }
+
     fn run(params: &Self::Params, seed: u64, ctx: &RunContext) -> Result<Outcome<Self::Sequence>, SimError> {
         let hf = ctx.resolve_terrain(&params.terrain)?;
         let voxel_m = checked_voxel(params, &hf, ctx.limits)?;
         let total = params.passes as u64 + 1;
-        let spheres = carve(params, &hf, seed, voxel_m, &mut |pass, spheres| {
+        let spheres = carve(params, &hf, seed, voxel_m, ctx.stop(), &mut |pass, spheres| {
             ctx.check_cancelled()?;
             let implicit = Implicit::new(&hf, spheres, params.warp.as_ref(), seed);
             let message = format!("pass {pass}: {} spheres carved", spheres.len());
             ctx.report_with_snapshot("carving", pass as u64, total, message, || {
-                outputs::snapshot_png(&implicit, params, voxel_m)
+                outputs::snapshot_png(&implicit, params, voxel_m, ctx.stop())
             });
             Ok(())
         })?;
@@ -81,6 +90,7 @@ fn checked_voxel(params: &CarveCoastParams, hf: &Heightfield, limits: &Limits) -
         hi - lo,
         voxel_m,
         params.erosion.radius_range[1],
+        params.warp_amplitude(),
     );
     if voxels > limits.max_voxels {
         return Err(SimError::Invalid {
@@ -100,6 +110,7 @@ pub fn carve(
     hf: &Heightfield,
     seed: u64,
     voxel_m: f32,
+    stop: Stop,
     on_pass: &mut OnPass,
 ) -> Result<Vec<Sphere>, SimError> {
     let mut spheres: Vec<Sphere> = Vec::new();
@@ -107,10 +118,10 @@ pub fn carve(
         let new = {
             // Seeds are found on the surface carved so far, unwarped.
             let implicit = Implicit::new(hf, &spheres, None, seed);
-            erosion::erosion_pass(&implicit, params, seed, pass, voxel_m.min(hf.cell_size_m))
+            let room = MAX_SPHERES - spheres.len();
+            erosion::erosion_pass(&implicit, params, seed, pass, voxel_m.min(hf.cell_size_m), room, stop)?
         };
         spheres.extend(new);
-        spheres.truncate(MAX_SPHERES);
         on_pass(pass, &spheres)?;
     }
     Ok(spheres)
@@ -125,11 +136,12 @@ fn finish(
 ) -> Result<Outcome<CoastSequence>, SimError> {
     let implicit = Implicit::new(hf, &sequence.spheres, params.warp.as_ref(), sequence.seed);
     let total = params.passes as u64 + 1;
-    let (result, artifacts) = outputs::build(&implicit, params, &sequence.spheres, voxel_m, &mut |done, of| {
+    let mut on_chunk = |done, of| {
         ctx.check_cancelled()?;
         ctx.report("meshing", params.passes as u64, total, format!("sampled chunk {done} of {of}"));
         Ok(())
-    })?;
+    };
+    let (result, artifacts) = outputs::build(&implicit, params, &sequence.spheres, voxel_m, &mut on_chunk, ctx.stop())?;
     Ok(Outcome { result, sequence, artifacts })
 }
 
@@ -141,10 +153,10 @@ pub fn meshing_seconds(params: &CarveCoastParams, seed: u64, dense: bool) -> Res
     };
     let hf = crate::terrain::generate_fractal(f);
     let voxel_m = params.voxel_size_m.unwrap_or(hf.cell_size_m);
-    let spheres = carve(params, &hf, seed, voxel_m, &mut |_, _| Ok(()))?;
+    let spheres = carve(params, &hf, seed, voxel_m, Stop::NEVER, &mut |_, _| Ok(()))?;
     let implicit = Implicit::new(&hf, &spheres, params.warp.as_ref(), seed);
     let started = std::time::Instant::now();
     let sampled = outputs::sample(&implicit, params, voxel_m, dense, &mut |_, _| Ok(()))?;
-    let mesh = outputs::surface(&sampled);
+    let mesh = outputs::surface(&sampled, Stop::NEVER)?;
     Ok((started.elapsed().as_secs_f64(), mesh.triangle_count()))
 }

@@ -11,6 +11,7 @@ use super::params::CarveCoastParams;
 use crate::export::{heightfield_npy, heightmap_png16, render_png, write_glb, Artifact, View};
 use crate::jobs::{SimError, HEIGHTFIELD_ARTIFACT};
 use crate::mesh::{extract_isosurface, MaterialKind, Mesh, ScalarField, Scene, SceneNode};
+use crate::stop::{Stop, Stopped};
 use crate::terrain::Heightfield;
 
 const PREVIEW: View = View { width_px: 1024, height_px: 768, azimuth_deg: 35.0, elevation_deg: 28.0 };
@@ -23,7 +24,7 @@ const ROCK_SLOPE_DEG: f32 = 40.0;
 /// Metres above sea level that are beach.
 const BEACH_M: f32 = 1.5;
 /// Field chunks (groups of planes) sampled between progress reports.
-const CHUNKS: usize = 8;
+const CHUNKS: usize = 64;
 
 /// The sampled field and what it took.
 pub struct Sampled {
@@ -59,7 +60,7 @@ pub fn sample(
 }
 
 /// The closed surface of the sampled field, metres.
-pub fn surface(s: &Sampled) -> Mesh {
+pub fn surface(s: &Sampled, stop: Stop) -> Result<Mesh, Stopped> {
     let g = &s.grid;
     let field = ScalarField {
         dims: [g.nx, g.ny, g.nz],
@@ -67,7 +68,7 @@ pub fn surface(s: &Sampled) -> Mesh {
         spacing_m: g.voxel_m,
         values: &s.values,
     };
-    extract_isosurface(&field, 0.0)
+    extract_isosurface(&field, 0.0, stop)
 }
 
 /// Colour by material: rock on steep or carved faces, sand near sea level, grass above.
@@ -133,16 +134,22 @@ pub fn topology(mesh: &Mesh) -> (usize, i64) {
 }
 
 /// A small picture of the carved terrain, meshed coarsely, for live progress.
-pub fn snapshot_png(implicit: &Implicit, params: &CarveCoastParams, voxel_m: f32) -> Vec<u8> {
+pub fn snapshot_png(
+    implicit: &Implicit,
+    params: &CarveCoastParams,
+    voxel_m: f32,
+    stop: Stop,
+) -> Result<Vec<u8>, Stopped> {
     let coarse = voxel_m * 4.0;
-    let Ok(s) = sample(implicit, params, coarse, false, &mut |_, _| Ok(())) else { return Vec::new() };
+    let s = sample(implicit, params, coarse, false, &mut |_, _| Ok(stop.check()?)).map_err(|_| Stopped)?;
+    let terrain = surface(&s, stop)?;
     let scene = Scene {
         nodes: vec![
-            SceneNode::new("terrain", surface(&s), MaterialKind::Matte { srgb: [170, 150, 120] }),
+            SceneNode::new("terrain", terrain, MaterialKind::Matte { srgb: [170, 150, 120] }),
             SceneNode::new("sea", sea_plane(implicit.hf, params.sea_level), MaterialKind::Water),
         ],
     };
-    render_png(&scene, &SNAPSHOT)
+    render_png(&scene, &SNAPSHOT, stop)
 }
 
 /// Everything the job delivers for the terrain carved by `spheres`.
@@ -152,14 +159,18 @@ pub fn build(
     spheres: &[Sphere],
     voxel_m: f32,
     on_chunk: &mut dyn FnMut(usize, usize) -> Result<(), SimError>,
+    stop: Stop,
 ) -> Result<(Value, Vec<Artifact>), SimError> {
     let sampled = sample(implicit, params, voxel_m, false, on_chunk)?;
+    stop.check()?;
     let (crossings, top) = columns(&sampled.values, &sampled.grid);
-    let mut mesh = surface(&sampled);
+    let mut mesh = surface(&sampled, stop)?;
     drop(sampled.values);
     colour(&mut mesh, implicit, params.sea_level, voxel_m);
     let closed = mesh.is_closed();
+    stop.check()?;
     let (pieces, genus) = topology(&mesh);
+    stop.check()?;
     let triangles = mesh.triangle_count();
     // Shoreline columns: the original ground within the seed elevation range.
     let e = &params.erosion;
@@ -186,9 +197,10 @@ pub fn build(
         ],
     };
     let ((glb, preview), (heightmap, npy)) = rayon::join(
-        || rayon::join(|| write_glb(&scene), || render_png(&scene, &PREVIEW)),
+        || rayon::join(|| write_glb(&scene), || render_png(&scene, &PREVIEW, stop)),
         || rayon::join(|| heightmap_png16(&top), || heightfield_npy(&top)),
     );
+    let preview = preview?;
     let (z_min, z_max) = top.min_max();
     let result = json!({
         "spheres": { "total": spheres.len(), "per_pass": per_pass },

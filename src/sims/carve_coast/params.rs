@@ -47,28 +47,31 @@ fn default_true() -> bool {
 pub struct Erosion {
     /// Least slope of a seed's surface, degrees from horizontal.
     #[serde(default = "default_min_slope")]
-    #[schema(default = 35.0)]
+    #[schema(default = 35.0, minimum = 0.0, maximum = 90.0)]
     pub seed_min_slope: f32,
     /// `[low, high]` metres relative to `sea_level` within which seeds are taken (and sphere
-    /// centres stay).
+    /// centres stay); low ≤ high, both within ±100 000 m.
     #[serde(default = "default_elevation_range")]
-    #[schema(default = json!([-3.0, 8.0]))]
+    #[schema(default = json!([-3.0, 8.0]), min_items = 2, max_items = 2, minimum = -1e5, maximum = 1e5)]
     pub seed_elevation_range: [f32; 2],
     /// Chance that a qualifying surface point becomes a seed, in [0, 1].
     #[serde(default = "default_probability")]
-    #[schema(default = 0.08)]
+    #[schema(default = 0.08, minimum = 0.0, maximum = 1.0)]
     pub seed_acceptance_probability: f32,
-    /// `[min, max]` sphere radius, metres.
+    /// `[min, max]` sphere radius, metres; 0 < min ≤ max ≤ 1000.
     #[serde(default = "default_radius_range")]
-    #[schema(default = json!([1.5, 4.0]))]
+    // 1000 = MAX_RADIUS_M
+    #[schema(default = json!([1.5, 4.0]), min_items = 2, max_items = 2, exclusive_minimum = 0.0, maximum = 1000.0)]
     pub radius_range: [f32; 2],
-    /// `[min, max]` growth steps per seed.
+    /// `[min, max]` growth steps per seed; min ≤ max ≤ 64.
     #[serde(default = "default_growth_steps")]
-    #[schema(default = json!([2, 6]))]
+    // 64 = MAX_GROWTH
+    #[schema(default = json!([2, 6]), min_items = 2, max_items = 2, maximum = 64)]
     pub growth_step_range: [u32; 2],
-    /// `[min, max]` spheres carved at each growth step.
+    /// `[min, max]` spheres carved at each growth step; min ≤ max ≤ 64.
     #[serde(default = "default_growth_spheres")]
-    #[schema(default = json!([1, 3]))]
+    // 64 = MAX_GROWTH
+    #[schema(default = json!([1, 3]), min_items = 2, max_items = 2, maximum = 64)]
     pub growth_sphere_range: [u32; 2],
 }
 
@@ -84,8 +87,10 @@ impl Default for Erosion {
 #[serde(deny_unknown_fields)]
 pub struct Warp {
     /// Metres of push per unit of gradient at the noise's peaks.
+    #[schema(minimum = 0.0, maximum = 1e4)]
     pub amplitude_m: f32,
     /// Noise cycles per metre of height.
+    #[schema(minimum = 0.0, maximum = 1e3)]
     pub frequency_per_m: f32,
 }
 
@@ -97,12 +102,16 @@ pub struct CarveCoastParams {
     /// Metres; must lie within the terrain's heights.
     #[serde(default)]
     pub sea_level: f32,
-    /// Edge of a meshing voxel, metres; default the terrain's cell size.
+    /// Edge of a meshing voxel, metres; default the terrain's cell size. The meshing box (the
+    /// terrain's footprint by its relief plus margins) must hold at most the server's voxel cap
+    /// (192 × 1024 × 1024 = 201 326 592 voxels by default; more is answered with 413).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(exclusive_minimum = 0.0)]
     pub voxel_size_m: Option<f32>,
     #[serde(default)]
     pub erosion: Erosion,
     #[serde(default = "default_passes")]
+    // 16 = MAX_PASSES
     #[schema(default = 3, minimum = 1, maximum = 16)]
     pub passes: u32,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -144,7 +153,16 @@ impl Validate for CarveCoastParams {
             (self.terrain.known_dimensions(), self.terrain.known_cell_size(), self.known_relief(), voxel)
         {
             if size > 0.0 && size.is_finite() {
-                let voxels = estimate_voxels(cols, rows, cell, relief, size, self.erosion.radius_range[1]);
+                let relief = relief * if self.island() { 1.2 } else { 1.0 };
+                let voxels = estimate_voxels(
+                    cols,
+                    rows,
+                    cell,
+                    relief,
+                    size,
+                    self.erosion.radius_range[1],
+                    self.warp_amplitude(),
+                );
                 if voxels > limits.max_voxels {
                     v.too_large(
                         "voxel_size_m",
@@ -189,15 +207,29 @@ impl CarveCoastParams {
         }
     }
 
+    fn island(&self) -> bool {
+        matches!(&self.terrain, TerrainSource::Fractal(f) if f.island)
+    }
+
     /// How far the warp can push a point, metres per unit of gradient.
     pub fn warp_amplitude(&self) -> f32 {
         self.warp.as_ref().map_or(0.0, |w| w.amplitude_m)
     }
 }
 
-/// Voxels of the meshing box: the terrain's footprint by its relief plus margins.
-pub fn estimate_voxels(cols: u64, rows: u64, cell_m: f32, relief_m: f32, voxel_m: f32, max_radius_m: f32) -> u64 {
-    let side = |n: u64| ((n.saturating_sub(1)) as f64 * cell_m as f64 / voxel_m as f64).ceil() as u64 + 1;
-    let height = ((relief_m as f64 + 2.0 * max_radius_m as f64) / voxel_m as f64).ceil() as u64 + 6;
-    side(cols) * side(rows) * height
+/// Voxels of the meshing box: the terrain's footprint by its relief plus margins (the largest
+/// sphere and twice the warp's reach), saturating: no request overflows it.
+pub fn estimate_voxels(
+    cols: u64,
+    rows: u64,
+    cell_m: f32,
+    relief_m: f32,
+    voxel_m: f32,
+    max_radius_m: f32,
+    warp_amplitude_m: f32,
+) -> u64 {
+    let side = |n: u64| ((n.saturating_sub(1)) as f64 * cell_m as f64 / voxel_m as f64).ceil() as u64;
+    let reach = relief_m as f64 + 2.0 * max_radius_m as f64 + 2.0 * warp_amplitude_m as f64;
+    let height = ((reach / voxel_m as f64).ceil() as u64).saturating_add(8);
+    side(cols).saturating_add(1).saturating_mul(side(rows).saturating_add(1)).saturating_mul(height)
 }

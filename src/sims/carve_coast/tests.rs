@@ -42,7 +42,7 @@ fn no_progress(_: usize, _: usize) -> Result<(), SimError> {
 fn without_carving_or_warp_every_column_crosses_once_at_the_heightfield() {
     let p = island(65, 0.0);
     let hf = terrain(&p);
-    let spheres = carve(&p, &hf, 1, 1.0, &mut |_, _| Ok(())).unwrap();
+    let spheres = carve(&p, &hf, 1, 1.0, Stop::NEVER, &mut |_, _| Ok(())).unwrap();
     assert!(spheres.is_empty());
     let implicit = Implicit::new(&hf, &spheres, None, 1);
     let s = sample(&implicit, &p, 1.0, false, &mut no_progress).unwrap();
@@ -57,7 +57,7 @@ fn without_carving_or_warp_every_column_crosses_once_at_the_heightfield() {
         }
     }
     assert!(worst <= 0.5 * g.voxel_m, "topmost surface off by {worst} m");
-    let mesh = surface(&s);
+    let mesh = surface(&s, Stop::NEVER).unwrap();
     assert!(mesh.is_closed());
     assert_eq!(topology(&mesh), (1, 0), "one solid, no through-hole");
     // The caps lie on the box: nothing below its bottom or beyond its walls, and the bottom flat.
@@ -73,11 +73,11 @@ fn without_carving_or_warp_every_column_crosses_once_at_the_heightfield() {
 fn carving_makes_overhangs_only_around_sea_level() {
     let p = island(129, 0.15);
     let hf = terrain(&p);
-    let spheres = carve(&p, &hf, 2, 1.0, &mut |_, _| Ok(())).unwrap();
+    let spheres = carve(&p, &hf, 2, 1.0, Stop::NEVER, &mut |_, _| Ok(())).unwrap();
     assert!(spheres.len() > 20, "{} spheres", spheres.len());
     assert!(spheres.iter().any(|s| s.pass() == 2), "the second pass seeds on the carved surface");
     let implicit = Implicit::new(&hf, &spheres, None, 2);
-    let (result, _) = build(&implicit, &p, &spheres, 1.0, &mut no_progress).unwrap();
+    let (result, _) = build(&implicit, &p, &spheres, 1.0, &mut no_progress, Stop::NEVER).unwrap();
     assert!(result["overhangs"]["with_overhang"].as_u64().unwrap() > 0, "{result}");
     assert_eq!(result["mesh"]["closed"], true);
     // Compare carved and uncarved fields sample by sample.
@@ -115,11 +115,17 @@ fn floating_fragments_are_removed() {
     let mut p = island(33, 0.0);
     p.sea_level = 1.0;
     let implicit = Implicit::new(&hf, &spheres, None, 1);
-    let (kept, _) =
-        build(&implicit, &CarveCoastParams { remove_fragments: false, ..p.clone() }, &spheres, 1.0, &mut no_progress)
-            .unwrap();
+    let (kept, _) = build(
+        &implicit,
+        &CarveCoastParams { remove_fragments: false, ..p.clone() },
+        &spheres,
+        1.0,
+        &mut no_progress,
+        Stop::NEVER,
+    )
+    .unwrap();
     assert!(kept["pieces"].as_u64().unwrap() >= 2, "{kept}");
-    let (result, _) = build(&implicit, &p, &spheres, 1.0, &mut no_progress).unwrap();
+    let (result, _) = build(&implicit, &p, &spheres, 1.0, &mut no_progress, Stop::NEVER).unwrap();
     assert_eq!(result["pieces"], 1, "{result}");
     assert!(result["fragments_removed"].as_u64().unwrap() >= 1);
     assert_eq!(result["mesh"]["closed"], true);
@@ -131,7 +137,7 @@ fn warp_makes_strata_on_cliffs() {
     p.warp = Some(params::Warp { amplitude_m: 2.5, frequency_per_m: 0.3 });
     let hf = terrain(&p);
     let implicit = Implicit::new(&hf, &[], p.warp.as_ref(), 4);
-    let (result, _) = build(&implicit, &p, &[], 1.0, &mut no_progress).unwrap();
+    let (result, _) = build(&implicit, &p, &[], 1.0, &mut no_progress, Stop::NEVER).unwrap();
     assert_eq!(result["mesh"]["closed"], true, "{result}");
     assert_eq!(result["pieces"], 1, "{result}");
     assert!(result["overhangs"]["with_overhang"].as_u64().unwrap() > 0, "{result}");
@@ -162,7 +168,7 @@ fn replay_until_k_carves_only_the_first_k_spheres() {
     let hf = terrain(&p);
     let first = &full.sequence.spheres[..k as usize];
     let implicit = Implicit::new(&hf, first, None, 5);
-    let (result, artifacts) = build(&implicit, &p, first, 1.0, &mut no_progress).unwrap();
+    let (result, artifacts) = build(&implicit, &p, first, 1.0, &mut no_progress, Stop::NEVER).unwrap();
     assert_eq!(part.result, result);
     assert_eq!(part.artifacts, artifacts);
     assert_ne!(hashes(&part), hashes(&full));

@@ -5,6 +5,7 @@
 
 mod candidates;
 mod constraints;
+mod cost;
 mod kernel;
 mod params;
 mod prediction;
@@ -64,6 +65,13 @@ impl Simulation for DeformTerrain {
         out
     }
 
+    fn estimate(
+        params: &DeformTerrainParams,
+        terrain: &dyn crate::terrain::TerrainLookup,
+    ) -> Result<crate::jobs::Cost, SimError> {
+        cost::estimate(params, terrain)
+    }
+
     fn run(params: &DeformTerrainParams, seed: u64, ctx: &RunContext) -> Result<Outcome<DeformSequence>, SimError> {
         let problem = Problem::new(params, ctx)?;
         let mut h = problem.original.clone();
@@ -73,7 +81,7 @@ impl Simulation for DeformTerrain {
         let fitness = Fitness::new(&fields, grid.cols, grid.rows);
         let interest = constraints::interest(&fields, grid.cells());
         let shorter = grid.cols.min(grid.rows);
-        let coarse = params.coarse_spacing_cells.map_or((shorter / 16).max(1), |c| c as usize);
+        let coarse = params.coarse_spacing(shorter);
         let lattice =
             candidates::candidate_vertices(&interest, grid.cols, grid.rows, coarse, params.min_spacing_cells as usize);
         // Anchors fit narrow features cell by cell, so they take the small radii only; the
@@ -250,8 +258,7 @@ impl<'p> Problem<'p> {
 
     fn settings(&self, p: &DeformTerrainParams, fields: &[Field]) -> Result<Settings, SimError> {
         let shorter = self.cols.min(self.rows);
-        let max_r = p.max_radius_cells.map_or((shorter / 8).max(p.min_radius_cells as usize), |r| r as usize);
-        let radii = search::radii(p.min_radius_cells as usize, max_r, p.radii as usize);
+        let radii = p.radii_cells(shorter);
         let unit = search::unit_displacements(p.amplitudes as usize);
         let d_max: Vec<f64> = radii.iter().map(|&r| p.max_displacement_ratio * r as f64 * self.cell_m).collect();
         let deltas = d_max.iter().map(|&d| unit.iter().map(|u| u * d).collect()).collect();
@@ -297,7 +304,7 @@ impl Watch for JobWatch<'_, '_> {
 
     fn progress(&self, iteration: u64, total: u64, fitness: f64, h: &[f64]) {
         self.ctx.report_with_snapshot(STAGE, iteration, total, format!("fitness {fitness:.3e}"), || {
-            crate::export::snapshot_png(&to_heightfield(h, self.cols, self.rows, self.cell_m))
+            Ok(crate::export::snapshot_png(&to_heightfield(h, self.cols, self.rows, self.cell_m)))
         });
     }
 }

@@ -83,11 +83,16 @@ fn default_band() -> u32 {
 pub struct DeformTerrainParams {
     /// The starting terrain.
     pub terrain: TerrainSource,
-    /// The constraints, combined by their weights (at least one; at most one `shape_mask`
-    /// and one `tileable`).
+    /// The constraints, combined by their weights (at least one, at most 32; at most one
+    /// `shape_mask` and one `tileable`).
+    // 32 = MAX_CONSTRAINTS
+    #[schema(min_items = 1, max_items = 32)]
     pub constraints: Vec<Constraint>,
-    /// Stop after this many iterations (each applies 1 to `batch` deformations).
+    /// Stop after this many iterations (each applies 1 to `batch` deformations). At most
+    /// 20 000 and at most the server's operation cap (100 000 by default); `max_iterations` ×
+    /// `batch` at most 1 000 000 (more is answered with 413).
     #[serde(default = "default_max_iterations")]
+    // 20000 = MAX_ITERATIONS
     #[schema(default = 500, minimum = 1, maximum = 20000)]
     pub max_iterations: u32,
     /// Stop once F ≤ epsilon.
@@ -105,29 +110,38 @@ pub struct DeformTerrainParams {
     /// Displacements sampled per (vertex, radius), spread over ±max_displacement_ratio·radius
     /// (zero excluded); the closed-form best displacement of the quadratic penalties is tried too.
     #[serde(default = "default_amplitudes")]
+    // 101 = MAX_AMPLITUDES
     #[schema(default = 25, minimum = 1, maximum = 101)]
     pub amplitudes: u32,
     /// Radii sampled, geometric between `min_radius_cells` and `max_radius_cells`.
     #[serde(default = "default_radii")]
+    // 32 = MAX_RADII
     #[schema(default = 7, minimum = 1, maximum = 32)]
     pub radii: u32,
     /// The smallest radius: 2 lets a deformation move a vertex with its neighbours at 0.31,
     /// fine enough to seat a road within half a percent of the relief; 1 would move single
-    /// cells, the spikes of the paper's Figure 3.
+    /// cells, the spikes of the paper's Figure 3. At most 512 (more is answered with 413), and
+    /// smaller than the terrain's shorter side in samples.
     #[serde(default = "default_min_radius")]
-    #[schema(default = 2, minimum = 1)]
+    // 512 = MAX_RADIUS_CELLS
+    #[schema(default = 2, minimum = 1, maximum = 512)]
     pub min_radius_cells: u32,
-    /// Absent: an eighth of the terrain's shorter side.
+    /// Absent: an eighth of the terrain's shorter side. At least `min_radius_cells`, at most 512
+    /// (more is answered with 413), and smaller than the terrain's shorter side in samples.
     #[serde(default)]
+    // 512 = MAX_RADIUS_CELLS
+    #[schema(minimum = 1, maximum = 512)]
     pub max_radius_cells: Option<u32>,
     /// Frequency limitation (§3.4): a displacement may be at most this times the radius (both
     /// in metres).
     #[serde(default = "default_ratio")]
-    #[schema(default = 0.5, exclusive_minimum = 0.0)]
+    // 10 = MAX_DISPLACEMENT_RATIO
+    #[schema(default = 0.5, exclusive_minimum = 0.0, maximum = 10.0)]
     pub max_displacement_ratio: f64,
     /// Spacing of the coarse uniform grid of candidate vertices (Figure 2). Absent: a
     /// sixteenth of the terrain's shorter side.
     #[serde(default)]
+    #[schema(minimum = 1)]
     pub coarse_spacing_cells: Option<u32>,
     /// Smallest quadtree cell around constrained regions.
     #[serde(default = "default_min_spacing")]
@@ -145,7 +159,8 @@ pub struct DeformTerrainParams {
     /// candidates are added best first while their kernel windows (with their tileable
     /// partners) stay clear of every window already taken this iteration, so each one's change
     /// in fitness is exact and the changes add. Each is recorded as its own operation. 1 is the
-    /// paper's one deformation per iteration.
+    /// paper's one deformation per iteration. `max_iterations` × `batch` at most 1 000 000
+    /// (more is answered with 413).
     #[serde(default = "default_batch")]
     #[schema(default = 16, minimum = 1, maximum = 256)]
     pub batch: u32,
@@ -172,7 +187,7 @@ pub enum Constraint {
 pub struct MatchHeightmap {
     pub target: TerrainSource,
     #[serde(default = "one")]
-    #[schema(default = 1.0)]
+    #[schema(default = 1.0, minimum = 0.0, maximum = 1000000.0)]
     pub weight: f64,
 }
 
@@ -184,13 +199,17 @@ pub struct ShapeMask {
     pub mask: MaskShape,
     /// Metres. Absent: the starting terrain's median height.
     #[serde(default)]
+    // ±1e6 = MAX_METRES
+    #[schema(minimum = -1e6, maximum = 1e6)]
     pub water_level: Option<f64>,
     /// Land wants h ≥ water_level + margin, sea h ≤ water_level − margin; metres. Absent: 1% of
     /// the relief.
     #[serde(default)]
+    // 1e6 = MAX_METRES
+    #[schema(minimum = 0.0, maximum = 1e6)]
     pub margin: Option<f64>,
     #[serde(default = "one")]
-    #[schema(default = 1.0)]
+    #[schema(default = 1.0, minimum = 0.0, maximum = 1000000.0)]
     pub weight: f64,
 }
 
@@ -201,7 +220,9 @@ pub struct ShapeMask {
 #[schema(as = DeformMaskShape)]
 pub enum MaskShape {
     Image(TerrainSource),
-    /// Polygons of [col, row] grid coordinates; land is inside any of them (even-odd).
+    /// Polygons of [col, row] grid coordinates; land is inside any of them (even-odd). At
+    /// least one polygon, each of at least 3 vertices, at most 256 vertices in all (more is
+    /// answered with 413); coordinates within ±1 000 000.
     Polygons(Vec<Vec<[f64; 2]>>),
 }
 
@@ -211,15 +232,21 @@ pub enum MaskShape {
 #[serde(deny_unknown_fields)]
 #[schema(as = DeformRoad)]
 pub struct Road {
-    /// At least 2 points, in metres, on the grid.
+    /// At least 2 points and at most 256 (more is answered with 413), in metres, on the grid.
+    // 256 = MAX_OUTLINE_VERTICES
+    #[schema(min_items = 2, max_items = 256)]
     pub path: Vec<PlanPoint>,
-    #[schema(exclusive_minimum = 0.0)]
+    /// Metres; at most half the terrain's extent (its longer side).
+    // 1e6 = MAX_METRES
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub width_m: f64,
     pub height: RoadHeight,
     /// Beyond the road's edge, the pull back to the original terrain grows linearly from 0 to
     /// full over this distance, leaving room for cuttings and embankments. Absent: four times
-    /// the width.
+    /// the width. At most half the terrain's extent (its longer side).
     #[serde(default)]
+    // 1e6 = MAX_METRES
+    #[schema(minimum = 0.0, maximum = 1e6)]
     pub shoulder_m: Option<f64>,
     /// The weight of the preservation term (other cells pulled back to their original heights)
     /// relative to the road-cell term; both are mean squares in units of relief². 0 leaves the
@@ -237,7 +264,7 @@ pub struct Road {
     #[serde(default)]
     pub preserve: Option<RoadPreserve>,
     #[serde(default = "one")]
-    #[schema(default = 1.0)]
+    #[schema(default = 1.0, minimum = 0.0, maximum = 1000000.0)]
     pub weight: f64,
 }
 
@@ -250,12 +277,16 @@ pub enum RoadPreserve {
     Corridor,
 }
 
-/// A horizontal position in metres.
+/// A horizontal position in metres, on the grid: x from 0 to (cols − 1) × cell_size, z from 0 to
+/// (rows − 1) × cell_size (when the terrain's size is not known before the run, e.g. an earlier
+/// job's, from 0 to 1 000 000).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 #[schema(as = DeformPoint)]
 pub struct PlanPoint {
+    #[schema(minimum = 0.0)]
     pub x: f64,
+    #[schema(minimum = 0.0)]
     pub z: f64,
 }
 
@@ -264,7 +295,7 @@ pub struct PlanPoint {
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 #[schema(as = DeformRoadHeight)]
 pub enum RoadHeight {
-    /// Metres.
+    /// Metres, within ±1 000 000.
     Constant(f64),
     Profile(RoadProfile),
 }
@@ -274,7 +305,7 @@ pub enum RoadHeight {
 #[schema(as = DeformRoadProfile)]
 pub struct RoadProfile {
     /// Largest rise per run along the road, percent.
-    #[schema(exclusive_minimum = 0.0)]
+    #[schema(exclusive_minimum = 0.0, maximum = 1000.0)]
     pub max_gradient_percent: f64,
 }
 
@@ -283,15 +314,18 @@ pub struct RoadProfile {
 #[serde(deny_unknown_fields)]
 #[schema(as = DeformEdgeMatch)]
 pub struct EdgeMatch {
-    /// The neighbour; it lies beyond each listed edge of this terrain.
+    /// The neighbour, of the same size; it lies beyond each listed edge of this terrain.
     pub terrain: TerrainSource,
+    /// At least one edge, each at most once.
+    #[schema(min_items = 1, max_items = 4)]
     pub edges: Vec<Edge>,
-    /// Cells from the edge over which W(y) = (1 − y/band)² fades.
+    /// Cells from the edge over which W(y) = (1 − y/band)² fades; at most half the terrain's
+    /// shorter side in samples.
     #[serde(default = "default_band")]
     #[schema(default = 16, minimum = 1)]
     pub band_cells: u32,
     #[serde(default = "one")]
-    #[schema(default = 1.0)]
+    #[schema(default = 1.0, minimum = 0.0, maximum = 1000000.0)]
     pub weight: f64,
 }
 
@@ -313,12 +347,13 @@ pub enum Edge {
 pub struct Tileable {
     #[serde(default)]
     pub edges: TileAxes,
-    /// Cells from each edge where candidate vertices are concentrated.
+    /// Cells from each edge where candidate vertices are concentrated; at most half the
+    /// terrain's shorter side in samples.
     #[serde(default = "default_band")]
     #[schema(default = 16, minimum = 1)]
     pub band_cells: u32,
     #[serde(default = "one")]
-    #[schema(default = 1.0)]
+    #[schema(default = 1.0, minimum = 0.0, maximum = 1000000.0)]
     pub weight: f64,
 }
 
@@ -338,9 +373,12 @@ pub enum TileAxes {
 #[serde(deny_unknown_fields)]
 #[schema(as = DeformPoints)]
 pub struct Points {
+    /// At least one point and at most 10 000 (more is answered with 413).
+    // 10000 = MAX_VERTICES
+    #[schema(min_items = 1, max_items = 10000)]
     pub points: Vec<HeightPoint>,
     #[serde(default = "one")]
-    #[schema(default = 1.0)]
+    #[schema(default = 1.0, minimum = 0.0, maximum = 1000000.0)]
     pub weight: f64,
 }
 
@@ -348,8 +386,15 @@ pub struct Points {
 #[serde(deny_unknown_fields)]
 #[schema(as = DeformHeightPoint)]
 pub struct HeightPoint {
+    /// Metres, on the grid (as a road's points).
+    #[schema(minimum = 0.0)]
     pub x: f64,
+    /// Metres, on the grid (as a road's points).
+    #[schema(minimum = 0.0)]
     pub z: f64,
+    /// Metres.
+    // ±1e6 = MAX_METRES
+    #[schema(minimum = -1e6, maximum = 1e6)]
     pub height: f64,
 }
 
@@ -359,7 +404,7 @@ pub struct HeightPoint {
 #[schema(as = DeformPreserve)]
 pub struct Preserve {
     #[serde(default = "one")]
-    #[schema(default = 1.0)]
+    #[schema(default = 1.0, minimum = 0.0, maximum = 1000000.0)]
     pub weight: f64,
 }
 
@@ -423,6 +468,21 @@ fn on_grid(v: &mut Validator, x: f64, z: f64, extent: Option<(f64, f64)>) {
                 v.error("z", format!("must be on the grid (got {z})"));
             }
         }
+    }
+}
+
+impl DeformTerrainParams {
+    /// The coarse lattice's spacing on a grid whose shorter side has `shorter` samples: as
+    /// given, or a sixteenth of that side.
+    pub fn coarse_spacing(&self, shorter: usize) -> usize {
+        self.coarse_spacing_cells.map_or((shorter / 16).max(1), |c| c as usize).max(1)
+    }
+
+    /// The radii sampled on such a grid (`max_radius_cells` defaults to an eighth of the side).
+    pub fn radii_cells(&self, shorter: usize) -> Vec<usize> {
+        let min = self.min_radius_cells as usize;
+        let max = self.max_radius_cells.map_or((shorter / 8).max(min), |r| r as usize);
+        super::search::radii(min, max, self.radii as usize)
     }
 }
 

@@ -197,7 +197,7 @@ pub fn search<W: Watch>(
         )
     };
     let all: Vec<usize> = (0..table.len()).collect();
-    let mut evaluations = recompute(h, &mut table, &all, &eval);
+    let mut evaluations = recompute_watched(h, &mut table, &all, &eval, watch)?;
     let mut operations = Vec::new();
     let mut stop = Stop::MaxIterations;
     let mut improving: Vec<usize> = Vec::with_capacity(table.len());
@@ -234,7 +234,7 @@ pub fn search<W: Watch>(
         improving.extend((0..table.len()).filter(|&i| table[i].fresh && table[i].change < 0.0));
         if improving.is_empty() {
             let stale: Vec<usize> = (0..table.len()).filter(|&i| !table[i].fresh).collect();
-            evaluations += recompute(h, &mut table, &stale, &eval);
+            evaluations += recompute_watched(h, &mut table, &stale, &eval, watch)?;
             improving.extend((0..table.len()).filter(|&i| table[i].change < 0.0));
         }
         improving.sort_by(|&a, &b| table[a].change.total_cmp(&table[b].change).then(a.cmp(&b)));
@@ -339,6 +339,25 @@ pub fn search<W: Watch>(
 }
 
 /// Recompute the listed entries in parallel; returns how many were evaluated.
+/// Entries recomputed between looks at the stop request: a whole table can take seconds.
+const ENTRIES_PER_CHECK: usize = 1 << 16;
+
+/// [`recompute`] in chunks, looking at `watch` between them.
+fn recompute_watched<W: Watch>(
+    h: &[f64],
+    table: &mut [Entry],
+    which: &[usize],
+    eval: &(impl Fn(&[f64], &Entry) -> (f64, f64) + Sync),
+    watch: &W,
+) -> Result<u64, W::Stop> {
+    let mut n = 0;
+    for chunk in which.chunks(ENTRIES_PER_CHECK) {
+        watch.check()?;
+        n += recompute(h, table, chunk, eval);
+    }
+    Ok(n)
+}
+
 fn recompute(
     h: &[f64],
     table: &mut [Entry],

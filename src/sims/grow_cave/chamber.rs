@@ -38,12 +38,8 @@ impl ChamberShape {
         Self::relief(&self.floor, &self.chamber.floor, x, z)
     }
 
-    /// `samples` across the width, square cells; the depth is matched to the nearest cell.
     fn surface(&self, f: impl Fn(f32, f32) -> f32) -> Heightfield {
-        let c = &self.chamber;
-        let cols = c.samples as usize;
-        let cell = c.width_m / (cols - 1) as f32;
-        let rows = ((c.depth_m / cell).round() as usize + 1).max(2);
+        let (cols, rows, cell) = surface_grid(&self.chamber);
         Heightfield::from_fn(cols, rows, cell, f)
     }
 
@@ -53,6 +49,23 @@ impl ChamberShape {
 
     pub fn floor_heightfield(&self) -> Heightfield {
         self.surface(|x, z| self.floor_y(x, z))
+    }
+}
+
+/// Roof and floor grids: `samples` along the chamber's longer side, square cells, the other
+/// side matched to the nearest cell — so no aspect ratio makes a grid larger than `samples²`.
+/// Returns (cols, rows, cell size in metres).
+pub fn surface_grid(c: &Chamber) -> (usize, usize, f32) {
+    let n = c.samples.max(2) as usize;
+    let other = |long: f32, short: f32| {
+        let cell = long / (n - 1) as f32;
+        let m = (short / cell).round();
+        (if m.is_finite() { (m as usize).min(n - 1) } else { 0 } + 1).max(2)
+    };
+    if c.width_m >= c.depth_m {
+        (n, other(c.width_m, c.depth_m), c.width_m / (n - 1) as f32)
+    } else {
+        (other(c.depth_m, c.width_m), n, c.depth_m / (n - 1) as f32)
     }
 }
 

@@ -4,6 +4,7 @@
 //! parallel, each drip site drawing from its own random stream.
 
 mod chamber;
+mod cost;
 mod growth;
 mod outputs;
 pub mod params;
@@ -33,18 +34,25 @@ impl Simulation for GrowCave {
     type Params = GrowCaveParams;
     type Sequence = CaveSequence;
 
+    fn estimate(
+        params: &GrowCaveParams,
+        terrain: &dyn crate::terrain::TerrainLookup,
+    ) -> Result<crate::jobs::Cost, SimError> {
+        cost::estimate(params, terrain)
+    }
+
     fn run(params: &Self::Params, seed: u64, ctx: &RunContext) -> Result<Outcome<Self::Sequence>, SimError> {
         let sequence = grow(params, seed, &mut |pass, sequence| {
             ctx.check_cancelled()?;
             let growing = sequence.sites.iter().filter(|s| s.growth.growing()).count();
             let message = format!("pass {pass}: {growing} of {} drip sites still growing", sequence.sites.len());
             ctx.report_with_snapshot("growing", pass as u64, params.rings as u64, message, || {
-                outputs::snapshot_png(params, sequence)
+                outputs::snapshot_png(params, sequence, ctx.stop())
             });
             Ok(())
         })?;
         ctx.report("meshing", sequence.passes as u64, params.rings as u64, "building the scene");
-        let (result, artifacts) = outputs::build(params, &sequence);
+        let (result, artifacts) = outputs::build(params, &sequence, ctx.stop())?;
         Ok(Outcome { result, sequence, artifacts })
     }
 
@@ -56,7 +64,7 @@ impl Simulation for GrowCave {
     ) -> Result<Outcome<Self::Sequence>, SimError> {
         ctx.check_cancelled()?;
         let sequence = sequence.until(until_step);
-        let (result, artifacts) = outputs::build(params, &sequence);
+        let (result, artifacts) = outputs::build(params, &sequence, ctx.stop())?;
         Ok(Outcome { result, sequence, artifacts })
     }
 }

@@ -10,6 +10,7 @@ use super::sequence::{CaveSequence, RecordedSite};
 use super::speleothem_mesh::{column_mesh, speleothem_mesh};
 use crate::export::{render_png, write_glb, Artifact, View};
 use crate::mesh::{heightfield_mesh, MaterialKind, Mesh, Scene, SceneNode, DEFAULT_MAX_SIDE_SAMPLES};
+use crate::stop::{Stop, Stopped};
 
 /// Limestone walls.
 const ROCK_SRGB: [u8; 3] = [120, 108, 96];
@@ -72,8 +73,9 @@ fn cut_away(scene: &Scene) -> Scene {
 }
 
 /// A small picture of the cave so far, for live progress.
-pub fn snapshot_png(params: &GrowCaveParams, sequence: &CaveSequence) -> Vec<u8> {
-    render_png(&cut_away(&scene(params, sequence)), &SNAPSHOT)
+pub fn snapshot_png(params: &GrowCaveParams, sequence: &CaveSequence, stop: Stop) -> Result<Vec<u8>, Stopped> {
+    stop.check()?;
+    render_png(&cut_away(&scene(params, sequence)), &SNAPSHOT, stop)
 }
 
 #[derive(Default)]
@@ -102,9 +104,11 @@ impl Stats {
 }
 
 /// `mesh.glb` and `preview.png` of the cave the sequence describes, and the figures.
-pub fn build(params: &GrowCaveParams, sequence: &CaveSequence) -> (Value, Vec<Artifact>) {
+pub fn build(params: &GrowCaveParams, sequence: &CaveSequence, stop: Stop) -> Result<(Value, Vec<Artifact>), Stopped> {
     let scene = scene(params, sequence);
-    let (glb, preview) = rayon::join(|| write_glb(&scene), || render_png(&cut_away(&scene), &PREVIEW));
+    stop.check()?;
+    let (glb, preview) = rayon::join(|| write_glb(&scene), || render_png(&cut_away(&scene), &PREVIEW, stop));
+    let preview = preview?;
     let (mut stalactites, mut stalagmites, mut columns) = (Stats::default(), Stats::default(), Stats::default());
     for s in &sequence.sites {
         let g = &s.growth;
@@ -132,5 +136,5 @@ pub fn build(params: &GrowCaveParams, sequence: &CaveSequence) -> (Value, Vec<Ar
     });
     let artifacts =
         vec![Artifact::new("mesh.glb", "model/gltf-binary", glb), Artifact::new("preview.png", "image/png", preview)];
-    (result, artifacts)
+    Ok((result, artifacts))
 }

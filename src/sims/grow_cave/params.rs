@@ -60,11 +60,13 @@ fn default_wind_scale() -> f32 {
 #[serde(deny_unknown_fields)]
 pub struct Surface {
     /// Peak-to-peak relief in metres (0 = flat). The roof hangs down by it, the floor rises.
+    /// The roof's and the floor's relief together must stay below the chamber's `height_m`.
     #[serde(default)]
+    #[schema(minimum = 0.0)]
     pub relief_m: f32,
     /// Noise features per metre.
     #[serde(default = "default_frequency")]
-    #[schema(default = 0.15)]
+    #[schema(default = 0.15, minimum = 0.0, maximum = 100.0)]
     pub frequency_per_m: f32,
 }
 
@@ -76,15 +78,21 @@ fn default_frequency() -> f32 {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Chamber {
+    /// Metres.
     #[serde(default = "default_width")]
-    #[schema(default = 12.0)]
+    // 10000 = MAX_CHAMBER_M
+    #[schema(default = 12.0, exclusive_minimum = 0.0, maximum = 10000.0)]
     pub width_m: f32,
+    /// Metres.
     #[serde(default = "default_width")]
-    #[schema(default = 12.0)]
+    // 10000 = MAX_CHAMBER_M
+    #[schema(default = 12.0, exclusive_minimum = 0.0, maximum = 10000.0)]
     pub depth_m: f32,
-    /// Floor to roof where both are flat.
+    /// Floor to roof where both are flat, metres; greater than the roof's and the floor's
+    /// `relief_m` together.
     #[serde(default = "default_height")]
-    #[schema(default = 5.0)]
+    // 10000 = MAX_CHAMBER_M
+    #[schema(default = 5.0, exclusive_minimum = 0.0, maximum = 10000.0)]
     pub height_m: f32,
     #[serde(default)]
     pub roof: Surface,
@@ -92,6 +100,7 @@ pub struct Chamber {
     pub floor: Surface,
     /// Samples along each side of the roof and floor meshes.
     #[serde(default = "default_samples")]
+    // 513 = MAX_SURFACE_SAMPLES
     #[schema(default = 65, minimum = 2, maximum = 513)]
     pub samples: u32,
 }
@@ -142,7 +151,7 @@ pub enum Co2 {
 #[serde(deny_unknown_fields)]
 pub struct Conditions {
     /// "0", "1", "2" or "random".
-    #[schema(value_type = String, example = "2")]
+    #[schema(value_type = String, example = "2", pattern = "^(0|1|2|random)$")]
     pub pluviometric_index: Pluviometric,
     pub drip_interval: DripInterval,
     pub co2: Co2,
@@ -189,14 +198,16 @@ impl Mineral {
 pub struct Wind {
     /// `[x, z]`, any length but zero; omitted = a random direction per ring.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(min_items = 2, max_items = 2)]
     pub direction: Option<[f32; 2]>,
     /// In [0, 1]; omitted = random in [0, 1] per ring.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 0.0, maximum = 1.0)]
     pub intensity: Option<f32>,
     /// How far an intensity-1 wind moves a ring sideways, as a multiple of the ring's height
     /// step (1 = 45° at full intensity).
     #[serde(default = "default_wind_scale")]
-    #[schema(default = 1.0)]
+    #[schema(default = 1.0, minimum = 0.0, maximum = 10.0)]
     pub scale: f32,
 }
 
@@ -204,7 +215,12 @@ pub struct Wind {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ManualRing {
+    /// Metres; a stalactite's rings never widen (each at most the radius before it, the first
+    /// at most `stalactite_radius_m`).
+    #[schema(minimum = 0.0)]
     pub radius_m: f32,
+    /// Metres.
+    #[schema(minimum = 0.0)]
     pub height_m: f32,
 }
 
@@ -212,11 +228,16 @@ pub struct ManualRing {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Manual {
-    /// Rings of each stalactite, after its initial ring; radii must not grow.
+    /// Rings of each stalactite, after its initial ring; radii must not grow. At most 256.
     #[serde(default)]
+    // 256 = MAX_RINGS
+    #[schema(max_items = 256)]
     pub stalactite: Vec<ManualRing>,
     /// Rings of each stalagmite, after its initial ring (grown only at pluviometric index 2).
+    /// At most 256.
     #[serde(default)]
+    // 256 = MAX_RINGS
+    #[schema(max_items = 256)]
     pub stalagmite: Vec<ManualRing>,
 }
 
@@ -224,7 +245,13 @@ pub struct Manual {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Site {
+    /// Metres, on the roof: from 0 to the chamber's `width_m`.
+    // 10000 = MAX_CHAMBER_M, the largest width_m
+    #[schema(minimum = 0.0, maximum = 10000.0)]
     pub x_m: f32,
+    /// Metres, on the roof: from 0 to the chamber's `depth_m`.
+    // 10000 = MAX_CHAMBER_M, the largest depth_m
+    #[schema(minimum = 0.0, maximum = 10000.0)]
     pub z_m: f32,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub conditions: Option<Conditions>,
@@ -236,11 +263,18 @@ pub struct Site {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum Sites {
+    /// At least 1 site and at most 5000 (fewer if the server's operation cap is lower; more is
+    /// answered with 413).
     Explicit(Vec<Site>),
     Scatter {
+        /// At least 1 and at most 5000 (fewer if the server's operation cap is lower; more is
+        /// answered with 413).
+        // 5000 = MAX_SITES
+        #[schema(minimum = 1, maximum = 5000)]
         count: u32,
         /// Keep sites at least this far apart, metres (best effort).
         #[serde(default)]
+        #[schema(minimum = 0.0)]
         min_spacing_m: f32,
     },
 }
@@ -259,36 +293,45 @@ pub struct GrowCaveParams {
     pub mineral: Mineral,
     /// How much of the mineral is in the solution, 0 (calcareous white) to 1 (Table 1's colour).
     #[serde(default = "default_intensity")]
-    #[schema(default = 1.0)]
+    #[schema(default = 1.0, minimum = 0.0, maximum = 1.0)]
     pub intensity: f32,
-    /// Passes: the most rings a speleothem grows.
+    /// Passes: the most rings a speleothem grows. Sites × 2 × (rings + 2) × segments must stay
+    /// within the server's grid cap (4097 × 4097 = 16 785 409 by default; more is answered
+    /// with 413).
     #[serde(default = "default_rings")]
-    #[schema(default = 48, maximum = 256)]
+    // 256 = MAX_RINGS
+    #[schema(default = 48, minimum = 1, maximum = 256)]
     pub rings: u32,
     /// Vertices around each ring.
     #[serde(default = "default_segments")]
+    // 3 = MIN_SEGMENTS, 64 = MAX_SEGMENTS
     #[schema(default = 16, minimum = 3, maximum = 64)]
     pub segments: u32,
-    /// The base primitive's radius for stalactites (the initial calcite ring), metres.
+    /// The base primitive's radius for stalactites (the initial calcite ring), metres; at most
+    /// the chamber's `height_m`.
     #[serde(default = "default_stalactite_radius")]
-    #[schema(default = 0.08)]
+    // 10000 = MAX_CHAMBER_M, the largest height_m
+    #[schema(default = 0.08, exclusive_minimum = 0.0, maximum = 10000.0)]
     pub stalactite_radius_m: f32,
-    /// The first ring of a stalagmite, metres.
+    /// The first ring of a stalagmite, metres; at most the chamber's `height_m`.
     #[serde(default = "default_stalagmite_radius")]
-    #[schema(default = 0.14)]
+    // 10000 = MAX_CHAMBER_M, the largest height_m
+    #[schema(default = 0.14, exclusive_minimum = 0.0, maximum = 10000.0)]
     pub stalagmite_radius_m: f32,
     /// Table 2's "x1" radius step, metres (each ring draws 50–150 % of it).
     #[serde(default = "default_radius_step")]
-    #[schema(default = 0.004)]
+    #[schema(default = 0.004, minimum = 0.0)]
     pub radius_step_m: f32,
-    /// Table 2's "x1" height step, metres (each ring draws 50–150 % of it).
+    /// Table 2's "x1" height step, metres (each ring draws 50–150 % of it); at most the
+    /// chamber's `height_m`.
     #[serde(default = "default_height_step")]
-    #[schema(default = 0.03)]
+    // 10000 = MAX_CHAMBER_M, the largest height_m
+    #[schema(default = 0.03, exclusive_minimum = 0.0, maximum = 10000.0)]
     pub height_step_m: f32,
     /// kf of vd = kf · arr / irr, metres: the horizontal displacement of low CO₂ growth; a
     /// quarter of it roughens the surface at other concentrations.
     #[serde(default = "default_kf")]
-    #[schema(default = 0.01)]
+    #[schema(default = 0.01, minimum = 0.0, maximum = 10.0)]
     pub kf_m: f32,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub wind: Option<Wind>,

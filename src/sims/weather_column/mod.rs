@@ -8,6 +8,7 @@
 //! removal step of every voxel is the recorded sequence; replay reads the rock off it.
 
 mod bubble;
+mod cost;
 mod grid;
 mod outputs;
 pub mod params;
@@ -48,6 +49,13 @@ impl Simulation for WeatherColumn {
         }
     }
 
+    fn estimate(
+        params: &WeatherColumnParams,
+        terrain: &dyn crate::terrain::TerrainLookup,
+    ) -> Result<crate::jobs::Cost, SimError> {
+        cost::estimate(params, terrain)
+    }
+
     fn run(params: &Self::Params, seed: u64, ctx: &RunContext) -> Result<Outcome<Self::Sequence>, SimError> {
         let joint_map = match &params.column.profile {
             Profile::JointMap(image) => Some(image.bytes(ctx.terrain)?),
@@ -59,15 +67,16 @@ impl Simulation for WeatherColumn {
             let percent = 100.0 * rock.rock_voxels as f64 / rock.initial_voxels.max(1) as f64;
             let message = format!("{left:.3} m³ of rock left ({percent:.1} %), {active} active voxels");
             ctx.report_with_snapshot("weathering", step as u64, params.steps as u64, message, || {
-                outputs::snapshot_png(&rock.grid, &rock.state)
+                outputs::snapshot_png(&rock.grid, &rock.state, ctx.stop())
             });
             Ok(())
         };
         ctx.report("weathering", 0, params.steps as u64, "building the column");
-        let (rock, history) = simulate(params, seed, joint_map.as_deref(), &mut on_step)?;
+        let (rock, history) = simulate(params, seed, joint_map.as_deref(), ctx.stop(), &mut on_step)?;
         ctx.check_cancelled()?;
         ctx.report("meshing", history.steps() as u64, params.steps as u64, "extracting the surface");
-        let (result, artifacts) = outputs::build(params, &rock.grid, &rock.resistance, &rock.state, &history);
+        let (result, artifacts) =
+            outputs::build(params, &rock.grid, &rock.resistance, &rock.state, &history, ctx.stop())?;
         let sequence = WeatherSequence::record(&rock.grid, seed, &history, &rock.state);
         Ok(Outcome { result, sequence, artifacts })
     }
@@ -83,7 +92,7 @@ impl Simulation for WeatherColumn {
         ctx.check_cancelled()?;
         ctx.report("meshing", history.steps() as u64, sequence.steps as u64, "extracting the surface");
         let resistance = ResistanceField::new(params, sequence.seed);
-        let (result, artifacts) = outputs::build(params, &grid, &resistance, &state, &history);
+        let (result, artifacts) = outputs::build(params, &grid, &resistance, &state, &history, ctx.stop())?;
         let sequence = WeatherSequence::record(&grid, sequence.seed, &history, &state);
         Ok(Outcome { result, sequence, artifacts })
     }
@@ -103,7 +112,7 @@ impl Stepper {
     /// The column of a request with a built-in profile (not a joint map), counted and ready.
     pub fn new(params: &WeatherColumnParams, seed: u64) -> Result<Self, SimError> {
         let mut rock = build_rock(params, seed, None)?;
-        let active = rock.initialise();
+        let active = rock.initialise(crate::stop::Stop::NEVER)?;
         Ok(Self { rock, active, step: 0, rate: params.rate })
     }
 
@@ -136,10 +145,13 @@ fn simulate(
     params: &WeatherColumnParams,
     seed: u64,
     joint_map: Option<&[u8]>,
+    stop: crate::stop::Stop,
     on_step: &mut OnStep,
 ) -> Result<(Rock, History), SimError> {
     let mut rock = build_rock(params, seed, joint_map)?;
+    stop.check()?;
     let schedule = Schedule {
+        stop,
         rate: params.rate,
         steps: params.steps,
         stop_at_voxels: (params.stop_at_fraction as f64 * rock.initial_voxels as f64).floor() as u64,

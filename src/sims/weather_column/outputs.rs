@@ -11,6 +11,7 @@ use super::resistance::ResistanceField;
 use super::weathering::History;
 use crate::export::{render_png, write_glb, Artifact, View};
 use crate::mesh::{extract_isosurface, smooth, MaterialKind, Mesh, ScalarField, Scene, SceneNode, Smoothing};
+use crate::stop::{Stop, Stopped};
 
 /// The isosurface between rock and air.
 const ISO: f32 = 0.5;
@@ -31,7 +32,12 @@ const RAMP: [[f32; 3]; 3] = [[226.0, 208.0, 160.0], [204.0, 130.0, 64.0], [168.0
 /// 3×3×3 rock fraction, clamped so that every voxel keeps its side of the surface: flat faces
 /// sit on the voxel boundaries, edges and corners are cut, and no rock is lost or added. On
 /// the ground the base is flat at y = 0 and stays there when smoothed.
-pub fn rock_mesh(grid: &Grid, rock: &(dyn Fn(usize) -> bool + Sync), smoothing_iterations: u32) -> Mesh {
+pub fn rock_mesh(
+    grid: &Grid,
+    rock: &(dyn Fn(usize) -> bool + Sync),
+    smoothing_iterations: u32,
+    stop: Stop,
+) -> Result<Mesh, Stopped> {
     let (px, py, pz) = (grid.nx + 2, grid.ny + 2, grid.nz + 2);
     let pplane = px * pz;
     let ground = !grid.floating as u8;
@@ -81,9 +87,10 @@ pub fn rock_mesh(grid: &Grid, rock: &(dyn Fn(usize) -> bool + Sync), smoothing_i
         }
     });
     drop(plane_sums);
+    stop.check()?;
     let s = grid.voxel_size_m;
     let field = ScalarField { dims: [px, py, pz], origin_m: [-0.5 * s; 3], spacing_m: s, values: &values };
-    let mut mesh = extract_isosurface(&field, ISO);
+    let mut mesh = extract_isosurface(&field, ISO, stop)?;
     drop(values);
     if !grid.floating {
         // Crossings towards the padding below the grid are the base: put them on the ground.
@@ -95,11 +102,11 @@ pub fn rock_mesh(grid: &Grid, rock: &(dyn Fn(usize) -> bool + Sync), smoothing_i
     }
     if smoothing_iterations > 0 && !mesh.indices.is_empty() {
         let floor_y = (!grid.floating).then_some(0.0);
-        smooth(&mut mesh, &Smoothing { iterations: smoothing_iterations, floor_y, ..Smoothing::default() });
+        smooth(&mut mesh, &Smoothing { iterations: smoothing_iterations, floor_y, ..Smoothing::default() }, stop)?;
     } else if !grid.floating {
         crate::mesh::recompute_normals(&mut mesh);
     }
-    mesh
+    Ok(mesh)
 }
 
 /// Per-vertex sRGB colours by the resistance of the rock at each vertex.
@@ -131,9 +138,9 @@ fn scene(mesh: Mesh) -> Scene {
 }
 
 /// A small picture of the rock as it is now, for live progress (no smoothing, no colour).
-pub fn snapshot_png(grid: &Grid, state: &[u16]) -> Vec<u8> {
+pub fn snapshot_png(grid: &Grid, state: &[u16], stop: Stop) -> Result<Vec<u8>, Stopped> {
     let rock = |i: usize| state[i] == super::grid::ROCK;
-    render_png(&scene(rock_mesh(grid, &rock, 0)), &SNAPSHOT)
+    render_png(&scene(rock_mesh(grid, &rock, 0, stop)?), &SNAPSHOT, stop)
 }
 
 /// `mesh.glb` and `preview.png` of the rock in `state` (after however many steps it holds),
@@ -144,15 +151,18 @@ pub fn build(
     resistance: &ResistanceField,
     state: &[u16],
     history: &History,
-) -> (Value, Vec<Artifact>) {
+    stop: Stop,
+) -> Result<(Value, Vec<Artifact>), Stopped> {
     let rock = |i: usize| state[i] == super::grid::ROCK;
-    let mut mesh = rock_mesh(grid, &rock, params.mesh.smoothing_iterations);
+    let mut mesh = rock_mesh(grid, &rock, params.mesh.smoothing_iterations, stop)?;
     colour_by_resistance(&mut mesh, params, resistance);
     let closed = mesh.is_closed();
     let mesh_volume = mesh.signed_volume();
     let (vertices, triangles) = (mesh.vertex_count(), mesh.triangle_count());
     let scene = scene(mesh);
-    let (glb, preview) = rayon::join(|| write_glb(&scene), || render_png(&scene, &PREVIEW));
+    stop.check()?;
+    let (glb, preview) = rayon::join(|| write_glb(&scene), || render_png(&scene, &PREVIEW, stop));
+    let preview = preview?;
 
     let initial = state.par_iter().filter(|&&s| s != NEVER_ROCK).count() as u64;
     let remaining = state.par_iter().filter(|&&s| s == super::grid::ROCK).count() as u64;
@@ -172,5 +182,5 @@ pub fn build(
     });
     let artifacts =
         vec![Artifact::new("mesh.glb", "model/gltf-binary", glb), Artifact::new("preview.png", "image/png", preview)];
-    (result, artifacts)
+    Ok((result, artifacts))
 }

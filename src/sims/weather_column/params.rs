@@ -45,14 +45,18 @@ fn default_resistance() -> f32 {
     1.0
 }
 
-/// Voxels along each axis (Y is up).
+/// Voxels along each axis (Y is up), at most 4096 each; x × y × z at most the server's voxel
+/// cap (192 × 1024 × 1024 = 201 326 592 by default; more is answered with 413).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GridSize {
+    // 4096 = MAX_GRID_SIDE
     #[schema(minimum = 1, maximum = 4096)]
     pub x: u32,
+    // 4096 = MAX_GRID_SIDE
     #[schema(minimum = 1, maximum = 4096)]
     pub y: u32,
+    // 4096 = MAX_GRID_SIDE
     #[schema(minimum = 1, maximum = 4096)]
     pub z: u32,
 }
@@ -81,26 +85,34 @@ pub enum Profile {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BoxProfile {
-    /// Along X, metres; default the grid's width.
+    /// Along X, metres; default the grid's width. At most the grid's width
+    /// (`grid.x` × `voxel_size_m`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(exclusive_minimum = 0.0)]
     pub width_m: Option<f32>,
-    /// Along Z, metres; default the grid's depth.
+    /// Along Z, metres; default the grid's depth. At most the grid's depth
+    /// (`grid.z` × `voxel_size_m`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(exclusive_minimum = 0.0)]
     pub depth_m: Option<f32>,
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct CylinderProfile {
-    /// Metres; default half the grid's shorter horizontal side.
+    /// Metres; default half the grid's shorter horizontal side. At most half the grid's longer
+    /// horizontal side.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(exclusive_minimum = 0.0)]
     pub radius_m: Option<f32>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PolygonProfile {
-    /// At least three `[x, z]` points, metres from the grid's centre.
+    /// At least three `[x, z]` points and at most 1024, metres from the grid's centre.
+    // 1024 = MAX_POLYGON_POINTS
+    #[schema(min_items = 3, max_items = 1024)]
     pub points_m: Vec<[f32; 2]>,
 }
 
@@ -109,8 +121,10 @@ pub struct PolygonProfile {
 #[serde(deny_unknown_fields)]
 pub struct Column {
     pub profile: Profile,
-    /// Metres from the bottom of the grid; default the grid's full height.
+    /// Metres from the bottom of the grid; default the grid's full height. At least one voxel
+    /// (after rounding) and at most the grid's height (`grid.y` × `voxel_size_m`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(exclusive_minimum = 0.0)]
     pub height_m: Option<f32>,
     /// Rock with air beneath it, so weathering acts on every side (the paper's cube-to-sphere
     /// check). Otherwise the column stands on ground that does not weather and is not air.
@@ -123,19 +137,22 @@ pub struct Column {
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum Bubble {
     Sphere {
+        // 1 = MIN_BUBBLE_RADIUS, 8 = MAX_BUBBLE_RADIUS
         #[serde(default = "default_radius")]
         #[schema(default = 4.0, minimum = 1.0, maximum = 8.0)]
         radius: f32,
     },
     /// Axis-aligned, radii along X, Y and Z.
     Ellipsoid {
-        #[schema(minimum = 1.0, maximum = 8.0)]
+        // 1 = MIN_BUBBLE_RADIUS, 8 = MAX_BUBBLE_RADIUS (each radius)
+        #[schema(min_items = 3, max_items = 3, minimum = 1.0, maximum = 8.0)]
         radii: [f32; 3],
     },
     /// A round top and a flat bottom (Figure 7c): the upper half of a sphere, cut at the
     /// voxel's own level, so rock below a voxel does not shelter it and air below does not
     /// weather it.
     Gumdrop {
+        // 1 = MIN_BUBBLE_RADIUS, 8 = MAX_BUBBLE_RADIUS
         #[serde(default = "default_radius")]
         #[schema(default = 4.0, minimum = 1.0, maximum = 8.0)]
         radius: f32,
@@ -154,9 +171,12 @@ impl Default for Bubble {
 pub struct LayerNoise {
     /// Relative, in [0, 0.95].
     #[serde(default)]
+    // 0.95 = MAX_NOISE_AMPLITUDE
+    #[schema(minimum = 0.0, maximum = 0.95)]
     pub amplitude: f32,
     /// Cycles per metre.
     #[serde(default)]
+    #[schema(minimum = 0.0, maximum = 1e4)]
     pub frequency_per_m: f32,
 }
 
@@ -164,11 +184,14 @@ pub struct LayerNoise {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Layer {
-    /// Metres above the bottom of the grid. The last layer also holds any rock above its top.
+    /// Metres above the bottom of the grid, greater than 0 and greater than the layer before's.
+    /// The last layer also holds any rock above its top.
+    #[schema(exclusive_minimum = 0.0)]
     pub top_m: f32,
-    /// Resistance to weathering (> 0): a voxel's decimation per step is divided by it.
+    /// Resistance to weathering (> 0, at most 1 000 000): a voxel's decimation per step is
+    /// divided by it.
     #[serde(default = "default_resistance")]
-    #[schema(default = 1.0)]
+    #[schema(default = 1.0, exclusive_minimum = 0.0, maximum = 1e6)]
     pub resistance: f32,
     #[serde(default)]
     pub noise: LayerNoise,
@@ -194,6 +217,7 @@ pub enum Update {
 pub struct MeshOptions {
     /// Taubin smoothing passes (the paper smoothed in Maya); 0 keeps the voxel-derived surface.
     #[serde(default = "default_smoothing")]
+    // 200 = MAX_SMOOTHING_ITERATIONS
     #[schema(default = 20, maximum = 200)]
     pub smoothing_iterations: u32,
 }
@@ -211,15 +235,17 @@ pub struct WeatherColumnParams {
     pub grid: GridSize,
     /// Edge of a voxel, metres.
     #[serde(default = "default_voxel_size")]
-    #[schema(default = 0.1)]
+    #[schema(default = 0.1, exclusive_minimum = 0.0, maximum = 100.0)]
     pub voxel_size_m: f32,
     pub column: Column,
-    /// Bottom to top, `top_m` strictly increasing; at least one.
+    /// Bottom to top, `top_m` strictly increasing; at least one, at most 64.
+    // 64 = MAX_LAYERS
+    #[schema(min_items = 1, max_items = 64)]
     pub layers: Vec<Layer>,
     /// Decimation per step of a voxel whose bubble holds as much air as rock, at resistance 1;
     /// a voxel starts at level 1 and is removed at 0.
     #[serde(default = "default_rate")]
-    #[schema(default = 0.25)]
+    #[schema(default = 0.25, exclusive_minimum = 0.0, maximum = 100.0)]
     pub rate: f32,
     /// The decimation grows with the air-to-rock ratio raised to this power. 1 is the paper's
     /// product; there a flat face weathers at two thirds the rate of a gently rounded one, so a
@@ -230,8 +256,10 @@ pub struct WeatherColumnParams {
     pub ratio_exponent: f32,
     #[serde(default)]
     pub update: Update,
-    /// Most weathering steps.
+    /// Most weathering steps: at most 65 000, and at most the server's operation cap (100 000
+    /// by default).
     #[serde(default = "default_steps")]
+    // 65000 = MAX_STEPS
     #[schema(default = 200, minimum = 1, maximum = 65000)]
     pub steps: u32,
     /// Stop once the remaining rock is at most this fraction of the initial volume (0 = run

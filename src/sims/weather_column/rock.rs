@@ -8,6 +8,7 @@ use rayon::prelude::*;
 use super::bubble::BubbleTable;
 use super::grid::{Grid, ROCK};
 use super::resistance::ResistanceField;
+use crate::stop::{Stop, Stopped};
 
 #[derive(Clone)]
 pub struct Rock {
@@ -93,8 +94,10 @@ impl Rock {
     /// Count the air in the bubble of every rock voxel near the surface and return those with
     /// any as the active set. Only voxels within a bubble's reach of air are counted: a
     /// separable dilation finds them.
-    pub fn initialise(&mut self) -> Active {
+    /// Answers `Err(Stopped)` once `stop` is raised (looked at plane by plane).
+    pub fn initialise(&mut self, stop: Stop) -> Result<Active, Stopped> {
         let near = self.near_air();
+        stop.check()?;
         let g = &self.grid;
         let plane = g.plane();
         let state = &self.state;
@@ -104,6 +107,9 @@ impl Rock {
             .enumerate()
             .map(|(y, air_plane)| {
                 let mut active = Vec::new();
+                if stop.requested() {
+                    return active;
+                }
                 let bubble = &self.bubbles[self.layer_of_plane[y] as usize];
                 for (k, a) in air_plane.iter_mut().enumerate() {
                     let i = y * plane + k;
@@ -119,10 +125,11 @@ impl Rock {
                 active
             })
             .collect();
+        stop.check()?;
         let index: Vec<u32> = per_plane.concat();
         let level = vec![1.0; index.len()];
         let resistance = index.par_iter().map(|&i| self.resistance_of(i as usize)).collect();
-        Active { index, level, resistance }
+        Ok(Active { index, level, resistance })
     }
 
     pub fn resistance_of(&self, i: usize) -> f32 {

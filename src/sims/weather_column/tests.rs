@@ -10,6 +10,7 @@ use super::params::{Bubble, Layer};
 use super::rock::count_air;
 use super::*;
 use crate::sims::test_support::TestContext;
+use crate::stop::Stop;
 use crate::terrain::Heightfield;
 use crate::validate::{Limits, Validate, Validator};
 
@@ -38,7 +39,7 @@ fn floating_cube(side: u32, bubble: Value, stop_at_fraction: f32, update: &str) 
 }
 
 fn weather(p: &WeatherColumnParams, seed: u64) -> (Rock, History) {
-    simulate(p, seed, None, &mut |_, _, _| Ok(())).expect("weathers")
+    simulate(p, seed, None, Stop::NEVER, &mut |_, _, _| Ok(())).expect("weathers")
 }
 
 fn rock_cells(rock: &Rock) -> Vec<(usize, usize, usize)> {
@@ -200,7 +201,9 @@ fn weathered_rock_mesh_is_closed_and_holds_the_rock_volume() {
             &rock.resistance,
             &rock.state,
             &history,
-        );
+            Stop::NEVER,
+        )
+        .unwrap();
         assert_eq!(result["mesh"]["closed"], json!(true));
         let mesh_volume = result["mesh"]["volume_m3"].as_f64().unwrap();
         let voxel_volume = result["volume_m3"]["final"].as_f64().unwrap();
@@ -224,7 +227,7 @@ fn column_on_the_ground_has_a_flat_base_at_zero() {
     let (rock, _) = weather(&p, 1);
     let state = &rock.state;
     let rock_fn = |i: usize| state[i] == ROCK;
-    let mesh = outputs::rock_mesh(&rock.grid, &rock_fn, 8);
+    let mesh = outputs::rock_mesh(&rock.grid, &rock_fn, 8, Stop::NEVER).unwrap();
     assert!(mesh.is_closed());
     let (lo, _) = mesh.bounds().unwrap();
     assert_eq!(lo[1], 0.0);

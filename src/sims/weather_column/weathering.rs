@@ -15,6 +15,7 @@ use rayon::prelude::*;
 use super::grid::ROCK;
 use super::rock::{Active, Rock};
 use crate::jobs::SimError;
+use crate::stop::Stop;
 
 /// What each step did, for the sequence and the job's result.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -33,7 +34,9 @@ impl History {
 
 /// When to stop and how fast rock weathers.
 #[derive(Clone, Copy, Debug)]
-pub struct Schedule {
+pub struct Schedule<'a> {
+    /// Looked at between steps and within long ones.
+    pub stop: Stop<'a>,
     /// Decimation per step at air-to-rock ratio 1 and resistance 1.
     pub rate: f32,
     pub steps: u32,
@@ -46,7 +49,7 @@ pub struct Schedule {
 pub type OnStep<'a> = dyn FnMut(u32, &Rock, usize) -> Result<(), SimError> + 'a;
 
 pub fn weather_synchronized(rock: &mut Rock, schedule: Schedule, on_step: &mut OnStep) -> Result<History, SimError> {
-    let mut active = rock.initialise();
+    let mut active = rock.initialise(schedule.stop)?;
     let mut history = History::default();
     for step in 1..=schedule.steps {
         if active.is_empty() || rock.rock_voxels <= schedule.stop_at_voxels {
@@ -145,8 +148,13 @@ impl Ord for Event {
     }
 }
 
+/// Events handled between looks at the stop request: a step may hold any number of them.
+const EVENTS_PER_STOP_CHECK: u32 = 1 << 16;
+/// Stale events the heap may hold per live one before it is compacted.
+pub const STALE_EVENTS_PER_LIVE: usize = 4;
+
 pub fn weather_event_based(rock: &mut Rock, schedule: Schedule, on_step: &mut OnStep) -> Result<History, SimError> {
-    let initial = rock.initialise();
+    let initial = rock.initialise(schedule.stop)?;
     let plane = rock.grid.plane();
     let rate_of = |rock: &Rock, i: u32, resistance: f32| -> f64 {
         rock.bubble_of_plane(i as usize / plane).decimation(rock.air[i as usize], schedule.rate, resistance) as f64
@@ -164,9 +172,20 @@ pub fn weather_event_based(rock: &mut Rock, schedule: Schedule, on_step: &mut On
     let mut removed_this_step = 0u32;
     let mut active_at_start = voxels.len() as u32;
     let mut targets: Vec<(usize, usize, usize)> = Vec::new();
+    let mut events = 0u32;
     loop {
         if rock.rock_voxels <= schedule.stop_at_voxels {
             break;
+        }
+        events = events.wrapping_add(1);
+        if events % EVENTS_PER_STOP_CHECK == 0 {
+            schedule.stop.check()?;
+        }
+        // Every change of a voxel's rate leaves its earlier event behind; keep only the live
+        // ones once the stale outnumber them, so the heap stays within a few times the active
+        // set. Events order totally by (time, voxel, version), so the pops are the same.
+        if queue.len() > STALE_EVENTS_PER_LIVE * voxels.len() + 1024 {
+            queue.retain(|Reverse(e)| voxels.get(&e.index).is_some_and(|v| v.version == e.version));
         }
         let Some(Reverse(event)) = queue.pop() else { break };
         let Some(v) = voxels.get(&event.index) else { continue };

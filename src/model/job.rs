@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use utoipa::ToSchema;
 
-use super::Progress;
+use super::{Cost, Progress};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
@@ -87,6 +87,11 @@ pub struct Job {
     /// The step a replay stops after (null: the whole sequence).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub replay_until_step: Option<u64>,
+    /// The estimate the job was admitted by.
+    pub cost: Option<Cost>,
+    /// The name of the API key that made the job (none without keys). Never served.
+    #[serde(skip)]
+    pub owner: Option<String>,
 }
 
 impl Job {

@@ -1,0 +1,71 @@
+//! What a grow-cave job costs before it runs. Memory: the recorded rings, the roof and floor
+//! grids and their meshes, and the speleothem tubes with their glb and render copies (each
+//! tube has at most two rings per pass and `segments` vertices a ring). Work: rings grown,
+//! chamber samples generated, tube vertices written and rendered.
+
+use super::chamber::surface_grid;
+use super::params::{Conditions, GrowCaveParams, Pluviometric, Sites};
+use crate::jobs::{Cost, CostBuilder, SimError};
+use crate::terrain::TerrainLookup;
+
+/// Work units (a ring grown, a sample generated, a vertex written) per second at best.
+const UNITS_PER_SECOND: f64 = 1e9;
+/// Bytes per ring recorded: the ring, its copies in the sequence and its pretty JSON.
+const RING_BYTES: u64 = 600;
+const SITE_BYTES: u64 = 450;
+/// Bytes per speleothem vertex at the final build: the tube, its glb (twice) and the render's
+/// copy, with the slack of growing buffers.
+const TUBE_VERTEX_BYTES: u64 = 280;
+/// Bytes per roof or floor sample: the grid, its mesh and their copies in glb and render.
+const SURFACE_SAMPLE_BYTES: u64 = 300;
+/// Bytes per glb node (a speleothem): its JSON and glTF structures.
+const NODE_BYTES: u64 = 10_000;
+const BASE_BYTES: u64 = 4 << 20;
+
+pub fn estimate(params: &GrowCaveParams, _terrain: &dyn TerrainLookup) -> Result<Cost, SimError> {
+    let sites = match &params.sites {
+        Sites::Explicit(list) => list.len() as u64,
+        Sites::Scatter { count, .. } => u64::from(*count),
+    };
+    let segments = u64::from(params.segments);
+    // Speleothems per site: level 1 grows stalactites only, level 2 (or random) both.
+    let tubes_of = |c: &Conditions| match c.pluviometric_index {
+        Pluviometric::Level0 => 0,
+        Pluviometric::Level1 => 1,
+        Pluviometric::Level2 | Pluviometric::Random => 2,
+    };
+    let tubes: u64 = match &params.sites {
+        Sites::Explicit(list) => {
+            list.iter().map(|s| tubes_of(s.conditions.as_ref().unwrap_or(&params.conditions))).sum()
+        }
+        Sites::Scatter { count, .. } => u64::from(*count) * tubes_of(&params.conditions),
+    };
+    // Every ring grows at least half a height step (Table 2's multiples are at least 1), and
+    // a site's speleothems together span at most the chamber's height (manual rings aside).
+    let rings = u64::from(params.rings);
+    let height_bound = if params.manual.is_some() || params.height_step_m <= 0.0 {
+        u64::MAX
+    } else {
+        (params.chamber.height_m / (0.5 * params.height_step_m)).ceil() as u64
+    };
+    // Per speleothem: its rings, an anchor and a tip.
+    let recorded = (tubes * rings).min(sites.saturating_mul(height_bound).saturating_add(tubes));
+    let tube_vertices = (recorded + 2 * tubes) * segments;
+    let (cols, rows, _) = surface_grid(&params.chamber);
+    // The mesh of a surface keeps at most 1025 samples a side; the grids here have at most 513.
+    let surface = 2 * (cols * rows) as u64;
+    let mut cost = CostBuilder::new();
+    cost.memory("", BASE_BYTES)
+        .memory("rings", RING_BYTES * recorded + SITE_BYTES * sites)
+        .memory("chamber.samples", SURFACE_SAMPLE_BYTES * surface)
+        .memory("sites", TUBE_VERTEX_BYTES * tube_vertices + NODE_BYTES * sites);
+    let scatter = match &params.sites {
+        // Placing each site against the others: up to 30 tries a site.
+        Sites::Scatter { .. } => 15 * sites * sites,
+        Sites::Explicit(_) => 0,
+    };
+    // Surfaces are generated for each live snapshot and the final scene (about three times).
+    let work = recorded * segments + scatter + 3 * surface * 50 + 3 * tube_vertices * 20;
+    let field = if tube_vertices * 60 > surface * 150 { "rings" } else { "chamber.samples" };
+    Ok(cost.work(field, work).build("units", UNITS_PER_SECOND))
+}

@@ -1,0 +1,250 @@
+//! What every `JobStore` must do, as test bodies any backend runs: `store_contract_tests!`
+//! makes one `#[test]` of each for a backend's fixture.
+
+use chrono::{TimeZone, Utc};
+use serde_json::json;
+
+use super::{IdempotentInsert, JobStore, ListFilter, StoreError};
+use crate::export::Artifact;
+use crate::model::{Job, JobStatus, Progress};
+
+/// A store for one test, and whatever must live as long as it (a folder, a schema).
+pub struct Fixture {
+    pub store: Box<dyn JobStore>,
+    pub _guard: Box<dyn std::any::Any>,
+}
+
+/// UUIDv7 ids whose order is `n`'s order, as the engine's would be.
+pub fn id(n: u64) -> String {
+    uuid::Builder::from_unix_timestamp_millis(1_750_000_000_000 + n * 1000, &[n as u8; 10]).into_uuid().to_string()
+}
+
+pub fn job(n: u64, kind: &str, status: JobStatus) -> Job {
+    Job {
+        id: id(n),
+        kind: kind.to_string(),
+        status,
+        label: None,
+        created_at: Utc.timestamp_opt(1_750_000_000 + n as i64, 0).unwrap(),
+        started_at: None,
+        finished_at: None,
+        progress: Progress::default(),
+        request: json!({ "seed": n }),
+        result: None,
+        artifacts: Vec::new(),
+        error: None,
+        replay_of: None,
+        replay_until_step: None,
+        cost: None,
+        owner: None,
+    }
+}
+
+pub fn ids(jobs: &[Job]) -> Vec<String> {
+    jobs.iter().map(|j| j.id.clone()).collect()
+}
+
+pub fn artifacts() -> Vec<Artifact> {
+    vec![
+        Artifact::new("mesh.glb", "model/gltf-binary", vec![7; 1000]),
+        Artifact::new("heightmap.png", "image/png", b"abc".to_vec()),
+        Artifact::new("a-last.json", "application/json", Vec::new()),
+    ]
+}
+
+pub const SHA256_ABC: &str = "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad";
+
+pub const SHA256_EMPTY: &str = "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855";
+
+pub fn ids_of_artifacts(j: &Job) -> Vec<&str> {
+    j.artifacts.iter().map(|a| a.name.as_str()).collect()
+}
+
+pub fn insert_then_get_round_trips_every_field(store: &dyn JobStore) {
+    let mut j = job(1, "deform-terrain", JobStatus::Failed);
+    j.label = Some("ridge «north»".into());
+    j.created_at = Utc.timestamp_opt(1_750_000_001, 123_456_789).unwrap();
+    j.started_at = Some(Utc.timestamp_opt(1_750_000_002, 5).unwrap());
+    j.finished_at = Some(Utc.timestamp_opt(1_750_000_003, 999_999_999).unwrap());
+    j.progress = Progress { fraction: 0.25, step: 3, steps: 12, stage: "search".into(), message: "iteration 3".into() };
+    j.request = json!({ "seed": 18446744073709551615u64, "terrain": { "fractal": { "size": 65 } } });
+    j.result = Some(json!({ "z_min": -1.5, "z_max": 99.25 }));
+    j.error = Some(json!({ "type": "about:blank", "status": 500 }));
+    j.replay_of = Some(id(0));
+    j.replay_until_step = Some(7);
+
+    assert!(matches!(store.insert(&j, None).unwrap(), IdempotentInsert::Inserted));
+    assert_eq!(store.get(&j.id).unwrap(), Some(j.clone()));
+    assert_eq!(store.get(&id(99)).unwrap(), None);
+    assert_eq!(store.attempts(&j.id).unwrap(), Some(0));
+}
+
+pub fn list_pages_newest_first_with_filters(store: &dyn JobStore) {
+    let statuses = [JobStatus::Queued, JobStatus::Succeeded, JobStatus::Failed];
+    let mut all = Vec::new();
+    for n in 0..10u64 {
+        let kind = if n % 2 == 0 { "bulldoze" } else { "grow-cave" };
+        let j = job(n, kind, statuses[n as usize % 3]);
+        store.insert(&j, None).unwrap();
+        all.push(j);
+    }
+    let newest: Vec<String> = all.iter().rev().map(|j| j.id.clone()).collect();
+
+    let page = |filter: ListFilter| ids(&store.list(&filter).unwrap());
+    let first = page(ListFilter { limit: 4, ..Default::default() });
+    assert_eq!(first, newest[..4]);
+    let second = page(ListFilter { limit: 4, before_id: first.last().cloned(), ..Default::default() });
+    assert_eq!(second, newest[4..8]);
+    let third = page(ListFilter { limit: 4, before_id: second.last().cloned(), ..Default::default() });
+    assert_eq!(third, newest[8..]);
+    assert_eq!(page(ListFilter::default()), newest, "limit 0 is no limit");
+
+    let expect = |pred: &dyn Fn(&Job) -> bool| -> Vec<String> {
+        all.iter().rev().filter(|j| pred(j)).map(|j| j.id.clone()).collect()
+    };
+    let caves = page(ListFilter { kind: Some("grow-cave".into()), limit: 100, ..Default::default() });
+    assert_eq!(caves, expect(&|j| j.kind == "grow-cave"));
+    let failed = page(ListFilter { status: Some(JobStatus::Failed), limit: 100, ..Default::default() });
+    assert_eq!(failed, expect(&|j| j.status == JobStatus::Failed));
+    let both = page(ListFilter {
+        kind: Some("bulldoze".into()),
+        status: Some(JobStatus::Queued),
+        before_id: Some(id(6)),
+        limit: 100,
+        owner: None,
+    });
+    assert_eq!(both, vec![id(0)]);
+    assert!(page(ListFilter { kind: Some("nope".into()), limit: 5, ..Default::default() }).is_empty());
+}
+
+pub fn idempotency_key_returns_the_first_job_and_compares_the_body(store: &dyn JobStore) {
+    let first = job(1, "bulldoze", JobStatus::Queued);
+    let retry = job(2, "bulldoze", JobStatus::Queued);
+    let key = Some(("key-1", "aa11"));
+
+    assert!(matches!(store.insert(&first, key).unwrap(), IdempotentInsert::Inserted));
+    match store.insert(&retry, key).unwrap() {
+        IdempotentInsert::Existing { job, same_body } => {
+            assert_eq!(*job, first);
+            assert!(same_body);
+        }
+        other => panic!("expected Existing, got {other:?}"),
+    }
+    match store.insert(&retry, Some(("key-1", "bb22"))).unwrap() {
+        IdempotentInsert::Existing { job, same_body } => {
+            assert_eq!(job.id, first.id);
+            assert!(!same_body);
+        }
+        other => panic!("expected Existing, got {other:?}"),
+    }
+    assert_eq!(store.get(&retry.id).unwrap(), None, "a repeated key writes nothing");
+
+    // Another key is another job; deleting a job frees its key.
+    assert!(matches!(store.insert(&retry, Some(("key-2", "aa11"))).unwrap(), IdempotentInsert::Inserted));
+    assert!(store.delete(&first.id).unwrap());
+    let third = job(3, "bulldoze", JobStatus::Queued);
+    assert!(matches!(store.insert(&third, key).unwrap(), IdempotentInsert::Inserted));
+}
+
+pub fn finish_stores_artifacts_with_sha256_in_production_order(store: &dyn JobStore) {
+    let mut j = job(1, "carve-coast", JobStatus::Running);
+    store.insert(&j, None).unwrap();
+    j.status = JobStatus::Succeeded;
+    j.finished_at = Some(Utc.timestamp_opt(1_750_000_100, 0).unwrap());
+    j.result = Some(json!({ "caves": 3 }));
+    store.finish(&j, &artifacts()).unwrap();
+
+    let got = store.get(&j.id).unwrap().unwrap();
+    assert_eq!(got.status, JobStatus::Succeeded);
+    assert_eq!(got.result, j.result);
+    let names: Vec<&str> = got.artifacts.iter().map(|a| a.name.as_str()).collect();
+    assert_eq!(names, ["mesh.glb", "heightmap.png", "a-last.json"]);
+    let png = &got.artifacts[1];
+    assert_eq!((png.media_type.as_str(), png.bytes, png.sha256.as_str()), ("image/png", 3, SHA256_ABC));
+    assert_eq!(got.artifacts[2].sha256, SHA256_EMPTY);
+    assert_eq!(got.artifacts[0].bytes, 1000);
+    assert!(got.artifacts.iter().all(|a| a.href.is_empty()));
+
+    assert_eq!(store.artifact(&j.id, "heightmap.png").unwrap(), Some(("image/png".into(), b"abc".to_vec())));
+    assert_eq!(store.artifact(&j.id, "a-last.json").unwrap(), Some(("application/json".into(), Vec::new())));
+    assert_eq!(store.artifact(&j.id, "nope.bin").unwrap(), None);
+
+    // Finishing again replaces the artifacts.
+    store.finish(&j, &[Artifact::new("sequence.json", "application/json", b"[]".to_vec())]).unwrap();
+    let got = store.get(&j.id).unwrap().unwrap();
+    assert_eq!(ids_of_artifacts(&got), ["sequence.json"]);
+    assert_eq!(store.artifact(&j.id, "mesh.glb").unwrap(), None);
+}
+
+pub fn finish_refuses_duplicate_names_and_leaves_the_job_untouched(store: &dyn JobStore) {
+    let j = job(1, "bulldoze", JobStatus::Running);
+    store.insert(&j, None).unwrap();
+    let mut done = j.clone();
+    done.status = JobStatus::Succeeded;
+    let twice = [Artifact::new("a", "x/y", vec![1]), Artifact::new("a", "x/y", vec![2])];
+    assert!(matches!(store.finish(&done, &twice), Err(StoreError::Backend(_))));
+    assert_eq!(store.get(&j.id).unwrap(), Some(j));
+}
+
+pub fn unfinished_is_oldest_first_and_counts_group_by_kind_and_status(store: &dyn JobStore) {
+    let plan = [
+        ("bulldoze", JobStatus::Running),
+        ("grow-cave", JobStatus::Succeeded),
+        ("bulldoze", JobStatus::Queued),
+        ("bulldoze", JobStatus::Queued),
+        ("grow-cave", JobStatus::Cancelled),
+        ("grow-cave", JobStatus::Queued),
+    ];
+    for (n, (kind, status)) in plan.iter().enumerate() {
+        store.insert(&job(n as u64, kind, *status), None).unwrap();
+    }
+    assert_eq!(ids(&store.unfinished().unwrap()), vec![id(0), id(2), id(3), id(5)]);
+    assert_eq!(
+        store.counts().unwrap(),
+        vec![
+            ("bulldoze".to_string(), JobStatus::Queued, 2),
+            ("bulldoze".to_string(), JobStatus::Running, 1),
+            ("grow-cave".to_string(), JobStatus::Cancelled, 1),
+            ("grow-cave".to_string(), JobStatus::Queued, 1),
+            ("grow-cave".to_string(), JobStatus::Succeeded, 1),
+        ]
+    );
+}
+
+pub fn attempts_count_each_entry_into_running(store: &dyn JobStore) {
+    let mut j = job(1, "bulldoze", JobStatus::Queued);
+    store.insert(&j, None).unwrap();
+    for status in [JobStatus::Running, JobStatus::Running, JobStatus::Queued, JobStatus::Running] {
+        j.status = status;
+        store.update(&j).unwrap();
+    }
+    assert_eq!(store.attempts(&j.id).unwrap(), Some(2));
+    assert_eq!(store.attempts("missing").unwrap(), None);
+}
+
+/// One `#[test]` per contract body, on the store `$fixture()` gives (`None`: the backend is
+/// not configured here, and the test passes without running).
+#[macro_export]
+macro_rules! store_contract_tests {
+    ($fixture:path) => {
+        $crate::store_contract_tests!(@each $fixture;
+            insert_then_get_round_trips_every_field,
+            list_pages_newest_first_with_filters,
+            idempotency_key_returns_the_first_job_and_compares_the_body,
+            finish_stores_artifacts_with_sha256_in_production_order,
+            finish_refuses_duplicate_names_and_leaves_the_job_untouched,
+            unfinished_is_oldest_first_and_counts_group_by_kind_and_status,
+            attempts_count_each_entry_into_running
+        );
+    };
+    (@each $fixture:path; $($name:ident),*) => {
+        $(
+            #[test]
+            fn $name() {
+                if let Some(f) = $fixture() {
+                    $crate::store::contract::$name(f.store.as_ref());
+                }
+            }
+        )*
+    };
+}

@@ -1,0 +1,398 @@
+//! The job store on PostgreSQL, for many processes on many machines: the same tables as the
+//! embedded store (migrated at start-up by refinery, under an advisory lock so replicas
+//! starting together migrate once), a few connections used in turn, and every multi-statement
+//! write in one transaction. Unique keys decide races between replicas: an idempotency key is
+//! inserted with `ON CONFLICT DO NOTHING`, and the loser reads the winner's job.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use parking_lot::{Mutex, MutexGuard};
+use postgres::types::ToSql;
+use postgres::{Client, GenericClient, NoTls, Row};
+
+use super::row::{describe, JobRow, RawJob, JOB_COLUMNS};
+use super::{IdempotentInsert, JobStore, ListFilter, StoreError};
+use crate::export::Artifact;
+use crate::model::{ArtifactMeta, Job, JobStatus};
+
+mod embedded {
+    refinery::embed_migrations!("migrations/postgres");
+}
+
+/// Connections opened per store: a reader or writer each, used in turn.
+const CONNECTIONS: usize = 4;
+/// Any constant: replicas starting at once take this lock to migrate one after another.
+const MIGRATION_LOCK: i64 = 0x4c41_4e44_464f_524d; // "LANDFORM"
+
+pub struct PostgresStore {
+    clients: Vec<Mutex<Client>>,
+    next: AtomicUsize,
+}
+
+impl std::fmt::Debug for PostgresStore {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PostgresStore").field("connections", &self.clients.len()).finish_non_exhaustive()
+    }
+}
+
+fn db(e: postgres::Error) -> StoreError {
+    // A value a column can't be read as is a damaged row; the rest is the database's trouble.
+    if e.as_db_error().is_none() && e.to_string().contains("error deserializing") {
+        StoreError::Corrupt(e.to_string())
+    } else {
+        StoreError::Backend(e.to_string())
+    }
+}
+
+fn migration(e: refinery::Error) -> StoreError {
+    StoreError::Backend(format!("migrating the schema: {e}"))
+}
+
+impl PostgresStore {
+    /// Connect to `url` (`postgres://user@host:port/db`, with `?options=-csearch_path%3D…` for a
+    /// schema of its own) and bring the schema up to date.
+    pub fn open(url: &str) -> Result<Self, StoreError> {
+        let connect = || Client::connect(url, NoTls).map_err(|e| StoreError::Backend(format!("cannot connect: {e}")));
+        let mut first = connect()?;
+        first.execute("SELECT pg_advisory_lock($1)", &[&MIGRATION_LOCK]).map_err(db)?;
+        let migrated = embedded::migrations::runner().run(&mut first).map_err(migration);
+        first.execute("SELECT pg_advisory_unlock($1)", &[&MIGRATION_LOCK]).map_err(db)?;
+        migrated?;
+        let mut clients = vec![Mutex::new(first)];
+        for _ in 1..CONNECTIONS {
+            clients.push(Mutex::new(connect()?));
+        }
+        Ok(Self { clients, next: AtomicUsize::new(0) })
+    }
+
+    /// A free connection if there is one, else the next in turn.
+    fn client(&self) -> MutexGuard<'_, Client> {
+        let n = self.clients.len();
+        let start = self.next.fetch_add(1, Ordering::Relaxed);
+        for k in 0..n {
+            if let Some(c) = self.clients[(start + k) % n].try_lock() {
+                return c;
+            }
+        }
+        self.clients[start % n].lock()
+    }
+}
+
+fn raw_job(row: &Row) -> Result<RawJob, StoreError> {
+    let get = |i: usize| -> Result<Option<String>, StoreError> { row.try_get(i).map_err(db) };
+    let need = |i: usize, name: &str| -> Result<String, StoreError> {
+        get(i)?.ok_or_else(|| StoreError::Corrupt(format!("a job row has no {name}")))
+    };
+    Ok(RawJob {
+        id: need(0, "id")?,
+        kind: need(1, "kind")?,
+        status: need(2, "status")?,
+        label: get(3)?,
+        created_at: need(4, "created_at")?,
+        started_at: get(5)?,
+        finished_at: get(6)?,
+        progress: need(7, "progress")?,
+        request: need(8, "request")?,
+        result: get(9)?,
+        error: get(10)?,
+        replay_of: get(11)?,
+        replay_until_step: row.try_get(12).map_err(db)?,
+        cost: get(13)?,
+        owner: get(14)?,
+    })
+}
+
+fn artifact_metas(c: &mut impl GenericClient, job_id: &str) -> Result<Vec<ArtifactMeta>, StoreError> {
+    let rows = c
+        .query("SELECT name, media_type, bytes, sha256 FROM artifacts WHERE job_id = $1 ORDER BY ordinal", &[&job_id])
+        .map_err(db)?;
+    rows.iter()
+        .map(|r| {
+            let name: String = r.try_get(0).map_err(db)?;
+            let bytes: i64 = r.try_get(2).map_err(db)?;
+            Ok(ArtifactMeta {
+                media_type: r.try_get(1).map_err(db)?,
+                bytes: u64::try_from(bytes)
+                    .map_err(|_| StoreError::Corrupt(format!("job {job_id}: artifact {name}: size {bytes}")))?,
+                sha256: r.try_get(3).map_err(db)?,
+                href: String::new(),
+                name,
+            })
+        })
+        .collect()
+}
+
+fn load_jobs(c: &mut impl GenericClient, sql: &str, params: &[&(dyn ToSql + Sync)]) -> Result<Vec<Job>, StoreError> {
+    let rows = c.query(sql, params).map_err(db)?;
+    let raws = rows.iter().map(raw_job).collect::<Result<Vec<_>, _>>()?;
+    raws.into_iter()
+        .map(|raw| {
+            let artifacts = artifact_metas(c, &raw.id)?;
+            raw.into_job(artifacts)
+        })
+        .collect()
+}
+
+fn load_job(c: &mut impl GenericClient, id: &str) -> Result<Option<Job>, StoreError> {
+    Ok(load_jobs(c, &format!("SELECT {JOB_COLUMNS} FROM jobs WHERE id = $1"), &[&id])?.pop())
+}
+
+fn insert_row(c: &mut impl GenericClient, row: &JobRow) -> Result<(), StoreError> {
+    let j = row.job;
+    let running = i32::from(j.status == JobStatus::Running);
+    c.execute(
+        "INSERT INTO jobs (id, kind, status, label, created_at, started_at, finished_at, progress, request, \
+         result, error, replay_of, replay_until_step, attempts, cost, owner) \
+         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15, $16)",
+        &[
+            &j.id,
+            &j.kind,
+            &j.status.as_str(),
+            &j.label,
+            &row.created_at,
+            &row.started_at,
+            &row.finished_at,
+            &row.progress,
+            &row.request,
+            &row.result,
+            &row.error,
+            &j.replay_of,
+            &row.replay_until_step,
+            &running,
+            &row.cost,
+            &j.owner,
+        ],
+    )
+    .map_err(db)?;
+    Ok(())
+}
+
+/// Save the mutable columns; false if there is no such job.
+fn update_row(c: &mut impl GenericClient, row: &JobRow) -> Result<bool, StoreError> {
+    let j = row.job;
+    // SET expressions see the row as it was, so `status` there is the previous status.
+    let n = c
+        .execute(
+            "UPDATE jobs SET status = $2, label = $3, started_at = $4, finished_at = $5, progress = $6, \
+             result = $7, error = $8, \
+             attempts = attempts + CASE WHEN $2 = 'running' AND status <> 'running' THEN 1 ELSE 0 END \
+             WHERE id = $1",
+            &[
+                &j.id,
+                &j.status.as_str(),
+                &j.label,
+                &row.started_at,
+                &row.finished_at,
+                &row.progress,
+                &row.result,
+                &row.error,
+            ],
+        )
+        .map_err(db)?;
+    Ok(n > 0)
+}
+
+impl JobStore for PostgresStore {
+    fn insert(&self, job: &Job, idempotency: Option<(&str, &str)>) -> Result<IdempotentInsert, StoreError> {
+        let row = JobRow::encode(job)?;
+        let mut client = self.client();
+        let mut tx = client.transaction().map_err(db)?;
+        insert_row(&mut tx, &row)?;
+        if let Some((key, body_sha256)) = idempotency {
+            let claimed = tx
+                .execute(
+                    "INSERT INTO idempotency_keys (key, body_sha256, job_id) VALUES ($1, $2, $3) \
+                     ON CONFLICT (key) DO NOTHING",
+                    &[&key, &body_sha256, &job.id],
+                )
+                .map_err(db)?;
+            if claimed == 0 {
+                // Another request (here or on another replica) holds the key: undo ours and
+                // answer with its job.
+                tx.rollback().map_err(db)?;
+                let found = client
+                    .query_opt("SELECT body_sha256, job_id FROM idempotency_keys WHERE key = $1", &[&key])
+                    .map_err(db)?;
+                let (stored, job_id): (String, String) = match found {
+                    Some(r) => (r.try_get(0).map_err(db)?, r.try_get(1).map_err(db)?),
+                    None => return Err(StoreError::Backend(format!("idempotency key {key:?} vanished"))),
+                };
+                let job = load_job(&mut *client, &job_id)?.ok_or_else(|| {
+                    StoreError::Corrupt(format!("idempotency key {key:?} names job {job_id}, which is missing"))
+                })?;
+                return Ok(IdempotentInsert::Existing {
+                    job: Box::new(job),
+                    same_body: stored.eq_ignore_ascii_case(body_sha256),
+                });
+            }
+        }
+        tx.commit().map_err(db)?;
+        Ok(IdempotentInsert::Inserted)
+    }
+
+    fn get(&self, id: &str) -> Result<Option<Job>, StoreError> {
+        let mut client = self.client();
+        let mut tx = client.build_transaction().read_only(true).start().map_err(db)?;
+        let job = load_job(&mut tx, id)?;
+        tx.commit().map_err(db)?;
+        Ok(job)
+    }
+
+    /// Newest first. A `limit` of 0 means no limit.
+    fn list(&self, filter: &ListFilter) -> Result<Vec<Job>, StoreError> {
+        let status = filter.status.map(|s| s.as_str());
+        let limit: Option<i64> = (filter.limit > 0).then(|| i64::from(filter.limit));
+        let sql = format!(
+            "SELECT {JOB_COLUMNS} FROM jobs \
+             WHERE ($1::text IS NULL OR kind = $1) AND ($2::text IS NULL OR status = $2) \
+             AND ($3::text IS NULL OR owner = $3) AND ($4::text IS NULL OR id < $4) \
+             ORDER BY id DESC LIMIT $5"
+        );
+        let mut client = self.client();
+        let mut tx = client.build_transaction().read_only(true).start().map_err(db)?;
+        let jobs = load_jobs(&mut tx, &sql, &[&filter.kind, &status, &filter.owner, &filter.before_id, &limit])?;
+        tx.commit().map_err(db)?;
+        Ok(jobs)
+    }
+
+    /// A job that no longer exists (deleted while it ran) is left deleted.
+    fn update(&self, job: &Job) -> Result<(), StoreError> {
+        let row = JobRow::encode(job)?;
+        update_row(&mut *self.client(), &row)?;
+        Ok(())
+    }
+
+    /// Replaces any artifacts the job had. A job deleted meanwhile is left deleted.
+    fn finish(&self, job: &Job, artifacts: &[Artifact]) -> Result<(), StoreError> {
+        let row = JobRow::encode(job)?;
+        let metas = describe(artifacts)?;
+        let mut client = self.client();
+        let mut tx = client.transaction().map_err(db)?;
+        if !update_row(&mut tx, &row)? {
+            return Ok(());
+        }
+        tx.execute("DELETE FROM artifacts WHERE job_id = $1", &[&job.id]).map_err(db)?;
+        let insert = tx
+            .prepare(
+                "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, data) \
+                 VALUES ($1, $2, $3, $4, $5, $6, $7)",
+            )
+            .map_err(db)?;
+        for (ordinal, (a, m)) in artifacts.iter().zip(&metas).enumerate() {
+            let (ordinal, bytes) = (ordinal as i32, a.bytes.len() as i64);
+            tx.execute(&insert, &[&job.id, &m.name, &ordinal, &m.media_type, &bytes, &m.sha256, &a.bytes])
+                .map_err(db)?;
+        }
+        tx.commit().map_err(db)
+    }
+
+    fn artifact(&self, id: &str, name: &str) -> Result<Option<(String, Vec<u8>)>, StoreError> {
+        let found = self
+            .client()
+            .query_opt("SELECT media_type, data FROM artifacts WHERE job_id = $1 AND name = $2", &[&id, &name])
+            .map_err(db)?;
+        found.map(|r| Ok((r.try_get(0).map_err(db)?, r.try_get(1).map_err(db)?))).transpose()
+    }
+
+    fn delete(&self, id: &str) -> Result<bool, StoreError> {
+        // Artifacts and idempotency keys go with the job (ON DELETE CASCADE).
+        let n = self.client().execute("DELETE FROM jobs WHERE id = $1", &[&id]).map_err(db)?;
+        Ok(n > 0)
+    }
+
+    fn unfinished(&self) -> Result<Vec<Job>, StoreError> {
+        let sql = format!("SELECT {JOB_COLUMNS} FROM jobs WHERE status IN ('queued', 'running') ORDER BY id ASC");
+        load_jobs(&mut *self.client(), &sql, &[])
+    }
+
+    fn put_input(&self, sha256: &str, data: &[u8]) -> Result<(), StoreError> {
+        let bytes = data.len() as i64;
+        self.client()
+            .execute(
+                "INSERT INTO inputs (sha256, bytes, data) VALUES ($1, $2, $3) ON CONFLICT (sha256) DO NOTHING",
+                &[&sha256, &bytes, &data],
+            )
+            .map_err(db)?;
+        Ok(())
+    }
+
+    fn input(&self, sha256: &str) -> Result<Option<Vec<u8>>, StoreError> {
+        let found = self.client().query_opt("SELECT data FROM inputs WHERE sha256 = $1", &[&sha256]).map_err(db)?;
+        found.map(|r| r.try_get(0).map_err(db)).transpose()
+    }
+
+    fn has_input(&self, sha256: &str) -> Result<bool, StoreError> {
+        let found = self.client().query_opt("SELECT 1 FROM inputs WHERE sha256 = $1", &[&sha256]).map_err(db)?;
+        Ok(found.is_some())
+    }
+
+    fn attempts(&self, id: &str) -> Result<Option<u32>, StoreError> {
+        let found = self.client().query_opt("SELECT attempts FROM jobs WHERE id = $1", &[&id]).map_err(db)?;
+        found
+            .map(|r| {
+                let n: i32 = r.try_get(0).map_err(db)?;
+                u32::try_from(n).map_err(|_| StoreError::Corrupt(format!("job {id}: attempts {n}")))
+            })
+            .transpose()
+    }
+
+    fn counts(&self) -> Result<Vec<(String, JobStatus, u64)>, StoreError> {
+        let rows = self
+            .client()
+            .query("SELECT kind, status, COUNT(*) FROM jobs GROUP BY kind, status ORDER BY kind, status", &[])
+            .map_err(db)?;
+        rows.iter()
+            .map(|r| {
+                let (kind, status, n): (String, String, i64) =
+                    (r.try_get(0).map_err(db)?, r.try_get(1).map_err(db)?, r.try_get(2).map_err(db)?);
+                let status = JobStatus::parse(&status)
+                    .ok_or_else(|| StoreError::Corrupt(format!("a {kind} job has unknown status {status:?}")))?;
+                Ok((kind, status, n as u64))
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::store::contract::Fixture;
+
+    /// A schema of its own on the database `LANDFORM_TEST_DATABASE_URL` names, dropped after the
+    /// test; `None` when the variable is not set (then PostgreSQL is not tested here).
+    pub fn fixture() -> Option<Fixture> {
+        let url = std::env::var("LANDFORM_TEST_DATABASE_URL").ok().filter(|u| !u.is_empty())?;
+        let schema = format!("t_{}", uuid::Uuid::now_v7().simple());
+        let mut admin = Client::connect(&url, NoTls).expect("connect to LANDFORM_TEST_DATABASE_URL");
+        admin.batch_execute(&format!("CREATE SCHEMA {schema}")).expect("create a test schema");
+        let sep = if url.contains('?') { '&' } else { '?' };
+        let store = PostgresStore::open(&format!("{url}{sep}options=-csearch_path%3D{schema}")).expect("open");
+        Some(Fixture { store: Box::new(store), _guard: Box::new(DropSchema(admin, schema)) })
+    }
+
+    struct DropSchema(Client, String);
+
+    impl Drop for DropSchema {
+        fn drop(&mut self) {
+            let _ = self.0.batch_execute(&format!("DROP SCHEMA {} CASCADE", self.1));
+        }
+    }
+
+    crate::store_contract_tests!(fixture);
+
+    #[test]
+    fn replicas_opening_one_database_at_once_migrate_it_once() {
+        let Some(url) = std::env::var("LANDFORM_TEST_DATABASE_URL").ok().filter(|u| !u.is_empty()) else { return };
+        let schema = format!("t_{}", uuid::Uuid::now_v7().simple());
+        let mut admin = Client::connect(&url, NoTls).unwrap();
+        admin.batch_execute(&format!("CREATE SCHEMA {schema}")).unwrap();
+        let _drop = DropSchema(admin, schema.clone());
+        let sep = if url.contains('?') { '&' } else { '?' };
+        let scoped = format!("{url}{sep}options=-csearch_path%3D{schema}");
+        let opened: Vec<_> = std::thread::scope(|s| {
+            let handles: Vec<_> = (0..4).map(|_| s.spawn(|| PostgresStore::open(&scoped).map(|_| ()))).collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        assert!(opened.iter().all(Result::is_ok), "{opened:?}");
+    }
+}
