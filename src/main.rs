@@ -216,8 +216,19 @@ async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: 
     }
     std::fs::create_dir_all(&out)?;
     for a in &job.artifacts {
-        let (_, bytes) = engine.artifact(&job.id, &a.name).await?.context("artifact vanished")?;
-        std::fs::write(out.join(&a.name), bytes)?;
+        // A chunk at a time, as the server sends them: a large artifact is never whole in memory.
+        let mut file = std::io::BufWriter::new(std::fs::File::create(out.join(&a.name))?);
+        let mut offset = 0u64;
+        while offset < a.bytes {
+            let piece = engine
+                .artifact_piece(&job.id, &a.name, offset, landform::store::CHUNK_BYTES)
+                .await?
+                .filter(|p| !p.is_empty())
+                .context("artifact vanished")?;
+            std::io::Write::write_all(&mut file, &piece)?;
+            offset += piece.len() as u64;
+        }
+        std::io::Write::flush(&mut file)?;
         println!("{:>12} bytes  {}", a.bytes, out.join(&a.name).display());
     }
     std::fs::write(out.join("job.json"), serde_json::to_vec_pretty(&job)?)?;

@@ -658,6 +658,18 @@ impl Engine {
         self.blocking(move |s| s.artifact(&id, &name)).await
     }
 
+    /// At most `len` bytes of an artifact from `offset` (see `ArtifactStore::read_artifact`).
+    pub async fn artifact_piece(
+        &self,
+        id: &str,
+        name: &str,
+        offset: u64,
+        len: usize,
+    ) -> Result<Option<Vec<u8>>, EngineError> {
+        let (id, name) = (id.to_string(), name.to_string());
+        self.blocking(move |s| s.read_artifact(&id, &name, offset, len)).await
+    }
+
     /// Stop a queued or running job. Returns the job as it is after the request.
     pub async fn cancel(&self, id: &str, owner: Option<&str>) -> Result<Job, EngineError> {
         let job = self.get(id, owner).await?;

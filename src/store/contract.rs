@@ -176,6 +176,34 @@ pub fn finish_stores_artifacts_with_sha256_in_production_order(store: &dyn JobSt
     assert_eq!(store.artifact(&j.id, "mesh.glb").unwrap(), None);
 }
 
+/// An artifact of two and a half chunks: every byte tells its position, so a piece read from
+/// the wrong place or in the wrong order shows.
+pub fn artifacts_read_in_pieces_across_chunk_boundaries(store: &dyn JobStore) {
+    let chunk = super::CHUNK_BYTES;
+    let data: Vec<u8> = (0..chunk * 5 / 2).map(|i| (i % 251) as u8).collect();
+    let mut j = job(1, "bulldoze", JobStatus::Succeeded);
+    store.insert(&j, None).unwrap();
+    j.finished_at = Some(Utc.timestamp_opt(1_750_000_100, 0).unwrap());
+    store.finish(&j, &[Artifact::new("heightfield.npy", "application/octet-stream", data.clone())]).unwrap();
+
+    let read = |offset: usize, len: usize| store.read_artifact(&j.id, "heightfield.npy", offset as u64, len).unwrap();
+    for (offset, len) in
+        [(0, 10), (chunk - 3, 6), (chunk, chunk), (chunk - 1, chunk + 2), (5, data.len()), (0, usize::MAX)]
+    {
+        let end = offset.saturating_add(len).min(data.len());
+        assert_eq!(read(offset, len).as_deref(), Some(&data[offset..end]), "offset {offset} len {len}");
+    }
+    assert_eq!(read(data.len(), 1), Some(Vec::new()));
+    assert_eq!(read(data.len() + 100, 1), Some(Vec::new()));
+    assert_eq!(read(3, 0), Some(Vec::new()));
+    assert_eq!(store.read_artifact(&j.id, "nope.bin", 0, 1).unwrap(), None);
+    assert_eq!(store.artifact(&j.id, "heightfield.npy").unwrap().map(|a| a.1), Some(data));
+
+    // The chunks go with the job.
+    assert!(store.delete(&j.id).unwrap());
+    assert_eq!(store.read_artifact(&j.id, "heightfield.npy", 0, 1).unwrap(), None);
+}
+
 pub fn finish_refuses_duplicate_names_and_leaves_the_job_untouched(store: &dyn JobStore) {
     let j = job(1, "bulldoze", JobStatus::Running);
     store.insert(&j, None).unwrap();
@@ -232,6 +260,7 @@ macro_rules! store_contract_tests {
             list_pages_newest_first_with_filters,
             idempotency_key_returns_the_first_job_and_compares_the_body,
             finish_stores_artifacts_with_sha256_in_production_order,
+            artifacts_read_in_pieces_across_chunk_boundaries,
             finish_refuses_duplicate_names_and_leaves_the_job_untouched,
             unfinished_is_oldest_first_and_counts_group_by_kind_and_status,
             attempts_count_each_entry_into_running

@@ -1,11 +1,13 @@
 //! Where jobs live: the `JobStore` trait, its embedded SQLite form and its PostgreSQL form.
 
+mod artifacts;
 #[cfg(test)]
 pub(crate) mod contract;
 mod postgres;
 mod row;
 mod sqlite;
 
+pub use artifacts::{ArtifactStore, CHUNK_BYTES};
 pub use postgres::PostgresStore;
 pub use sqlite::SqliteStore;
 
@@ -43,8 +45,9 @@ pub enum IdempotentInsert {
     },
 }
 
-/// Persistent job storage. Methods are blocking; async callers use `spawn_blocking`.
-pub trait JobStore: Send + Sync + 'static {
+/// Persistent job storage, artifacts included. Methods are blocking; async callers use
+/// `spawn_blocking`.
+pub trait JobStore: ArtifactStore {
     /// Store a new job. With `idempotency = Some((key, body_sha256))`, the key is recorded with
     /// it in the same transaction, unless the key already exists (then nothing is written).
     fn insert(&self, job: &Job, idempotency: Option<(&str, &str)>) -> Result<IdempotentInsert, StoreError>;
@@ -52,10 +55,9 @@ pub trait JobStore: Send + Sync + 'static {
     fn list(&self, filter: &ListFilter) -> Result<Vec<Job>, StoreError>;
     /// Save a job's status, timestamps, progress, result and error (not its artifacts).
     fn update(&self, job: &Job) -> Result<(), StoreError>;
-    /// Save a finished job and its artifacts in one transaction; `job.artifacts` is set from them.
+    /// Save a finished job and its artifacts (in chunks) in one transaction; `job.artifacts`
+    /// is set from them.
     fn finish(&self, job: &Job, artifacts: &[Artifact]) -> Result<(), StoreError>;
-    /// An artifact's bytes and media type.
-    fn artifact(&self, id: &str, name: &str) -> Result<Option<(String, Vec<u8>)>, StoreError>;
     /// Remove a job, its artifacts and its idempotency key; false if there was none.
     fn delete(&self, id: &str) -> Result<bool, StoreError>;
     /// Jobs queued or running (oldest first): to run again after a restart.

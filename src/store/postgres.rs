@@ -8,10 +8,11 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use parking_lot::{Mutex, MutexGuard};
 use postgres::types::ToSql;
-use postgres::{Client, GenericClient, NoTls, Row};
+use postgres::{Client, GenericClient, IsolationLevel, NoTls, Row};
 
+use super::artifacts::{assemble, chunks, span};
 use super::row::{describe, JobRow, RawJob, JOB_COLUMNS};
-use super::{IdempotentInsert, JobStore, ListFilter, StoreError};
+use super::{ArtifactStore, IdempotentInsert, JobStore, ListFilter, StoreError, CHUNK_BYTES};
 use crate::export::Artifact;
 use crate::model::{ArtifactMeta, Job, JobStatus};
 
@@ -192,6 +193,64 @@ fn update_row(c: &mut impl GenericClient, row: &JobRow) -> Result<bool, StoreErr
     Ok(n > 0)
 }
 
+impl ArtifactStore for PostgresStore {
+    fn read_artifact(&self, id: &str, name: &str, offset: u64, len: usize) -> Result<Option<Vec<u8>>, StoreError> {
+        let mut client = self.client();
+        // One snapshot: a job finished again meanwhile can't mix its old and new chunks.
+        let mut tx = client
+            .build_transaction()
+            .read_only(true)
+            .isolation_level(IsolationLevel::RepeatableRead)
+            .start()
+            .map_err(db)?;
+        let found = tx
+            .query_opt("SELECT bytes, chunk_bytes FROM artifacts WHERE job_id = $1 AND name = $2", &[&id, &name])
+            .map_err(db)?;
+        let Some(row) = found else { return Ok(None) };
+        let (total, chunk): (i64, i64) = (row.try_get(0).map_err(db)?, row.try_get(1).map_err(db)?);
+        let Some(s) = span(total.max(0) as u64, chunk.max(0) as u64, offset, len)? else {
+            return Ok(Some(Vec::new()));
+        };
+        let (first, last) = (s.first_seq as i32, s.last_seq as i32);
+        let rows = tx
+            .query(
+                "SELECT data FROM artifact_chunks WHERE job_id = $1 AND name = $2 AND seq BETWEEN $3 AND $4 ORDER BY seq",
+                &[&id, &name, &first, &last],
+            )
+            .map_err(db)?;
+        let chunks = rows.iter().map(|r| r.try_get::<_, Vec<u8>>(0).map_err(db)).collect::<Result<Vec<_>, _>>()?;
+        tx.commit().map_err(db)?;
+        assemble(&s, chunks).map(Some)
+    }
+
+    fn artifact(&self, id: &str, name: &str) -> Result<Option<(String, Vec<u8>)>, StoreError> {
+        let mut client = self.client();
+        let mut tx = client
+            .build_transaction()
+            .read_only(true)
+            .isolation_level(IsolationLevel::RepeatableRead)
+            .start()
+            .map_err(db)?;
+        let found = tx
+            .query_opt("SELECT media_type, bytes FROM artifacts WHERE job_id = $1 AND name = $2", &[&id, &name])
+            .map_err(db)?;
+        let Some(row) = found else { return Ok(None) };
+        let (media_type, total): (String, i64) = (row.try_get(0).map_err(db)?, row.try_get(1).map_err(db)?);
+        let mut data = Vec::with_capacity(total.max(0) as usize);
+        for r in tx
+            .query("SELECT data FROM artifact_chunks WHERE job_id = $1 AND name = $2 ORDER BY seq", &[&id, &name])
+            .map_err(db)?
+        {
+            data.extend_from_slice(r.try_get::<_, &[u8]>(0).map_err(db)?);
+        }
+        tx.commit().map_err(db)?;
+        if data.len() as i64 != total {
+            return Err(StoreError::Corrupt(format!("job {id}: artifact {name}: {} of {total} bytes", data.len())));
+        }
+        Ok(Some((media_type, data)))
+    }
+}
+
 impl JobStore for PostgresStore {
     fn insert(&self, job: &Job, idempotency: Option<(&str, &str)>) -> Result<IdempotentInsert, StoreError> {
         let row = JobRow::encode(job)?;
@@ -271,27 +330,26 @@ impl JobStore for PostgresStore {
         if !update_row(&mut tx, &row)? {
             return Ok(());
         }
+        // The job's chunks go with its artifact rows (ON DELETE CASCADE).
         tx.execute("DELETE FROM artifacts WHERE job_id = $1", &[&job.id]).map_err(db)?;
-        let insert = tx
+        let artifact = tx
             .prepare(
-                "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, data) \
+                "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, chunk_bytes) \
                  VALUES ($1, $2, $3, $4, $5, $6, $7)",
             )
             .map_err(db)?;
+        let chunk =
+            tx.prepare("INSERT INTO artifact_chunks (job_id, name, seq, data) VALUES ($1, $2, $3, $4)").map_err(db)?;
+        let chunk_bytes = CHUNK_BYTES as i64;
         for (ordinal, (a, m)) in artifacts.iter().zip(&metas).enumerate() {
             let (ordinal, bytes) = (ordinal as i32, a.bytes.len() as i64);
-            tx.execute(&insert, &[&job.id, &m.name, &ordinal, &m.media_type, &bytes, &m.sha256, &a.bytes])
+            tx.execute(&artifact, &[&job.id, &m.name, &ordinal, &m.media_type, &bytes, &m.sha256, &chunk_bytes])
                 .map_err(db)?;
+            for (seq, data) in chunks(&a.bytes) {
+                tx.execute(&chunk, &[&job.id, &m.name, &(seq as i32), &data]).map_err(db)?;
+            }
         }
         tx.commit().map_err(db)
-    }
-
-    fn artifact(&self, id: &str, name: &str) -> Result<Option<(String, Vec<u8>)>, StoreError> {
-        let found = self
-            .client()
-            .query_opt("SELECT media_type, data FROM artifacts WHERE job_id = $1 AND name = $2", &[&id, &name])
-            .map_err(db)?;
-        found.map(|r| Ok((r.try_get(0).map_err(db)?, r.try_get(1).map_err(db)?))).transpose()
     }
 
     fn delete(&self, id: &str) -> Result<bool, StoreError> {
@@ -379,6 +437,34 @@ mod tests {
     }
 
     crate::store_contract_tests!(fixture);
+
+    /// A schema migrated before artifacts were chunked (V1, bytes in `artifacts.data`) keeps its
+    /// artifacts when V2 moves them into chunks.
+    #[test]
+    fn artifacts_stored_whole_by_an_earlier_version_read_back_after_migrating() {
+        let Some(url) = std::env::var("LANDFORM_TEST_DATABASE_URL").ok().filter(|u| !u.is_empty()) else { return };
+        let schema = format!("t_{}", uuid::Uuid::now_v7().simple());
+        let mut admin = Client::connect(&url, NoTls).unwrap();
+        admin.batch_execute(&format!("CREATE SCHEMA {schema}")).unwrap();
+        let _drop = DropSchema(admin, schema.clone());
+        let sep = if url.contains('?') { '&' } else { '?' };
+        let scoped = format!("{url}{sep}options=-csearch_path%3D{schema}");
+        let mut old = Client::connect(&scoped, NoTls).unwrap();
+        embedded::migrations::runner().set_target(refinery::Target::Version(1)).run(&mut old).unwrap();
+        old.batch_execute(
+            "INSERT INTO jobs (id, kind, status, created_at, progress, request) \
+             VALUES ('j1', 'bulldoze', 'succeeded', '2026-01-01T00:00:00.000000000Z', '{}', '{}'); \
+             INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, data) VALUES \
+             ('j1', 'a.bin', 0, 'application/octet-stream', 5, 'x', '\\x0102030405'), \
+             ('j1', 'empty.json', 1, 'application/json', 0, 'x', '\\x');",
+        )
+        .unwrap();
+        let store = PostgresStore::open(&scoped).unwrap();
+        assert_eq!(store.read_artifact("j1", "a.bin", 1, 3).unwrap(), Some(vec![2, 3, 4]));
+        assert_eq!(store.artifact("j1", "a.bin").unwrap().unwrap().1, vec![1, 2, 3, 4, 5]);
+        assert_eq!(store.artifact("j1", "empty.json").unwrap().unwrap().1, Vec::<u8>::new());
+        assert_eq!(store.read_artifact("j1", "empty.json", 0, 10).unwrap(), Some(vec![]));
+    }
 
     #[test]
     fn replicas_opening_one_database_at_once_migrate_it_once() {

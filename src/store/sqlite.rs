@@ -14,13 +14,14 @@ use parking_lot::{Mutex, MutexGuard};
 use rusqlite::types::Value as SqlValue;
 use rusqlite::{params, Connection, OpenFlags, OptionalExtension, Row, TransactionBehavior};
 
+use super::artifacts::{assemble, chunks, span};
 use super::row::{describe, JobRow, RawJob, JOB_COLUMNS};
-use super::{IdempotentInsert, JobStore, ListFilter, StoreError};
+use super::{ArtifactStore, IdempotentInsert, JobStore, ListFilter, StoreError, CHUNK_BYTES};
 use crate::export::Artifact;
 use crate::model::{ArtifactMeta, Job, JobStatus};
 
 /// The schema version this build writes (`PRAGMA user_version`).
-pub const SCHEMA_VERSION: i64 = 3;
+pub const SCHEMA_VERSION: i64 = 4;
 
 /// Migrations in order: `MIGRATIONS[n]` takes the schema from version `n` to `n + 1`.
 const MIGRATIONS: [&str; SCHEMA_VERSION as usize] = [
@@ -79,6 +80,22 @@ CREATE TABLE inputs (
 ALTER TABLE jobs ADD COLUMN cost TEXT;
 ALTER TABLE jobs ADD COLUMN owner TEXT;
 CREATE INDEX jobs_by_owner ON jobs (owner, id);
+"#,
+    r#"
+-- Artifact bytes in chunks (one row each, see store/artifacts.rs), so a download reads one
+-- chunk at a time. Artifacts stored before move over as one chunk each.
+CREATE TABLE artifact_chunks (
+    job_id TEXT NOT NULL,
+    name   TEXT NOT NULL,
+    seq    INTEGER NOT NULL,  -- from 0; chunk k holds bytes k * chunk_bytes ..
+    data   BLOB NOT NULL,
+    PRIMARY KEY (job_id, name, seq),
+    FOREIGN KEY (job_id, name) REFERENCES artifacts (job_id, name) ON DELETE CASCADE
+);
+ALTER TABLE artifacts ADD COLUMN chunk_bytes INTEGER NOT NULL DEFAULT 1;
+INSERT INTO artifact_chunks (job_id, name, seq, data) SELECT job_id, name, 0, data FROM artifacts;
+UPDATE artifacts SET chunk_bytes = max(bytes, 1);
+ALTER TABLE artifacts DROP COLUMN data;
 "#,
 ];
 
@@ -357,6 +374,59 @@ fn read_snapshot<T>(
     Ok(out)
 }
 
+impl ArtifactStore for SqliteStore {
+    fn read_artifact(&self, id: &str, name: &str, offset: u64, len: usize) -> Result<Option<Vec<u8>>, StoreError> {
+        read_snapshot(&mut self.reader(), |c| {
+            let found: Option<(i64, i64)> = c
+                .prepare_cached("SELECT bytes, chunk_bytes FROM artifacts WHERE job_id = ?1 AND name = ?2")
+                .map_err(db)?
+                .query_row([id, name], |r| Ok((r.get(0)?, r.get(1)?)))
+                .optional()
+                .map_err(db)?;
+            let Some((total, chunk)) = found else { return Ok(None) };
+            let Some(s) = span(total.max(0) as u64, chunk.max(0) as u64, offset, len)? else {
+                return Ok(Some(Vec::new()));
+            };
+            let mut stmt = c
+                .prepare_cached(
+                    "SELECT data FROM artifact_chunks WHERE job_id = ?1 AND name = ?2 AND seq BETWEEN ?3 AND ?4 \
+                     ORDER BY seq",
+                )
+                .map_err(db)?;
+            let chunks = stmt
+                .query_map(params![id, name, s.first_seq, s.last_seq], |r| r.get::<_, Vec<u8>>(0))
+                .map_err(db)?
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(db)?;
+            assemble(&s, chunks).map(Some)
+        })
+    }
+
+    fn artifact(&self, id: &str, name: &str) -> Result<Option<(String, Vec<u8>)>, StoreError> {
+        read_snapshot(&mut self.reader(), |c| {
+            let found: Option<(String, i64)> = c
+                .prepare_cached("SELECT media_type, bytes FROM artifacts WHERE job_id = ?1 AND name = ?2")
+                .map_err(db)?
+                .query_row([id, name], |r| Ok((r.get(0)?, r.get(1)?)))
+                .optional()
+                .map_err(db)?;
+            let Some((media_type, total)) = found else { return Ok(None) };
+            let mut data = Vec::with_capacity(total.max(0) as usize);
+            let mut stmt = c
+                .prepare_cached("SELECT data FROM artifact_chunks WHERE job_id = ?1 AND name = ?2 ORDER BY seq")
+                .map_err(db)?;
+            let mut rows = stmt.query([id, name]).map_err(db)?;
+            while let Some(r) = rows.next().map_err(db)? {
+                data.extend_from_slice(&r.get::<_, Vec<u8>>(0).map_err(db)?);
+            }
+            if data.len() as i64 != total {
+                return Err(StoreError::Corrupt(format!("job {id}: artifact {name}: {} of {total} bytes", data.len())));
+            }
+            Ok(Some((media_type, data)))
+        })
+    }
+}
+
 impl JobStore for SqliteStore {
     fn attempts(&self, id: &str) -> Result<Option<u32>, StoreError> {
         self.attempts_count(id)
@@ -446,39 +516,29 @@ impl JobStore for SqliteStore {
         if !row.update(&tx).map_err(db)? {
             return Ok(());
         }
+        // The job's chunks go with its artifact rows (ON DELETE CASCADE).
         tx.prepare_cached("DELETE FROM artifacts WHERE job_id = ?1").map_err(db)?.execute([&job.id]).map_err(db)?;
         {
-            let mut stmt = tx
+            let mut artifact = tx
                 .prepare_cached(
-                    "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, data) \
+                    "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, chunk_bytes) \
                      VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
                 )
                 .map_err(db)?;
-            for (ordinal, (a, m)) in artifacts.iter().zip(&metas).enumerate() {
-                stmt.execute(params![
-                    job.id,
-                    m.name,
-                    ordinal as i64,
-                    m.media_type,
-                    a.bytes.len() as i64,
-                    m.sha256,
-                    a.bytes,
-                ])
+            let mut chunk = tx
+                .prepare_cached("INSERT INTO artifact_chunks (job_id, name, seq, data) VALUES (?1, ?2, ?3, ?4)")
                 .map_err(db)?;
+            for (ordinal, (a, m)) in artifacts.iter().zip(&metas).enumerate() {
+                let bytes = a.bytes.len() as i64;
+                artifact
+                    .execute(params![job.id, m.name, ordinal as i64, m.media_type, bytes, m.sha256, CHUNK_BYTES as i64])
+                    .map_err(db)?;
+                for (seq, data) in chunks(&a.bytes) {
+                    chunk.execute(params![job.id, m.name, seq, data]).map_err(db)?;
+                }
             }
         }
         tx.commit().map_err(db)
-    }
-
-    fn artifact(&self, id: &str, name: &str) -> Result<Option<(String, Vec<u8>)>, StoreError> {
-        let conn = self.reader();
-        let found = conn
-            .prepare_cached("SELECT media_type, data FROM artifacts WHERE job_id = ?1 AND name = ?2")
-            .map_err(db)?
-            .query_row([id, name], |r| Ok((r.get(0)?, r.get(1)?)))
-            .optional()
-            .map_err(db)?;
-        Ok(found)
     }
 
     fn delete(&self, id: &str) -> Result<bool, StoreError> {
@@ -588,6 +648,41 @@ mod tests {
         assert_eq!(mode, "wal");
     }
 
+    /// A file written before artifacts were chunked (schema 3, bytes in `artifacts.data`) opens
+    /// with its artifacts intact, each now one chunk.
+    #[test]
+    fn artifacts_stored_whole_by_an_earlier_version_read_back_after_migrating() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("old.db").to_str().unwrap().to_string();
+        {
+            let conn = Connection::open(&path).unwrap();
+            for sql in &MIGRATIONS[..3] {
+                conn.execute_batch(sql).unwrap();
+            }
+            conn.pragma_update(None, "user_version", 3).unwrap();
+            conn.execute(
+                "INSERT INTO jobs (id, kind, status, created_at, progress, request) \
+                 VALUES ('j1', 'bulldoze', 'succeeded', '2026-01-01T00:00:00.000000000Z', '{}', '{}')",
+                [],
+            )
+            .unwrap();
+            for (ordinal, (name, data)) in [("a.bin", vec![1u8, 2, 3, 4, 5]), ("empty.json", vec![])].iter().enumerate()
+            {
+                conn.execute(
+                    "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, data) \
+                     VALUES ('j1', ?1, ?2, 'application/octet-stream', ?3, 'x', ?4)",
+                    params![name, ordinal as i64, data.len() as i64, data],
+                )
+                .unwrap();
+            }
+        }
+        let store = SqliteStore::open(&path).unwrap();
+        assert_eq!(store.read_artifact("j1", "a.bin", 1, 3).unwrap(), Some(vec![2, 3, 4]));
+        assert_eq!(store.artifact("j1", "a.bin").unwrap().unwrap().1, vec![1, 2, 3, 4, 5]);
+        assert_eq!(store.artifact("j1", "empty.json").unwrap().unwrap().1, Vec::<u8>::new());
+        assert_eq!(store.read_artifact("j1", "empty.json", 0, 10).unwrap(), Some(vec![]));
+    }
+
     #[test]
     fn delete_removes_the_job_its_artifacts_and_its_key() {
         let (_dir, path, store) = temp_store();
@@ -607,6 +702,7 @@ mod tests {
         let conn = Connection::open(&path).unwrap();
         let count = |sql: &str| -> i64 { conn.query_row(sql, [&j.id], |r| r.get(0)).unwrap() };
         assert_eq!(count("SELECT COUNT(*) FROM artifacts WHERE job_id = ?1"), 0);
+        assert_eq!(count("SELECT COUNT(*) FROM artifact_chunks WHERE job_id = ?1"), 0);
         assert_eq!(count("SELECT COUNT(*) FROM idempotency_keys WHERE job_id = ?1"), 0);
         assert_eq!(store.get(&keep.id).unwrap().unwrap().artifacts.len(), 3);
 

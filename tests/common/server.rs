@@ -87,6 +87,12 @@ impl TestServer {
         Self { base, client, db: db.to_path_buf(), child, _dir: None }
     }
 
+    /// The server process's id (to read its memory from /proc).
+    #[allow(dead_code)]
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
     pub fn url(&self, path: &str) -> String {
         format!("{}{}", self.base, path)
     }

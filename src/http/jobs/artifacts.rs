@@ -1,9 +1,13 @@
+use axum::body::{Body, Bytes};
 use axum::extract::{Path, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
+use futures::stream::{self, StreamExt};
 
 use crate::http::{AppState, Caller, Problem};
-use crate::jobs::Job;
+use crate::jobs::{EngineError, Job};
+use crate::model::ArtifactMeta;
+use crate::store::CHUNK_BYTES;
 
 #[utoipa::path(
     get, path = "/v1/jobs/{id}/artifacts/{name}", tag = "jobs",
@@ -42,17 +46,19 @@ pub(super) async fn serve_artifact(
     headers: &HeaderMap,
 ) -> Option<Result<Response, Problem>> {
     let meta = job.artifacts.iter().find(|a| a.name == name)?;
-    Some(serve_immutable(state, &job.id, name, &meta.sha256, headers).await)
+    Some(serve_immutable(state, &job.id, meta, headers).await)
 }
 
+/// The bytes streamed from the store a chunk at a time (never whole in memory), with
+/// `Content-Length`, and one `Range` honoured.
 async fn serve_immutable(
     state: &AppState,
     id: &str,
-    name: &str,
-    sha256: &str,
+    meta: &ArtifactMeta,
     headers: &HeaderMap,
 ) -> Result<Response, Problem> {
-    let etag = format!("\"{sha256}\"");
+    let name = meta.name.as_str();
+    let etag = format!("\"{}\"", meta.sha256);
     let cache = HeaderValue::from_static("public, max-age=31536000, immutable");
     let etag_value = HeaderValue::from_str(&etag).map_err(|_| crate::http::problem::internal())?;
     if let Some(inm) = headers.get(header::IF_NONE_MATCH).and_then(|v| v.to_str().ok()) {
@@ -61,25 +67,12 @@ async fn serve_immutable(
                 .into_response());
         }
     }
-    let (media_type, bytes) = state
-        .engine
-        .artifact(id, name)
-        .await?
-        .ok_or_else(|| Problem::not_found(format!("job {id} has no artifact named {name}")))?;
-    let content_type =
-        HeaderValue::from_str(&media_type).unwrap_or(HeaderValue::from_static("application/octet-stream"));
-    let len = bytes.len() as u64;
+    let len = meta.bytes;
     let range = headers.get(header::RANGE).and_then(|v| v.to_str().ok()).and_then(parse_range);
-    let mut res = match range.map(|r| r.within(len)) {
-        None => (StatusCode::OK, bytes).into_response(),
-        Some(Some((first, last))) => {
-            let part = bytes[first as usize..=last as usize].to_vec();
-            let mut res = (StatusCode::PARTIAL_CONTENT, part).into_response();
-            if let Ok(v) = HeaderValue::from_str(&format!("bytes {first}-{last}/{len}")) {
-                res.headers_mut().insert(header::CONTENT_RANGE, v);
-            }
-            res
-        }
+    // `bounds`: the inclusive byte range to send, None for an empty artifact.
+    let (status, bounds) = match range.map(|r| r.within(len)) {
+        None => (StatusCode::OK, len.checked_sub(1).map(|last| (0, last))),
+        Some(Some(bounds)) => (StatusCode::PARTIAL_CONTENT, Some(bounds)),
         Some(None) => {
             let mut res = Problem::new(
                 StatusCode::RANGE_NOT_SATISFIABLE,
@@ -94,12 +87,77 @@ async fn serve_immutable(
             return Ok(res);
         }
     };
+    let body = match bounds {
+        None => Body::empty(),
+        Some((first, last)) => {
+            // The first piece is read before answering, so an artifact missing from the store
+            // is a 404, not a stream that breaks.
+            let piece =
+                |offset: u64| Piece { state: state.clone(), id: id.to_string(), name: name.to_string(), offset, last };
+            let (head, next) = piece(first)
+                .read()
+                .await?
+                .ok_or_else(|| Problem::not_found(format!("job {id} has no artifact named {name}")))?;
+            let rest = stream::try_unfold(next.map(piece), |p| async move {
+                let Some(p) = p else { return Ok(None) };
+                let read = p.read().await.map_err(|e| io_error(e.to_string()))?;
+                let (bytes, next) = read.ok_or_else(|| io_error(format!("{} vanished from the store", p.name)))?;
+                Ok::<_, std::io::Error>(Some((bytes, next.map(|offset| Piece { offset, ..p }))))
+            });
+            Body::from_stream(stream::once(async { Ok(head) }).chain(rest))
+        }
+    };
+    let mut res = (status, body).into_response();
     let h = res.headers_mut();
+    h.insert(header::CONTENT_LENGTH, HeaderValue::from(bounds.map_or(0, |(first, last)| last + 1 - first)));
+    if let (StatusCode::PARTIAL_CONTENT, Some((first, last))) = (status, bounds) {
+        if let Ok(v) = HeaderValue::from_str(&format!("bytes {first}-{last}/{len}")) {
+            h.insert(header::CONTENT_RANGE, v);
+        }
+    }
+    let content_type =
+        HeaderValue::from_str(&meta.media_type).unwrap_or(HeaderValue::from_static("application/octet-stream"));
     h.insert(header::CONTENT_TYPE, content_type);
     h.insert(header::ETAG, etag_value);
     h.insert(header::CACHE_CONTROL, cache);
     h.insert(header::ACCEPT_RANGES, HeaderValue::from_static("bytes"));
     Ok(res)
+}
+
+/// The next piece of a download: from `offset` to the end of its stored chunk, or to `last`.
+struct Piece {
+    state: AppState,
+    id: String,
+    name: String,
+    offset: u64,
+    last: u64,
+}
+
+impl Piece {
+    /// The piece's bytes and where the next one starts (None after `last`); None when the
+    /// artifact is not in the store.
+    async fn read(&self) -> Result<Option<(Bytes, Option<u64>)>, EngineError> {
+        let chunk = CHUNK_BYTES as u64;
+        let len = (chunk - self.offset % chunk).min(self.last + 1 - self.offset);
+        let Some(bytes) = self.state.engine.artifact_piece(&self.id, &self.name, self.offset, len as usize).await?
+        else {
+            return Ok(None);
+        };
+        if bytes.len() as u64 != len {
+            return Err(EngineError::Internal(format!(
+                "{}: {} of {len} bytes at {}",
+                self.name,
+                bytes.len(),
+                self.offset
+            )));
+        }
+        let next = self.offset + len;
+        Ok(Some((Bytes::from(bytes), (next <= self.last).then_some(next))))
+    }
+}
+
+fn io_error(message: String) -> std::io::Error {
+    std::io::Error::other(message)
 }
 
 /// One byte range of RFC 9110 §14.1.2.
