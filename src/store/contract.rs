@@ -4,13 +4,16 @@
 use chrono::{TimeZone, Utc};
 use serde_json::json;
 
-use super::{IdempotentInsert, JobStore, ListFilter, StoreError};
+use std::time::Duration;
+
+use super::{IdempotentInsert, JobQueue, JobStore, ListFilter, StoreError};
 use crate::export::Artifact;
+use crate::model::Cost;
 use crate::model::{Job, JobStatus, Progress};
 
 /// A store for one test, and whatever must live as long as it (a folder, a schema).
 pub struct Fixture {
-    pub store: Box<dyn JobStore>,
+    pub store: Box<dyn JobQueue>,
     pub _guard: Box<dyn std::any::Any>,
 }
 
@@ -250,6 +253,123 @@ pub fn attempts_count_each_entry_into_running(store: &dyn JobStore) {
     assert_eq!(store.attempts("missing").unwrap(), None);
 }
 
+/// A queued job whose estimate is `memory` bytes.
+fn queued(store: &dyn JobQueue, n: u64, memory: u64) -> Job {
+    let mut j = job(n, "bulldoze", JobStatus::Queued);
+    j.cost = Some(Cost {
+        memory_bytes: memory,
+        memory_field: "terrain".into(),
+        work: 1,
+        work_unit: "cells".into(),
+        work_field: "terrain".into(),
+        min_seconds: 0.0,
+    });
+    store.insert(&j, None).unwrap();
+    j
+}
+
+const LONG: Duration = Duration::from_secs(600);
+const NO_LIMIT: u64 = u64::MAX;
+
+pub fn claims_take_jobs_oldest_first_and_each_once(store: &dyn JobQueue) {
+    for n in [3, 1, 2] {
+        queued(store, n, 10);
+    }
+    let mut claimed = Vec::new();
+    while let Some(c) = store.claim("w1", LONG, NO_LIMIT).unwrap() {
+        assert_eq!((c.job.status, c.attempt, c.lost_leases), (JobStatus::Running, 1, 0));
+        assert_eq!(store.get(&c.job.id).unwrap().unwrap().status, JobStatus::Running);
+        claimed.push(c.job.id);
+    }
+    assert_eq!(claimed, [id(1), id(2), id(3)]);
+    // A job running in an engine's own process (no lease) is never claimed.
+    let mut own = job(4, "bulldoze", JobStatus::Queued);
+    store.insert(&own, None).unwrap();
+    own.status = JobStatus::Running;
+    store.update(&own).unwrap();
+    assert!(store.claim("w1", LONG, NO_LIMIT).unwrap().is_none());
+}
+
+pub fn a_job_over_the_free_budget_waits_and_is_not_passed_over(store: &dyn JobQueue) {
+    queued(store, 1, 100);
+    queued(store, 2, 10);
+    assert!(store.claim("w1", LONG, 50).unwrap().is_none(), "the large job first, or nothing");
+    assert_eq!(store.claim("w1", LONG, 100).unwrap().unwrap().job.id, id(1));
+    assert_eq!(store.claim("w1", LONG, 10).unwrap().unwrap().job.id, id(2));
+}
+
+pub fn an_expired_lease_is_taken_over_and_the_old_claims_writes_are_refused(store: &dyn JobQueue) {
+    queued(store, 1, 10);
+    let stale = store.claim("w1", Duration::from_millis(1), NO_LIMIT).unwrap().unwrap();
+    std::thread::sleep(Duration::from_millis(30));
+    let fresh = store.claim("w2", LONG, NO_LIMIT).unwrap().expect("the lease ran out: the job is claimable");
+    assert_eq!((fresh.job.id.as_str(), fresh.attempt, fresh.lost_leases), (id(1).as_str(), 2, 1));
+    assert!(store.claim("w3", LONG, NO_LIMIT).unwrap().is_none(), "a live lease is not taken");
+
+    // The stalled worker wakes up: every write under its claim is refused.
+    assert!(!store.renew(&stale.job.id, stale.attempt, LONG).unwrap());
+    let mut late = stale.job.clone();
+    late.progress.message = "late".into();
+    assert!(!store.update_claimed(&late, stale.attempt).unwrap());
+    late.status = JobStatus::Succeeded;
+    late.result = Some(json!({"by": "w1"}));
+    let late_artifacts = [Artifact::new("mesh.glb", "model/gltf-binary", b"stale".to_vec())];
+    assert!(!store.finish_claimed(&late, stale.attempt, &late_artifacts).unwrap());
+    assert!(!store.release(&stale.job.id, stale.attempt).unwrap());
+    let now = store.get(&fresh.job.id).unwrap().unwrap();
+    assert_eq!((now.status, now.result, now.artifacts.len()), (JobStatus::Running, None, 0));
+
+    // The new holder's writes go through.
+    assert!(store.renew(&fresh.job.id, fresh.attempt, LONG).unwrap());
+    let mut done = fresh.job.clone();
+    done.status = JobStatus::Succeeded;
+    done.result = Some(json!({"by": "w2"}));
+    assert!(store.finish_claimed(&done, fresh.attempt, &artifacts()).unwrap());
+    let now = store.get(&done.id).unwrap().unwrap();
+    assert_eq!((now.status, now.result, now.artifacts.len()), (JobStatus::Succeeded, Some(json!({"by": "w2"})), 3));
+    // An ended job is claimed by no one.
+    assert!(store.claim("w3", Duration::from_millis(1), NO_LIMIT).unwrap().is_none());
+}
+
+pub fn a_renewed_lease_holds_and_a_released_job_is_claimed_again_at_once(store: &dyn JobQueue) {
+    queued(store, 1, 10);
+    let c = store.claim("w1", Duration::from_millis(300), NO_LIMIT).unwrap().unwrap();
+    for _ in 0..4 {
+        std::thread::sleep(Duration::from_millis(100));
+        assert!(store.renew(&c.job.id, c.attempt, Duration::from_millis(300)).unwrap());
+        assert!(store.claim("w2", LONG, NO_LIMIT).unwrap().is_none(), "renewed: still held");
+    }
+    assert!(store.release(&c.job.id, c.attempt).unwrap());
+    assert_eq!(store.get(&c.job.id).unwrap().unwrap().status, JobStatus::Queued);
+    let again = store.claim("w2", LONG, NO_LIMIT).unwrap().unwrap();
+    // A release is not a lost lease: the job did not take its worker down.
+    assert_eq!((again.attempt, again.lost_leases), (2, 0));
+}
+
+pub fn workers_claiming_at_once_take_each_job_exactly_once(store: &dyn JobQueue) {
+    for n in 1..=24 {
+        queued(store, n, 10);
+    }
+    let taken: Vec<String> = std::thread::scope(|s| {
+        let workers: Vec<_> = (0..4)
+            .map(|w| {
+                s.spawn(move || {
+                    let mut mine = Vec::new();
+                    while let Some(c) = store.claim(&format!("w{w}"), LONG, NO_LIMIT).unwrap() {
+                        mine.push(c.job.id);
+                    }
+                    mine
+                })
+            })
+            .collect();
+        workers.into_iter().flat_map(|h| h.join().unwrap()).collect()
+    });
+    let mut sorted = taken.clone();
+    sorted.sort();
+    sorted.dedup();
+    assert_eq!((taken.len(), sorted), (24, (1..=24).map(id).collect::<Vec<_>>()));
+}
+
 /// One `#[test]` per contract body, on the store `$fixture()` gives (`None`: the backend is
 /// not configured here, and the test passes without running).
 #[macro_export]
@@ -263,7 +383,12 @@ macro_rules! store_contract_tests {
             artifacts_read_in_pieces_across_chunk_boundaries,
             finish_refuses_duplicate_names_and_leaves_the_job_untouched,
             unfinished_is_oldest_first_and_counts_group_by_kind_and_status,
-            attempts_count_each_entry_into_running
+            attempts_count_each_entry_into_running,
+            claims_take_jobs_oldest_first_and_each_once,
+            a_job_over_the_free_budget_waits_and_is_not_passed_over,
+            an_expired_lease_is_taken_over_and_the_old_claims_writes_are_refused,
+            a_renewed_lease_holds_and_a_released_job_is_claimed_again_at_once,
+            workers_claiming_at_once_take_each_job_exactly_once
         );
     };
     (@each $fixture:path; $($name:ident),*) => {

@@ -4,11 +4,13 @@ mod artifacts;
 #[cfg(test)]
 pub(crate) mod contract;
 mod postgres;
+mod queue;
 mod row;
 mod sqlite;
 
 pub use artifacts::{ArtifactStore, CHUNK_BYTES};
 pub use postgres::PostgresStore;
+pub use queue::{Claim, JobQueue};
 pub use sqlite::SqliteStore;
 
 use crate::export::Artifact;

@@ -5,12 +5,14 @@
 //! inserted with `ON CONFLICT DO NOTHING`, and the loser reads the winner's job.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Duration;
 
 use parking_lot::{Mutex, MutexGuard};
 use postgres::types::ToSql;
 use postgres::{Client, GenericClient, IsolationLevel, NoTls, Row};
 
 use super::artifacts::{assemble, chunks, span};
+use super::queue::{count, lease_ms, Claim, JobQueue};
 use super::row::{describe, JobRow, RawJob, JOB_COLUMNS};
 use super::{ArtifactStore, IdempotentInsert, JobStore, ListFilter, StoreError, CHUNK_BYTES};
 use crate::export::Artifact;
@@ -64,6 +66,39 @@ impl PostgresStore {
             clients.push(Mutex::new(connect()?));
         }
         Ok(Self { clients, next: AtomicUsize::new(0) })
+    }
+
+    /// Save a finished job's row and its artifacts in one transaction; false when nothing
+    /// was written (no such job, or the row's fence is no longer the job's attempt).
+    fn finish_row(&self, row: JobRow<'_>, artifacts: &[Artifact]) -> Result<bool, StoreError> {
+        let job = row.job;
+        let metas = describe(artifacts)?;
+        let mut client = self.client();
+        let mut tx = client.transaction().map_err(db)?;
+        if !update_row(&mut tx, &row)? {
+            return Ok(false);
+        }
+        // The job's chunks go with its artifact rows (ON DELETE CASCADE).
+        tx.execute("DELETE FROM artifacts WHERE job_id = $1", &[&job.id]).map_err(db)?;
+        let artifact = tx
+            .prepare(
+                "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, chunk_bytes) \
+                 VALUES ($1, $2, $3, $4, $5, $6, $7)",
+            )
+            .map_err(db)?;
+        let chunk =
+            tx.prepare("INSERT INTO artifact_chunks (job_id, name, seq, data) VALUES ($1, $2, $3, $4)").map_err(db)?;
+        let chunk_bytes = CHUNK_BYTES as i64;
+        for (ordinal, (a, m)) in artifacts.iter().zip(&metas).enumerate() {
+            let (ordinal, bytes) = (ordinal as i32, a.bytes.len() as i64);
+            tx.execute(&artifact, &[&job.id, &m.name, &ordinal, &m.media_type, &bytes, &m.sha256, &chunk_bytes])
+                .map_err(db)?;
+            for (seq, data) in chunks(&a.bytes) {
+                tx.execute(&chunk, &[&job.id, &m.name, &(seq as i32), &data]).map_err(db)?;
+            }
+        }
+        tx.commit().map_err(db)?;
+        Ok(true)
     }
 
     /// A free connection if there is one, else the next in turn.
@@ -143,8 +178,8 @@ fn insert_row(c: &mut impl GenericClient, row: &JobRow) -> Result<(), StoreError
     let running = i32::from(j.status == JobStatus::Running);
     c.execute(
         "INSERT INTO jobs (id, kind, status, label, created_at, started_at, finished_at, progress, request, \
-         result, error, replay_of, replay_until_step, attempts, cost, owner) \
-         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15, $16)",
+         result, error, replay_of, replay_until_step, attempts, cost, owner, memory_bytes) \
+         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15, $16, $17)",
         &[
             &j.id,
             &j.kind,
@@ -162,6 +197,7 @@ fn insert_row(c: &mut impl GenericClient, row: &JobRow) -> Result<(), StoreError
             &running,
             &row.cost,
             &j.owner,
+            &row.memory_bytes,
         ],
     )
     .map_err(db)?;
@@ -176,8 +212,9 @@ fn update_row(c: &mut impl GenericClient, row: &JobRow) -> Result<bool, StoreErr
         .execute(
             "UPDATE jobs SET status = $2, label = $3, started_at = $4, finished_at = $5, progress = $6, \
              result = $7, error = $8, \
-             attempts = attempts + CASE WHEN $2 = 'running' AND status <> 'running' THEN 1 ELSE 0 END \
-             WHERE id = $1",
+             attempts = attempts + CASE WHEN $2 = 'running' AND status <> 'running' THEN 1 ELSE 0 END, \
+             lease_until = CASE WHEN $2 IN ('running', 'queued') THEN lease_until END \
+             WHERE id = $1 AND ($9::bigint IS NULL OR attempts = $9)",
             &[
                 &j.id,
                 &j.status.as_str(),
@@ -187,6 +224,7 @@ fn update_row(c: &mut impl GenericClient, row: &JobRow) -> Result<bool, StoreErr
                 &row.progress,
                 &row.result,
                 &row.error,
+                &row.fence,
             ],
         )
         .map_err(db)?;
@@ -248,6 +286,77 @@ impl ArtifactStore for PostgresStore {
             return Err(StoreError::Corrupt(format!("job {id}: artifact {name}: {} of {total} bytes", data.len())));
         }
         Ok(Some((media_type, data)))
+    }
+}
+
+impl JobQueue for PostgresStore {
+    fn claim(&self, worker: &str, lease: Duration, max_memory: u64) -> Result<Option<Claim>, StoreError> {
+        let mut client = self.client();
+        let mut tx = client.transaction().map_err(db)?;
+        // SKIP LOCKED: replicas claiming at once each take a different job, none waits.
+        let next = tx
+            .query_opt(
+                "SELECT id, memory_bytes FROM jobs \
+                 WHERE status = 'queued' OR (status = 'running' AND lease_until < now()) \
+                 ORDER BY id LIMIT 1 FOR UPDATE SKIP LOCKED",
+                &[],
+            )
+            .map_err(db)?;
+        let Some(next) = next else { return Ok(None) };
+        let (id, memory): (String, i64) = (next.try_get(0).map_err(db)?, next.try_get(1).map_err(db)?);
+        if u64::try_from(memory).unwrap_or(0) > max_memory {
+            return Ok(None);
+        }
+        // SET expressions see the row as it was: `status` is the status before the claim.
+        let row = tx
+            .query_one(
+                "UPDATE jobs SET lost_leases = lost_leases + CASE WHEN status = 'running' THEN 1 ELSE 0 END, \
+                 status = 'running', attempts = attempts + 1, \
+                 lease_until = now() + $2::bigint * interval '1 millisecond', lease_owner = $3 \
+                 WHERE id = $1 RETURNING attempts, lost_leases",
+                &[&id, &lease_ms(lease), &worker],
+            )
+            .map_err(db)?;
+        let (attempt, lost): (i32, i32) = (row.try_get(0).map_err(db)?, row.try_get(1).map_err(db)?);
+        let job = load_job(&mut tx, &id)?.ok_or_else(|| StoreError::Backend(format!("job {id} vanished")))?;
+        tx.commit().map_err(db)?;
+        Ok(Some(Claim {
+            job,
+            attempt: count("attempts", &id, attempt.into())?,
+            lost_leases: count("lost_leases", &id, lost.into())?,
+        }))
+    }
+
+    fn renew(&self, id: &str, attempt: u32, lease: Duration) -> Result<bool, StoreError> {
+        let n = self
+            .client()
+            .execute(
+                "UPDATE jobs SET lease_until = now() + $3::bigint * interval '1 millisecond' \
+                 WHERE id = $1 AND attempts = $2::bigint AND status = 'running'",
+                &[&id, &i64::from(attempt), &lease_ms(lease)],
+            )
+            .map_err(db)?;
+        Ok(n > 0)
+    }
+
+    fn release(&self, id: &str, attempt: u32) -> Result<bool, StoreError> {
+        let n = self
+            .client()
+            .execute(
+                "UPDATE jobs SET status = 'queued', lease_until = NULL, lease_owner = NULL \
+                 WHERE id = $1 AND attempts = $2::bigint AND status = 'running'",
+                &[&id, &i64::from(attempt)],
+            )
+            .map_err(db)?;
+        Ok(n > 0)
+    }
+
+    fn update_claimed(&self, job: &Job, attempt: u32) -> Result<bool, StoreError> {
+        update_row(&mut *self.client(), &JobRow::encode(job)?.fenced(attempt))
+    }
+
+    fn finish_claimed(&self, job: &Job, attempt: u32, artifacts: &[Artifact]) -> Result<bool, StoreError> {
+        self.finish_row(JobRow::encode(job)?.fenced(attempt), artifacts)
     }
 }
 
@@ -323,33 +432,7 @@ impl JobStore for PostgresStore {
 
     /// Replaces any artifacts the job had. A job deleted meanwhile is left deleted.
     fn finish(&self, job: &Job, artifacts: &[Artifact]) -> Result<(), StoreError> {
-        let row = JobRow::encode(job)?;
-        let metas = describe(artifacts)?;
-        let mut client = self.client();
-        let mut tx = client.transaction().map_err(db)?;
-        if !update_row(&mut tx, &row)? {
-            return Ok(());
-        }
-        // The job's chunks go with its artifact rows (ON DELETE CASCADE).
-        tx.execute("DELETE FROM artifacts WHERE job_id = $1", &[&job.id]).map_err(db)?;
-        let artifact = tx
-            .prepare(
-                "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, chunk_bytes) \
-                 VALUES ($1, $2, $3, $4, $5, $6, $7)",
-            )
-            .map_err(db)?;
-        let chunk =
-            tx.prepare("INSERT INTO artifact_chunks (job_id, name, seq, data) VALUES ($1, $2, $3, $4)").map_err(db)?;
-        let chunk_bytes = CHUNK_BYTES as i64;
-        for (ordinal, (a, m)) in artifacts.iter().zip(&metas).enumerate() {
-            let (ordinal, bytes) = (ordinal as i32, a.bytes.len() as i64);
-            tx.execute(&artifact, &[&job.id, &m.name, &ordinal, &m.media_type, &bytes, &m.sha256, &chunk_bytes])
-                .map_err(db)?;
-            for (seq, data) in chunks(&a.bytes) {
-                tx.execute(&chunk, &[&job.id, &m.name, &(seq as i32), &data]).map_err(db)?;
-            }
-        }
-        tx.commit().map_err(db)
+        self.finish_row(JobRow::encode(job)?, artifacts).map(|_| ())
     }
 
     fn delete(&self, id: &str) -> Result<bool, StoreError> {

@@ -34,9 +34,18 @@ pub(super) struct JobRow<'a> {
     pub error: Option<String>,
     pub replay_until_step: Option<i64>,
     pub cost: Option<String>,
+    /// The estimate's peak memory, a column of its own so a claim can compare it in SQL.
+    pub memory_bytes: i64,
+    /// Write only while the job's attempt number is this one (a claim's fence), when set.
+    pub fence: Option<i64>,
 }
 
 impl<'a> JobRow<'a> {
+    /// The same row, written only under the claim whose attempt number is `attempt`.
+    pub fn fenced(self, attempt: u32) -> Self {
+        Self { fence: Some(i64::from(attempt)), ..self }
+    }
+
     pub fn encode(job: &'a Job) -> Result<Self, StoreError> {
         let mut progress = job.progress.clone();
         if !progress.fraction.is_finite() {
@@ -60,6 +69,8 @@ impl<'a> JobRow<'a> {
             error: job.error.as_ref().map(|v| to_json("error", v)).transpose()?,
             replay_until_step,
             cost: job.cost.as_ref().map(|v| to_json("cost", v)).transpose()?,
+            memory_bytes: job.cost.as_ref().map_or(0, |c| i64::try_from(c.memory_bytes).unwrap_or(i64::MAX)),
+            fence: None,
         })
     }
 }

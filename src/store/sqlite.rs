@@ -15,13 +15,14 @@ use rusqlite::types::Value as SqlValue;
 use rusqlite::{params, Connection, OpenFlags, OptionalExtension, Row, TransactionBehavior};
 
 use super::artifacts::{assemble, chunks, span};
+use super::queue::{count, lease_ms, Claim, JobQueue};
 use super::row::{describe, JobRow, RawJob, JOB_COLUMNS};
 use super::{ArtifactStore, IdempotentInsert, JobStore, ListFilter, StoreError, CHUNK_BYTES};
 use crate::export::Artifact;
 use crate::model::{ArtifactMeta, Job, JobStatus};
 
 /// The schema version this build writes (`PRAGMA user_version`).
-pub const SCHEMA_VERSION: i64 = 4;
+pub const SCHEMA_VERSION: i64 = 5;
 
 /// Migrations in order: `MIGRATIONS[n]` takes the schema from version `n` to `n + 1`.
 const MIGRATIONS: [&str; SCHEMA_VERSION as usize] = [
@@ -97,7 +98,20 @@ INSERT INTO artifact_chunks (job_id, name, seq, data) SELECT job_id, name, 0, da
 UPDATE artifacts SET chunk_bytes = max(bytes, 1);
 ALTER TABLE artifacts DROP COLUMN data;
 "#,
+    r#"
+-- The queue across processes (store/queue.rs): the estimate's memory for claims to compare,
+-- a claim's lease by the database's clock (milliseconds since 1970), who holds it, and how
+-- often a holder's lease ran out.
+ALTER TABLE jobs ADD COLUMN memory_bytes INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE jobs ADD COLUMN lease_until INTEGER;
+ALTER TABLE jobs ADD COLUMN lease_owner TEXT;
+ALTER TABLE jobs ADD COLUMN lost_leases INTEGER NOT NULL DEFAULT 0;
+UPDATE jobs SET memory_bytes = coalesce(json_extract(cost, '$.memory_bytes'), 0) WHERE cost IS NOT NULL;
+"#,
 ];
+
+/// The database's clock in milliseconds since 1970: leases are set and compared by it alone.
+const NOW_MS: &str = "CAST(unixepoch('subsec') * 1000 AS INTEGER)";
 
 /// Read connections opened beside the writer (none for an in-memory database, whose
 /// connections would each see a different database).
@@ -153,6 +167,42 @@ impl SqliteStore {
         attempts
             .map(|n| u32::try_from(n).map_err(|_| StoreError::Corrupt(format!("job {id}: attempts {n}"))))
             .transpose()
+    }
+
+    /// Save a finished job's row and its artifacts in one transaction; false when nothing
+    /// was written (no such job, or the row's fence is no longer the job's attempt).
+    fn finish_row(&self, row: JobRow<'_>, artifacts: &[Artifact]) -> Result<bool, StoreError> {
+        let job = row.job;
+        let metas = describe(artifacts)?;
+        let mut conn = self.writer.lock();
+        let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate).map_err(db)?;
+        if !row.update(&tx).map_err(db)? {
+            return Ok(false);
+        }
+        // The job's chunks go with its artifact rows (ON DELETE CASCADE).
+        tx.prepare_cached("DELETE FROM artifacts WHERE job_id = ?1").map_err(db)?.execute([&job.id]).map_err(db)?;
+        {
+            let mut artifact = tx
+                .prepare_cached(
+                    "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, chunk_bytes) \
+                     VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+                )
+                .map_err(db)?;
+            let mut chunk = tx
+                .prepare_cached("INSERT INTO artifact_chunks (job_id, name, seq, data) VALUES (?1, ?2, ?3, ?4)")
+                .map_err(db)?;
+            for (ordinal, (a, m)) in artifacts.iter().zip(&metas).enumerate() {
+                let bytes = a.bytes.len() as i64;
+                artifact
+                    .execute(params![job.id, m.name, ordinal as i64, m.media_type, bytes, m.sha256, CHUNK_BYTES as i64])
+                    .map_err(db)?;
+                for (seq, data) in chunks(&a.bytes) {
+                    chunk.execute(params![job.id, m.name, seq, data]).map_err(db)?;
+                }
+            }
+        }
+        tx.commit().map_err(db)?;
+        Ok(true)
     }
 
     /// A free read connection, or the next one in turn if all are busy.
@@ -235,8 +285,8 @@ impl JobRow<'_> {
         let j = self.job;
         conn.prepare_cached(
             "INSERT INTO jobs (id, kind, status, label, created_at, started_at, finished_at, \
-             progress, request, result, error, replay_of, replay_until_step, attempts, cost, owner) \
-             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)",
+             progress, request, result, error, replay_of, replay_until_step, attempts, cost, owner, memory_bytes) \
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17)",
         )?
         .execute(params![
             j.id,
@@ -255,11 +305,13 @@ impl JobRow<'_> {
             i64::from(j.status == JobStatus::Running),
             self.cost,
             j.owner,
+            self.memory_bytes,
         ])?;
         Ok(())
     }
 
-    /// Save the mutable columns; false if there is no such job.
+    /// Save the mutable columns; false if there is no such job (or, fenced, the fence is no
+    /// longer the job's attempt). An ended job holds no lease.
     fn update(&self, conn: &Connection) -> rusqlite::Result<bool> {
         let j = self.job;
         // SET expressions see the row as it was, so `status` here is the previous status.
@@ -267,8 +319,9 @@ impl JobRow<'_> {
             .prepare_cached(
                 "UPDATE jobs SET status = ?2, label = ?3, started_at = ?4, finished_at = ?5, \
                  progress = ?6, result = ?7, error = ?8, \
-                 attempts = attempts + (?2 = 'running' AND status <> 'running') \
-                 WHERE id = ?1",
+                 attempts = attempts + (?2 = 'running' AND status <> 'running'), \
+                 lease_until = CASE WHEN ?2 IN ('running', 'queued') THEN lease_until END \
+                 WHERE id = ?1 AND (?9 IS NULL OR attempts = ?9)",
             )?
             .execute(params![
                 j.id,
@@ -279,6 +332,7 @@ impl JobRow<'_> {
                 self.progress,
                 self.result,
                 self.error,
+                self.fence,
             ])?;
         Ok(changed > 0)
     }
@@ -427,6 +481,79 @@ impl ArtifactStore for SqliteStore {
     }
 }
 
+impl JobQueue for SqliteStore {
+    fn claim(&self, worker: &str, lease: Duration, max_memory: u64) -> Result<Option<Claim>, StoreError> {
+        let mut conn = self.writer.lock();
+        // IMMEDIATE: the one writer of the file, across processes, until the claim is made.
+        let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate).map_err(db)?;
+        let now: i64 = tx.query_row(&format!("SELECT {NOW_MS}"), [], |r| r.get(0)).map_err(db)?;
+        let next: Option<(String, i64)> = tx
+            .prepare_cached(
+                "SELECT id, memory_bytes FROM jobs \
+                 WHERE status = 'queued' OR (status = 'running' AND lease_until < ?1) ORDER BY id LIMIT 1",
+            )
+            .map_err(db)?
+            .query_row([now], |r| Ok((r.get(0)?, r.get(1)?)))
+            .optional()
+            .map_err(db)?;
+        let Some((id, memory)) = next else { return Ok(None) };
+        if u64::try_from(memory).unwrap_or(0) > max_memory {
+            return Ok(None);
+        }
+        // SET expressions see the row as it was: `status` is the status before the claim.
+        tx.prepare_cached(
+            "UPDATE jobs SET lost_leases = lost_leases + (status = 'running'), status = 'running', \
+             attempts = attempts + 1, lease_until = ?2, lease_owner = ?3 WHERE id = ?1",
+        )
+        .map_err(db)?
+        .execute(params![id, now.saturating_add(lease_ms(lease)), worker])
+        .map_err(db)?;
+        let (attempt, lost): (i64, i64) = tx
+            .query_row("SELECT attempts, lost_leases FROM jobs WHERE id = ?1", [&id], |r| Ok((r.get(0)?, r.get(1)?)))
+            .map_err(db)?;
+        let sql = format!("SELECT {JOB_COLUMNS} FROM jobs WHERE id = ?1");
+        let job =
+            load_jobs(&tx, &sql, [&id])?.pop().ok_or_else(|| StoreError::Backend(format!("job {id} vanished")))?;
+        tx.commit().map_err(db)?;
+        Ok(Some(Claim {
+            job,
+            attempt: count("attempts", &id, attempt)?,
+            lost_leases: count("lost_leases", &id, lost)?,
+        }))
+    }
+
+    fn renew(&self, id: &str, attempt: u32, lease: Duration) -> Result<bool, StoreError> {
+        let sql = format!(
+            "UPDATE jobs SET lease_until = {NOW_MS} + ?3 WHERE id = ?1 AND attempts = ?2 AND status = 'running'"
+        );
+        let n = self.writer.lock().execute(&sql, params![id, attempt, lease_ms(lease)]).map_err(db)?;
+        Ok(n > 0)
+    }
+
+    fn release(&self, id: &str, attempt: u32) -> Result<bool, StoreError> {
+        let n = self
+            .writer
+            .lock()
+            .execute(
+                "UPDATE jobs SET status = 'queued', lease_until = NULL, lease_owner = NULL \
+                 WHERE id = ?1 AND attempts = ?2 AND status = 'running'",
+                params![id, attempt],
+            )
+            .map_err(db)?;
+        Ok(n > 0)
+    }
+
+    fn update_claimed(&self, job: &Job, attempt: u32) -> Result<bool, StoreError> {
+        let row = JobRow::encode(job)?.fenced(attempt);
+        let conn = self.writer.lock();
+        row.update(&conn).map_err(db)
+    }
+
+    fn finish_claimed(&self, job: &Job, attempt: u32, artifacts: &[Artifact]) -> Result<bool, StoreError> {
+        self.finish_row(JobRow::encode(job)?.fenced(attempt), artifacts)
+    }
+}
+
 impl JobStore for SqliteStore {
     fn attempts(&self, id: &str) -> Result<Option<u32>, StoreError> {
         self.attempts_count(id)
@@ -509,36 +636,7 @@ impl JobStore for SqliteStore {
 
     /// Replaces any artifacts the job had. A job deleted meanwhile is left deleted.
     fn finish(&self, job: &Job, artifacts: &[Artifact]) -> Result<(), StoreError> {
-        let row = JobRow::encode(job)?;
-        let metas = describe(artifacts)?;
-        let mut conn = self.writer.lock();
-        let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate).map_err(db)?;
-        if !row.update(&tx).map_err(db)? {
-            return Ok(());
-        }
-        // The job's chunks go with its artifact rows (ON DELETE CASCADE).
-        tx.prepare_cached("DELETE FROM artifacts WHERE job_id = ?1").map_err(db)?.execute([&job.id]).map_err(db)?;
-        {
-            let mut artifact = tx
-                .prepare_cached(
-                    "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, chunk_bytes) \
-                     VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
-                )
-                .map_err(db)?;
-            let mut chunk = tx
-                .prepare_cached("INSERT INTO artifact_chunks (job_id, name, seq, data) VALUES (?1, ?2, ?3, ?4)")
-                .map_err(db)?;
-            for (ordinal, (a, m)) in artifacts.iter().zip(&metas).enumerate() {
-                let bytes = a.bytes.len() as i64;
-                artifact
-                    .execute(params![job.id, m.name, ordinal as i64, m.media_type, bytes, m.sha256, CHUNK_BYTES as i64])
-                    .map_err(db)?;
-                for (seq, data) in chunks(&a.bytes) {
-                    chunk.execute(params![job.id, m.name, seq, data]).map_err(db)?;
-                }
-            }
-        }
-        tx.commit().map_err(db)
+        self.finish_row(JobRow::encode(job)?, artifacts).map(|_| ())
     }
 
     fn delete(&self, id: &str) -> Result<bool, StoreError> {
