@@ -6,14 +6,14 @@ use serde_json::json;
 
 use std::time::Duration;
 
-use super::{IdempotentInsert, JobQueue, JobStore, ListFilter, StoreError};
+use super::{EventLog, IdempotentInsert, JobQueue, JobStore, ListFilter, Renewal, StoreError, StoredEvent};
 use crate::export::Artifact;
 use crate::model::Cost;
 use crate::model::{Job, JobStatus, Progress};
 
 /// A store for one test, and whatever must live as long as it (a folder, a schema).
 pub struct Fixture {
-    pub store: Box<dyn JobQueue>,
+    pub store: Box<dyn EventLog>,
     pub _guard: Box<dyn std::any::Any>,
 }
 
@@ -269,6 +269,7 @@ fn queued(store: &dyn JobQueue, n: u64, memory: u64) -> Job {
 }
 
 const LONG: Duration = Duration::from_secs(600);
+const HELD: Renewal = Renewal::Held { cancel_requested: false };
 const NO_LIMIT: u64 = u64::MAX;
 
 pub fn claims_take_jobs_oldest_first_and_each_once(store: &dyn JobQueue) {
@@ -307,7 +308,7 @@ pub fn an_expired_lease_is_taken_over_and_the_old_claims_writes_are_refused(stor
     assert!(store.claim("w3", LONG, NO_LIMIT).unwrap().is_none(), "a live lease is not taken");
 
     // The stalled worker wakes up: every write under its claim is refused.
-    assert!(!store.renew(&stale.job.id, stale.attempt, LONG).unwrap());
+    assert_eq!(store.renew(&stale.job.id, stale.attempt, LONG).unwrap(), Renewal::Lost);
     let mut late = stale.job.clone();
     late.progress.message = "late".into();
     assert!(!store.update_claimed(&late, stale.attempt).unwrap());
@@ -320,7 +321,7 @@ pub fn an_expired_lease_is_taken_over_and_the_old_claims_writes_are_refused(stor
     assert_eq!((now.status, now.result, now.artifacts.len()), (JobStatus::Running, None, 0));
 
     // The new holder's writes go through.
-    assert!(store.renew(&fresh.job.id, fresh.attempt, LONG).unwrap());
+    assert_eq!(store.renew(&fresh.job.id, fresh.attempt, LONG).unwrap(), HELD);
     let mut done = fresh.job.clone();
     done.status = JobStatus::Succeeded;
     done.result = Some(json!({"by": "w2"}));
@@ -336,7 +337,7 @@ pub fn a_renewed_lease_holds_and_a_released_job_is_claimed_again_at_once(store: 
     let c = store.claim("w1", Duration::from_millis(300), NO_LIMIT).unwrap().unwrap();
     for _ in 0..4 {
         std::thread::sleep(Duration::from_millis(100));
-        assert!(store.renew(&c.job.id, c.attempt, Duration::from_millis(300)).unwrap());
+        assert_eq!(store.renew(&c.job.id, c.attempt, Duration::from_millis(300)).unwrap(), HELD);
         assert!(store.claim("w2", LONG, NO_LIMIT).unwrap().is_none(), "renewed: still held");
     }
     assert!(store.release(&c.job.id, c.attempt).unwrap());
@@ -370,6 +371,72 @@ pub fn workers_claiming_at_once_take_each_job_exactly_once(store: &dyn JobQueue)
     assert_eq!((taken.len(), sorted), (24, (1..=24).map(id).collect::<Vec<_>>()));
 }
 
+pub fn events_get_growing_store_ids_and_resume_after_any_of_them(store: &dyn EventLog) {
+    queued(store, 1, 10);
+    queued(store, 2, 10);
+    let a = store.claim("w1", LONG, NO_LIMIT).unwrap().unwrap();
+    let b = store.claim("w2", LONG, NO_LIMIT).unwrap().unwrap();
+    let mut ids = Vec::new();
+    for k in 0..3 {
+        ids.push(store.append_event(&a.job.id, a.attempt, "progress", &format!("{{\"step\":{k}}}")).unwrap().unwrap());
+        store.append_event(&b.job.id, b.attempt, "progress", "{}").unwrap().unwrap();
+    }
+    assert!(ids.windows(2).all(|w| w[0] < w[1]), "{ids:?}");
+    let all = store.events_after(&a.job.id, 0, 100).unwrap();
+    assert_eq!(
+        all,
+        (0..3)
+            .map(|k| StoredEvent { id: ids[k], event: "progress".into(), data: format!("{{\"step\":{k}}}") })
+            .collect::<Vec<_>>()
+    );
+    assert_eq!(store.events_after(&a.job.id, ids[0], 100).unwrap(), all[1..]);
+    assert_eq!(store.events_after(&a.job.id, ids[0], 1).unwrap(), all[1..2]);
+    assert_eq!(store.events_after(&a.job.id, ids[2], 100).unwrap(), []);
+
+    // The latest snapshot wins; a job's events and snapshot are pruned when it finishes.
+    assert!(store.put_snapshot(&a.job.id, a.attempt, ids[0], b"png-0").unwrap());
+    assert!(store.put_snapshot(&a.job.id, a.attempt, ids[2], b"png-2").unwrap());
+    assert_eq!(store.snapshot(&a.job.id).unwrap(), Some((ids[2], b"png-2".to_vec())));
+    let mut done = a.job.clone();
+    done.status = JobStatus::Succeeded;
+    assert!(store.finish_claimed(&done, a.attempt, &artifacts()).unwrap());
+    assert_eq!(store.events_after(&a.job.id, 0, 100).unwrap(), []);
+    assert_eq!(store.snapshot(&a.job.id).unwrap(), None);
+    let mut failed = b.job.clone();
+    failed.status = JobStatus::Failed;
+    assert!(store.update_claimed(&failed, b.attempt).unwrap());
+    assert_eq!(store.events_after(&b.job.id, 0, 100).unwrap(), []);
+}
+
+pub fn a_claim_that_lost_its_lease_appends_no_event_and_no_snapshot(store: &dyn EventLog) {
+    queued(store, 1, 10);
+    let stale = store.claim("w1", Duration::from_millis(1), NO_LIMIT).unwrap().unwrap();
+    std::thread::sleep(Duration::from_millis(30));
+    let fresh = store.claim("w2", LONG, NO_LIMIT).unwrap().unwrap();
+    assert_eq!(store.append_event(&stale.job.id, stale.attempt, "progress", "{}").unwrap(), None);
+    assert!(!store.put_snapshot(&stale.job.id, stale.attempt, 1, b"stale").unwrap());
+    let id = store.append_event(&fresh.job.id, fresh.attempt, "status", "{}").unwrap().unwrap();
+    assert!(store.put_snapshot(&fresh.job.id, fresh.attempt, id, b"fresh").unwrap());
+    assert_eq!(store.events_after(&fresh.job.id, 0, 10).unwrap().len(), 1);
+    assert_eq!(store.snapshot(&fresh.job.id).unwrap(), Some((id, b"fresh".to_vec())));
+}
+
+pub fn a_cancel_request_reaches_the_holder_at_its_next_renewal(store: &dyn EventLog) {
+    let j = queued(store, 1, 10);
+    assert!(store.request_cancel(&j.id).unwrap(), "a queued job can be asked to stop");
+    let c = store.claim("w1", LONG, NO_LIMIT).unwrap().unwrap();
+    assert_eq!(store.renew(&c.job.id, c.attempt, LONG).unwrap(), Renewal::Held { cancel_requested: true });
+    let other = queued(store, 2, 10);
+    let c2 = store.claim("w1", LONG, NO_LIMIT).unwrap().unwrap();
+    assert_eq!(c2.job.id, other.id);
+    assert_eq!(store.renew(&c2.job.id, c2.attempt, LONG).unwrap(), HELD);
+    let mut ended = c2.job.clone();
+    ended.status = JobStatus::Cancelled;
+    assert!(store.update_claimed(&ended, c2.attempt).unwrap());
+    assert!(!store.request_cancel(&other.id).unwrap(), "an ended job has nothing to stop");
+    assert!(!store.request_cancel("no-such-job").unwrap());
+}
+
 /// One `#[test]` per contract body, on the store `$fixture()` gives (`None`: the backend is
 /// not configured here, and the test passes without running).
 #[macro_export]
@@ -388,7 +455,10 @@ macro_rules! store_contract_tests {
             a_job_over_the_free_budget_waits_and_is_not_passed_over,
             an_expired_lease_is_taken_over_and_the_old_claims_writes_are_refused,
             a_renewed_lease_holds_and_a_released_job_is_claimed_again_at_once,
-            workers_claiming_at_once_take_each_job_exactly_once
+            workers_claiming_at_once_take_each_job_exactly_once,
+            events_get_growing_store_ids_and_resume_after_any_of_them,
+            a_claim_that_lost_its_lease_appends_no_event_and_no_snapshot,
+            a_cancel_request_reaches_the_holder_at_its_next_renewal
         );
     };
     (@each $fixture:path; $($name:ident),*) => {

@@ -3,14 +3,16 @@
 mod artifacts;
 #[cfg(test)]
 pub(crate) mod contract;
+mod events;
 mod postgres;
 mod queue;
 mod row;
 mod sqlite;
 
 pub use artifacts::{ArtifactStore, CHUNK_BYTES};
+pub use events::{EventLog, StoredEvent};
 pub use postgres::PostgresStore;
-pub use queue::{Claim, JobQueue};
+pub use queue::{Claim, JobQueue, Renewal};
 pub use sqlite::SqliteStore;
 
 use crate::export::Artifact;

@@ -12,7 +12,8 @@ use postgres::types::ToSql;
 use postgres::{Client, GenericClient, IsolationLevel, NoTls, Row};
 
 use super::artifacts::{assemble, chunks, span};
-use super::queue::{count, lease_ms, Claim, JobQueue};
+use super::events::{event_id, EventLog, StoredEvent};
+use super::queue::{count, lease_ms, Claim, JobQueue, Renewal};
 use super::row::{describe, JobRow, RawJob, JOB_COLUMNS};
 use super::{ArtifactStore, IdempotentInsert, JobStore, ListFilter, StoreError, CHUNK_BYTES};
 use crate::export::Artifact;
@@ -68,6 +69,19 @@ impl PostgresStore {
         Ok(Self { clients, next: AtomicUsize::new(0) })
     }
 
+    /// Save a job's row (pruning its events once it has ended); false when nothing was
+    /// written (no such job, or the row's fence is no longer the job's attempt).
+    fn update_and_prune(&self, row: JobRow<'_>) -> Result<bool, StoreError> {
+        let mut client = self.client();
+        let mut tx = client.transaction().map_err(db)?;
+        let written = update_row(&mut tx, &row)?;
+        if written && row.job.status.is_terminal() {
+            prune_events(&mut tx, &row.job.id)?;
+        }
+        tx.commit().map_err(db)?;
+        Ok(written)
+    }
+
     /// Save a finished job's row and its artifacts in one transaction; false when nothing
     /// was written (no such job, or the row's fence is no longer the job's attempt).
     fn finish_row(&self, row: JobRow<'_>, artifacts: &[Artifact]) -> Result<bool, StoreError> {
@@ -78,6 +92,7 @@ impl PostgresStore {
         if !update_row(&mut tx, &row)? {
             return Ok(false);
         }
+        prune_events(&mut tx, &job.id)?;
         // The job's chunks go with its artifact rows (ON DELETE CASCADE).
         tx.execute("DELETE FROM artifacts WHERE job_id = $1", &[&job.id]).map_err(db)?;
         let artifact = tx
@@ -204,6 +219,13 @@ fn insert_row(c: &mut impl GenericClient, row: &JobRow) -> Result<(), StoreError
     Ok(())
 }
 
+/// A finished job's stream is its `done`: its events and snapshot are not needed any more.
+fn prune_events(c: &mut impl GenericClient, job_id: &str) -> Result<(), StoreError> {
+    c.execute("DELETE FROM job_events WHERE job_id = $1", &[&job_id]).map_err(db)?;
+    c.execute("DELETE FROM job_snapshots WHERE job_id = $1", &[&job_id]).map_err(db)?;
+    Ok(())
+}
+
 /// Save the mutable columns; false if there is no such job.
 fn update_row(c: &mut impl GenericClient, row: &JobRow) -> Result<bool, StoreError> {
     let j = row.job;
@@ -327,13 +349,24 @@ impl JobQueue for PostgresStore {
         }))
     }
 
-    fn renew(&self, id: &str, attempt: u32, lease: Duration) -> Result<bool, StoreError> {
+    fn renew(&self, id: &str, attempt: u32, lease: Duration) -> Result<Renewal, StoreError> {
+        let found = self
+            .client()
+            .query_opt(
+                "UPDATE jobs SET lease_until = now() + $3::bigint * interval '1 millisecond' \
+                 WHERE id = $1 AND attempts = $2::bigint AND status = 'running' RETURNING cancel_requested",
+                &[&id, &i64::from(attempt), &lease_ms(lease)],
+            )
+            .map_err(db)?;
+        found.map_or(Ok(Renewal::Lost), |r| Ok(Renewal::Held { cancel_requested: r.try_get(0).map_err(db)? }))
+    }
+
+    fn request_cancel(&self, id: &str) -> Result<bool, StoreError> {
         let n = self
             .client()
             .execute(
-                "UPDATE jobs SET lease_until = now() + $3::bigint * interval '1 millisecond' \
-                 WHERE id = $1 AND attempts = $2::bigint AND status = 'running'",
-                &[&id, &i64::from(attempt), &lease_ms(lease)],
+                "UPDATE jobs SET cancel_requested = true WHERE id = $1 AND status IN ('queued', 'running')",
+                &[&id],
             )
             .map_err(db)?;
         Ok(n > 0)
@@ -352,11 +385,60 @@ impl JobQueue for PostgresStore {
     }
 
     fn update_claimed(&self, job: &Job, attempt: u32) -> Result<bool, StoreError> {
-        update_row(&mut *self.client(), &JobRow::encode(job)?.fenced(attempt))
+        self.update_and_prune(JobRow::encode(job)?.fenced(attempt))
     }
 
     fn finish_claimed(&self, job: &Job, attempt: u32, artifacts: &[Artifact]) -> Result<bool, StoreError> {
         self.finish_row(JobRow::encode(job)?.fenced(attempt), artifacts)
+    }
+}
+
+/// Appends and snapshots under a claim: only while the claim is still the job's.
+const HELD: &str = "EXISTS (SELECT 1 FROM jobs WHERE id = $1 AND attempts = $4::bigint AND status = 'running')";
+
+impl EventLog for PostgresStore {
+    fn append_event(&self, job_id: &str, attempt: u32, event: &str, data: &str) -> Result<Option<u64>, StoreError> {
+        let sql = format!("INSERT INTO job_events (job_id, event, data) SELECT $1, $2, $3 WHERE {HELD} RETURNING id");
+        let found = self.client().query_opt(&sql, &[&job_id, &event, &data, &i64::from(attempt)]).map_err(db)?;
+        found.map(|r| event_id(r.try_get(0).map_err(db)?)).transpose()
+    }
+
+    fn events_after(&self, job_id: &str, after: u64, limit: u32) -> Result<Vec<StoredEvent>, StoreError> {
+        let after = i64::try_from(after).unwrap_or(i64::MAX);
+        let rows = self
+            .client()
+            .query(
+                "SELECT id, event, data FROM job_events WHERE job_id = $1 AND id > $2 ORDER BY id LIMIT $3",
+                &[&job_id, &after, &i64::from(limit)],
+            )
+            .map_err(db)?;
+        rows.iter()
+            .map(|r| {
+                Ok(StoredEvent {
+                    id: event_id(r.try_get(0).map_err(db)?)?,
+                    event: r.try_get(1).map_err(db)?,
+                    data: r.try_get(2).map_err(db)?,
+                })
+            })
+            .collect()
+    }
+
+    fn put_snapshot(&self, job_id: &str, attempt: u32, event: u64, png: &[u8]) -> Result<bool, StoreError> {
+        let sql = format!(
+            "INSERT INTO job_snapshots (job_id, event_id, png) SELECT $1, $2, $3 WHERE {HELD} \
+             ON CONFLICT (job_id) DO UPDATE SET event_id = excluded.event_id, png = excluded.png"
+        );
+        let event = i64::try_from(event).unwrap_or(i64::MAX);
+        let n = self.client().execute(&sql, &[&job_id, &event, &png, &i64::from(attempt)]).map_err(db)?;
+        Ok(n > 0)
+    }
+
+    fn snapshot(&self, job_id: &str) -> Result<Option<(u64, Vec<u8>)>, StoreError> {
+        let found = self
+            .client()
+            .query_opt("SELECT event_id, png FROM job_snapshots WHERE job_id = $1", &[&job_id])
+            .map_err(db)?;
+        found.map(|r| Ok((event_id(r.try_get(0).map_err(db)?)?, r.try_get(1).map_err(db)?))).transpose()
     }
 }
 
@@ -425,9 +507,7 @@ impl JobStore for PostgresStore {
 
     /// A job that no longer exists (deleted while it ran) is left deleted.
     fn update(&self, job: &Job) -> Result<(), StoreError> {
-        let row = JobRow::encode(job)?;
-        update_row(&mut *self.client(), &row)?;
-        Ok(())
+        self.update_and_prune(JobRow::encode(job)?).map(|_| ())
     }
 
     /// Replaces any artifacts the job had. A job deleted meanwhile is left deleted.

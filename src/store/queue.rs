@@ -22,7 +22,16 @@ pub struct Claim {
     pub lost_leases: u32,
 }
 
-/// Claims, leases and fenced writes.
+/// What a lease's renewal found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Renewal {
+    /// The claim is still the job's; `cancel_requested` once a client asked to stop it.
+    Held { cancel_requested: bool },
+    /// The claim is no longer the job's (taken over, ended or deleted): stop, write nothing.
+    Lost,
+}
+
+/// Claims, leases, cancel requests and fenced writes.
 pub trait JobQueue: JobStore {
     /// Claim the oldest job that is queued or whose holder's lease has run out, if its
     /// estimated memory is at most `max_memory` (the worker's free budget): jobs are taken in
@@ -31,9 +40,12 @@ pub trait JobQueue: JobStore {
     /// that runs them in its own process) are never claimed.
     fn claim(&self, worker: &str, lease: Duration, max_memory: u64) -> Result<Option<Claim>, StoreError>;
 
-    /// Extend a claim's lease to `lease` from now; false when the claim is no longer the job's
-    /// (taken over, ended, deleted).
-    fn renew(&self, id: &str, attempt: u32, lease: Duration) -> Result<bool, StoreError>;
+    /// Extend a claim's lease to `lease` from now, and read whether a cancel was requested.
+    fn renew(&self, id: &str, attempt: u32, lease: Duration) -> Result<Renewal, StoreError>;
+
+    /// Ask whoever runs (or will run) the job to stop: its worker sees it at its next renewal.
+    /// False when there is no such job or it has ended.
+    fn request_cancel(&self, id: &str) -> Result<bool, StoreError>;
 
     /// Give a claimed job back to the queue at once (a worker shutting down); false when the
     /// claim is no longer the job's.

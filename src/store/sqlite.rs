@@ -15,14 +15,15 @@ use rusqlite::types::Value as SqlValue;
 use rusqlite::{params, Connection, OpenFlags, OptionalExtension, Row, TransactionBehavior};
 
 use super::artifacts::{assemble, chunks, span};
-use super::queue::{count, lease_ms, Claim, JobQueue};
+use super::events::{event_id, EventLog, StoredEvent};
+use super::queue::{count, lease_ms, Claim, JobQueue, Renewal};
 use super::row::{describe, JobRow, RawJob, JOB_COLUMNS};
 use super::{ArtifactStore, IdempotentInsert, JobStore, ListFilter, StoreError, CHUNK_BYTES};
 use crate::export::Artifact;
 use crate::model::{ArtifactMeta, Job, JobStatus};
 
 /// The schema version this build writes (`PRAGMA user_version`).
-pub const SCHEMA_VERSION: i64 = 5;
+pub const SCHEMA_VERSION: i64 = 6;
 
 /// Migrations in order: `MIGRATIONS[n]` takes the schema from version `n` to `n + 1`.
 const MIGRATIONS: [&str; SCHEMA_VERSION as usize] = [
@@ -108,6 +109,23 @@ ALTER TABLE jobs ADD COLUMN lease_owner TEXT;
 ALTER TABLE jobs ADD COLUMN lost_leases INTEGER NOT NULL DEFAULT 0;
 UPDATE jobs SET memory_bytes = coalesce(json_extract(cost, '$.memory_bytes'), 0) WHERE cost IS NOT NULL;
 "#,
+    r#"
+-- Job events and live snapshots across processes (store/events.rs), and cancel requests a
+-- job's worker reads when it renews its lease.
+CREATE TABLE job_events (
+    id     INTEGER PRIMARY KEY AUTOINCREMENT,  -- never reused: ids only grow
+    job_id TEXT NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
+    event  TEXT NOT NULL,
+    data   TEXT NOT NULL
+);
+CREATE INDEX job_events_by_job ON job_events (job_id, id);
+CREATE TABLE job_snapshots (
+    job_id   TEXT PRIMARY KEY NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
+    event_id INTEGER NOT NULL,
+    png      BLOB NOT NULL
+);
+ALTER TABLE jobs ADD COLUMN cancel_requested INTEGER NOT NULL DEFAULT 0;
+"#,
 ];
 
 /// The database's clock in milliseconds since 1970: leases are set and compared by it alone.
@@ -169,6 +187,19 @@ impl SqliteStore {
             .transpose()
     }
 
+    /// Save a job's row (pruning its events once it has ended); false when nothing was
+    /// written (no such job, or the row's fence is no longer the job's attempt).
+    fn update_row(&self, row: JobRow<'_>) -> Result<bool, StoreError> {
+        let mut conn = self.writer.lock();
+        let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate).map_err(db)?;
+        let written = row.update(&tx).map_err(db)?;
+        if written && row.job.status.is_terminal() {
+            prune_events(&tx, &row.job.id)?;
+        }
+        tx.commit().map_err(db)?;
+        Ok(written)
+    }
+
     /// Save a finished job's row and its artifacts in one transaction; false when nothing
     /// was written (no such job, or the row's fence is no longer the job's attempt).
     fn finish_row(&self, row: JobRow<'_>, artifacts: &[Artifact]) -> Result<bool, StoreError> {
@@ -179,6 +210,7 @@ impl SqliteStore {
         if !row.update(&tx).map_err(db)? {
             return Ok(false);
         }
+        prune_events(&tx, &job.id)?;
         // The job's chunks go with its artifact rows (ON DELETE CASCADE).
         tx.prepare_cached("DELETE FROM artifacts WHERE job_id = ?1").map_err(db)?.execute([&job.id]).map_err(db)?;
         {
@@ -255,6 +287,14 @@ fn migrate(conn: &mut Connection) -> Result<(), StoreError> {
         tx.pragma_update(None, "user_version", SCHEMA_VERSION).map_err(db)?;
     }
     tx.commit().map_err(db)
+}
+
+/// A finished job's stream is its `done`: its events and snapshot are not needed any more.
+fn prune_events(conn: &Connection, job_id: &str) -> Result<(), StoreError> {
+    for sql in ["DELETE FROM job_events WHERE job_id = ?1", "DELETE FROM job_snapshots WHERE job_id = ?1"] {
+        conn.prepare_cached(sql).map_err(db)?.execute([job_id]).map_err(db)?;
+    }
+    Ok(())
 }
 
 fn open_error(path: &str, e: rusqlite::Error) -> StoreError {
@@ -522,11 +562,26 @@ impl JobQueue for SqliteStore {
         }))
     }
 
-    fn renew(&self, id: &str, attempt: u32, lease: Duration) -> Result<bool, StoreError> {
+    fn renew(&self, id: &str, attempt: u32, lease: Duration) -> Result<Renewal, StoreError> {
         let sql = format!(
-            "UPDATE jobs SET lease_until = {NOW_MS} + ?3 WHERE id = ?1 AND attempts = ?2 AND status = 'running'"
+            "UPDATE jobs SET lease_until = {NOW_MS} + ?3 WHERE id = ?1 AND attempts = ?2 AND status = 'running' \
+             RETURNING cancel_requested"
         );
-        let n = self.writer.lock().execute(&sql, params![id, attempt, lease_ms(lease)]).map_err(db)?;
+        let cancel: Option<bool> = self
+            .writer
+            .lock()
+            .query_row(&sql, params![id, attempt, lease_ms(lease)], |r| r.get(0))
+            .optional()
+            .map_err(db)?;
+        Ok(cancel.map_or(Renewal::Lost, |cancel_requested| Renewal::Held { cancel_requested }))
+    }
+
+    fn request_cancel(&self, id: &str) -> Result<bool, StoreError> {
+        let n = self
+            .writer
+            .lock()
+            .execute("UPDATE jobs SET cancel_requested = 1 WHERE id = ?1 AND status IN ('queued', 'running')", [id])
+            .map_err(db)?;
         Ok(n > 0)
     }
 
@@ -544,13 +599,65 @@ impl JobQueue for SqliteStore {
     }
 
     fn update_claimed(&self, job: &Job, attempt: u32) -> Result<bool, StoreError> {
-        let row = JobRow::encode(job)?.fenced(attempt);
-        let conn = self.writer.lock();
-        row.update(&conn).map_err(db)
+        self.update_row(JobRow::encode(job)?.fenced(attempt))
     }
 
     fn finish_claimed(&self, job: &Job, attempt: u32, artifacts: &[Artifact]) -> Result<bool, StoreError> {
         self.finish_row(JobRow::encode(job)?.fenced(attempt), artifacts)
+    }
+}
+
+/// Appends and snapshots under a claim: only while the claim is still the job's.
+const HELD: &str = "EXISTS (SELECT 1 FROM jobs WHERE id = ?1 AND attempts = ?4 AND status = 'running')";
+
+impl EventLog for SqliteStore {
+    fn append_event(&self, job_id: &str, attempt: u32, event: &str, data: &str) -> Result<Option<u64>, StoreError> {
+        let sql = format!("INSERT INTO job_events (job_id, event, data) SELECT ?1, ?2, ?3 WHERE {HELD} RETURNING id");
+        let id: Option<i64> = self
+            .writer
+            .lock()
+            .query_row(&sql, params![job_id, event, data, attempt], |r| r.get(0))
+            .optional()
+            .map_err(db)?;
+        id.map(event_id).transpose()
+    }
+
+    fn events_after(&self, job_id: &str, after: u64, limit: u32) -> Result<Vec<StoredEvent>, StoreError> {
+        let conn = self.reader();
+        let mut stmt = conn
+            .prepare_cached("SELECT id, event, data FROM job_events WHERE job_id = ?1 AND id > ?2 ORDER BY id LIMIT ?3")
+            .map_err(db)?;
+        let after = i64::try_from(after).unwrap_or(i64::MAX);
+        let rows = stmt
+            .query_map(params![job_id, after, limit], |r| Ok((r.get::<_, i64>(0)?, r.get(1)?, r.get(2)?)))
+            .map_err(db)?;
+        rows.map(|r| {
+            let (id, event, data) = r.map_err(db)?;
+            Ok(StoredEvent { id: event_id(id)?, event, data })
+        })
+        .collect()
+    }
+
+    fn put_snapshot(&self, job_id: &str, attempt: u32, event: u64, png: &[u8]) -> Result<bool, StoreError> {
+        // The WHERE makes the SELECT's end plain to the parser before ON CONFLICT.
+        let sql = format!(
+            "INSERT INTO job_snapshots (job_id, event_id, png) SELECT ?1, ?2, ?3 WHERE {HELD} \
+             ON CONFLICT (job_id) DO UPDATE SET event_id = excluded.event_id, png = excluded.png"
+        );
+        let event = i64::try_from(event).unwrap_or(i64::MAX);
+        let n = self.writer.lock().execute(&sql, params![job_id, event, png, attempt]).map_err(db)?;
+        Ok(n > 0)
+    }
+
+    fn snapshot(&self, job_id: &str) -> Result<Option<(u64, Vec<u8>)>, StoreError> {
+        let found: Option<(i64, Vec<u8>)> = self
+            .reader()
+            .prepare_cached("SELECT event_id, png FROM job_snapshots WHERE job_id = ?1")
+            .map_err(db)?
+            .query_row([job_id], |r| Ok((r.get(0)?, r.get(1)?)))
+            .optional()
+            .map_err(db)?;
+        found.map(|(id, png)| Ok((event_id(id)?, png))).transpose()
     }
 }
 
@@ -628,10 +735,7 @@ impl JobStore for SqliteStore {
 
     /// A job that no longer exists (deleted while it ran) is left deleted.
     fn update(&self, job: &Job) -> Result<(), StoreError> {
-        let row = JobRow::encode(job)?;
-        let conn = self.writer.lock();
-        row.update(&conn).map_err(db)?;
-        Ok(())
+        self.update_row(JobRow::encode(job)?).map(|_| ())
     }
 
     /// Replaces any artifacts the job had. A job deleted meanwhile is left deleted.
