@@ -34,6 +34,8 @@ pub enum StopReason {
     Deleted,
     /// The process is shutting down: the job goes back to the queue for the next start.
     ShuttingDown,
+    /// The job's lease ran out and another worker holds it now: stop and write nothing.
+    LeaseLost,
 }
 
 /// Event ids grow across process restarts too (a re-run job's events follow the ones a client
@@ -43,10 +45,65 @@ fn first_event_id() -> u64 {
     u64::try_from(micros).unwrap_or(u64::MAX / 2).max(1)
 }
 
+/// Rate limits of a job's progress events and live snapshots.
 #[derive(Default)]
-struct Throttle {
+pub(super) struct Throttle {
     last_progress: Option<Instant>,
     last_snapshot: Option<Instant>,
+}
+
+impl Throttle {
+    /// Whether a progress event is due now (the last of a stage always is); if so, it is
+    /// counted as sent.
+    pub fn progress_due(&mut self, progress: &Progress) -> bool {
+        let last = progress.steps > 0 && progress.step >= progress.steps;
+        let due = self.last_progress.is_none_or(|at| at.elapsed() >= PROGRESS_EVENT_INTERVAL);
+        if due || last {
+            self.last_progress = Some(Instant::now());
+        }
+        due || last
+    }
+
+    pub fn snapshot_due(&self) -> bool {
+        self.last_snapshot.is_none_or(|at| at.elapsed() >= SNAPSHOT_INTERVAL)
+    }
+
+    /// A snapshot (and the progress event announcing it) was just sent.
+    pub fn snapshot_sent(&mut self) {
+        self.last_snapshot = Some(Instant::now());
+        self.last_progress = self.last_snapshot;
+    }
+}
+
+/// A job's cancel flag, which the simulation looks at, and why it was raised.
+#[derive(Default)]
+pub struct StopFlag {
+    pub cancel: AtomicBool,
+    reason: Mutex<Option<StopReason>>,
+}
+
+impl StopFlag {
+    /// Raise the flag; the first reason given sticks.
+    pub fn stop(&self, reason: StopReason) {
+        let mut r = self.reason.lock();
+        if r.is_none() {
+            *r = Some(reason);
+        }
+        self.cancel.store(true, Ordering::Relaxed);
+    }
+
+    pub fn reason(&self) -> Option<StopReason> {
+        *self.reason.lock()
+    }
+}
+
+/// A progress event's data: the progress, and the live snapshot's href when it announces one.
+pub(super) fn progress_data(progress: &Progress, snapshot: Option<String>) -> Value {
+    let mut data = serde_json::to_value(progress).unwrap_or(Value::Null);
+    if let (Some(href), Some(obj)) = (snapshot, data.as_object_mut()) {
+        obj.insert("snapshot".into(), Value::String(href));
+    }
+    data
 }
 
 pub struct LiveJob {
@@ -55,8 +112,7 @@ pub struct LiveJob {
     pub owner: Option<String>,
     /// The memory its estimate reserves while it is queued or running.
     pub memory: u64,
-    pub cancel: AtomicBool,
-    stop_reason: Mutex<Option<StopReason>>,
+    pub flag: StopFlag,
     log: Mutex<VecDeque<JobEvent>>,
     next_event_id: AtomicU64,
     tx: broadcast::Sender<JobEvent>,
@@ -79,8 +135,7 @@ impl LiveJob {
             id,
             owner,
             memory,
-            cancel: AtomicBool::new(false),
-            stop_reason: Mutex::new(None),
+            flag: StopFlag::default(),
             log: Mutex::new(VecDeque::new()),
             next_event_id: AtomicU64::new(first_event_id()),
             tx,
@@ -94,15 +149,11 @@ impl LiveJob {
 
     /// Raise the cancel flag; the first reason given sticks.
     pub fn stop(&self, reason: StopReason) {
-        let mut r = self.stop_reason.lock();
-        if r.is_none() {
-            *r = Some(reason);
-        }
-        self.cancel.store(true, Ordering::Relaxed);
+        self.flag.stop(reason);
     }
 
     pub fn stop_reason(&self) -> Option<StopReason> {
-        *self.stop_reason.lock()
+        self.flag.reason()
     }
 
     pub fn progress(&self) -> Progress {
@@ -157,40 +208,27 @@ impl LiveJob {
     }
 
     fn progress_event(&self, progress: &Progress, snapshot: Option<String>) {
-        let mut data = serde_json::to_value(progress).unwrap_or(Value::Null);
-        if let (Some(href), Some(obj)) = (snapshot, data.as_object_mut()) {
-            obj.insert("snapshot".into(), Value::String(href));
-        }
-        self.emit("progress", data);
+        self.emit("progress", progress_data(progress, snapshot));
     }
 }
 
 impl ProgressSink for LiveJob {
     fn progress(&self, progress: Progress) {
-        let last = progress.steps > 0 && progress.step >= progress.steps;
         *self.progress.lock() = progress.clone();
-        let mut t = self.throttle.lock();
-        let due = t.last_progress.is_none_or(|at| at.elapsed() >= PROGRESS_EVENT_INTERVAL);
-        if due || last {
-            t.last_progress = Some(Instant::now());
-            drop(t);
+        if self.throttle.lock().progress_due(&progress) {
             self.progress_event(&progress, None);
         }
     }
 
     fn snapshot_due(&self) -> bool {
-        self.throttle.lock().last_snapshot.is_none_or(|at| at.elapsed() >= SNAPSHOT_INTERVAL)
+        self.throttle.lock().snapshot_due()
     }
 
     fn snapshot(&self, png: Vec<u8>, progress: Progress) {
         let n = self.snapshots_taken.fetch_add(1, Ordering::Relaxed) + 1;
         *self.snapshot.lock() = Some((n, Bytes::from(png)));
         *self.progress.lock() = progress.clone();
-        {
-            let mut t = self.throttle.lock();
-            t.last_snapshot = Some(Instant::now());
-            t.last_progress = Some(Instant::now());
-        }
+        self.throttle.lock().snapshot_sent();
         self.progress_event(&progress, Some(format!("/v1/jobs/{}/live.png?n={n}", self.id)));
     }
 }
@@ -218,6 +256,6 @@ mod tests {
         live.stop(StopReason::TimedOut);
         live.stop(StopReason::Cancelled);
         assert_eq!(live.stop_reason(), Some(StopReason::TimedOut));
-        assert!(live.cancel.load(Ordering::Relaxed));
+        assert!(live.flag.cancel.load(Ordering::Relaxed));
     }
 }

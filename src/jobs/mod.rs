@@ -14,6 +14,7 @@ mod live;
 mod metrics;
 mod runner;
 mod store_terrain;
+mod worker;
 
 pub use engine::{
     default_memory_budget, Engine, EngineConfig, EngineError, EventFeed, Submitted, Submitter, DEFAULT_CONCURRENT_JOBS,
@@ -22,6 +23,11 @@ pub use engine::{
 pub use live::{JobEvent, LiveJob, StopReason};
 pub use runner::{problem, PROBLEM_TYPE_BASE};
 pub use store_terrain::{StoreTerrain, HEIGHTFIELD_ARTIFACT};
+pub use worker::{Worker, WorkerConfig, MAX_LOST_LEASES};
 
 #[cfg(test)]
 mod engine_tests;
+#[cfg(test)]
+mod test_kind;
+#[cfg(test)]
+mod worker_tests;

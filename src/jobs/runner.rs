@@ -1,7 +1,8 @@
 //! Taking jobs off the queue as the memory budget allows and running each on a thread of its own.
 
+use std::collections::HashMap;
 use std::panic::AssertUnwindSafe;
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -11,7 +12,9 @@ use serde_json::{json, Value};
 use super::engine::Engine;
 use super::live::{LiveJob, StopReason};
 use super::store_terrain::StoreTerrain;
-use super::{Artifact, Job, JobOutput, JobStatus, RunContext, SimError};
+use super::{Artifact, Job, JobKind, JobOutput, JobStatus, ProgressSink, RunContext, SimError};
+use crate::store::JobStore;
+use crate::validate::Limits;
 
 /// Base of the `type` URI of every problem this service reports.
 pub const PROBLEM_TYPE_BASE: &str = "https://landform.dev/problems";
@@ -88,7 +91,7 @@ impl Engine {
                 return;
             }
         };
-        if live.cancel.load(Ordering::Relaxed) {
+        if live.flag.cancel.load(Ordering::Relaxed) {
             return self.end(job, &live, Err(SimError::Cancelled), 0.0).await;
         }
 
@@ -127,11 +130,7 @@ impl Engine {
         let outcome = match rx.await {
             Ok(Ok(r)) => r,
             Ok(Err(panic)) => {
-                let msg = panic
-                    .downcast_ref::<&str>()
-                    .map(|s| s.to_string())
-                    .or_else(|| panic.downcast_ref::<String>().cloned())
-                    .unwrap_or_default();
+                let msg = panic_message(panic.as_ref());
                 tracing::error!(job = %id, panic = %msg, "job panicked");
                 Err(SimError::Failed("the simulation stopped on an internal error".into()))
             }
@@ -144,31 +143,8 @@ impl Engine {
 
     /// The CPU work of one job, on its own thread.
     fn compute(&self, job: &Job, live: &Arc<LiveJob>) -> Result<JobOutput, SimError> {
-        let kind = self
-            .inner
-            .kinds
-            .get(job.kind.as_str())
-            .ok_or_else(|| SimError::Failed(format!("no job kind named {}", job.kind)))?;
-        let lookup = StoreTerrain { store: self.inner.store.clone(), owner: job.owner.clone() };
-        let ctx = RunContext {
-            cancel: &live.cancel,
-            sink: live.as_ref(),
-            terrain: &lookup,
-            limits: &self.inner.config.limits,
-        };
-        let params = job.params();
-        match job.replay_spec() {
-            None => kind.run(&params, job.seed(), &ctx),
-            Some(spec) => {
-                let sequence = self.inner.store.artifact(&spec.of, "sequence.json").map_err(|e| {
-                    tracing::error!(job = %job.id, error = %e, "could not read the sequence to replay");
-                    SimError::Failed(STORE_FAILED.into())
-                })?;
-                let (_, sequence) =
-                    sequence.ok_or_else(|| SimError::Failed(format!("job {} and its sequence are gone", spec.of)))?;
-                kind.replay(&params, &sequence, spec.until_step, &ctx)
-            }
-        }
+        let c = &self.inner;
+        compute(&c.kinds, c.store.clone(), &c.config.limits, job, &live.flag.cancel, live.as_ref())
     }
 
     /// Record how a job ended and tell everyone waiting. Whatever the store does, the job's
@@ -240,15 +216,53 @@ impl Engine {
     }
 }
 
+/// Run a job's kind, or replay its original's sequence, reporting to `sink` and stopping
+/// when `cancel` is raised. Shared by the engine and the store-queue worker.
+pub(super) fn compute(
+    kinds: &HashMap<&'static str, Arc<dyn JobKind>>,
+    store: Arc<dyn JobStore>,
+    limits: &Limits,
+    job: &Job,
+    cancel: &AtomicBool,
+    sink: &dyn ProgressSink,
+) -> Result<JobOutput, SimError> {
+    let kind =
+        kinds.get(job.kind.as_str()).ok_or_else(|| SimError::Failed(format!("no job kind named {}", job.kind)))?;
+    let lookup = StoreTerrain { store: store.clone(), owner: job.owner.clone() };
+    let ctx = RunContext { cancel, sink, terrain: &lookup, limits };
+    let params = job.params();
+    match job.replay_spec() {
+        None => kind.run(&params, job.seed(), &ctx),
+        Some(spec) => {
+            let sequence = store.artifact(&spec.of, "sequence.json").map_err(|e| {
+                tracing::error!(job = %job.id, error = %e, "could not read the sequence to replay");
+                SimError::Failed(STORE_FAILED.into())
+            })?;
+            let (_, sequence) =
+                sequence.ok_or_else(|| SimError::Failed(format!("job {} and its sequence are gone", spec.of)))?;
+            kind.replay(&params, &sequence, spec.until_step, &ctx)
+        }
+    }
+}
+
+/// The message of a panic caught around a job.
+pub(super) fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {
+    panic
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_default()
+}
+
 /// The end of a job id (UUIDv7's random part), to name its thread.
-fn short_id(id: &str) -> &str {
+pub(super) fn short_id(id: &str) -> &str {
     &id[id.len().saturating_sub(8)..]
 }
 
-const STORE_FAILED: &str = "the job store failed; the server's log has the details";
+pub(super) const STORE_FAILED: &str = "the job store failed; the server's log has the details";
 
 /// Fill in the job's final status, result and error; returns the artifacts to store.
-fn settle(
+pub(super) fn settle(
     job: &mut Job,
     outcome: Result<JobOutput, SimError>,
     stop: Option<StopReason>,
