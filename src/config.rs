@@ -9,9 +9,10 @@ use clap::Args;
 use crate::http::auth::{DEFAULT_KEY_ACTIVE_JOBS, DEFAULT_KEY_SUBMISSIONS_PER_MINUTE};
 use crate::http::{ApiKeys, HttpConfig, KeyLimits, DEFAULT_MAX_BODY_BYTES};
 use crate::jobs::{
-    default_memory_budget, EngineConfig, DEFAULT_CONCURRENT_JOBS, DEFAULT_JOB_TIMEOUT_S, DEFAULT_QUEUE_CAPACITY,
+    default_memory_budget, EngineConfig, WorkerConfig, DEFAULT_CONCURRENT_JOBS, DEFAULT_JOB_TIMEOUT_S,
+    DEFAULT_QUEUE_CAPACITY,
 };
-use crate::store::{JobStore, PostgresStore, SqliteStore};
+use crate::store::{EventLog, PostgresStore, SqliteStore};
 use crate::validate::{Limits, DEFAULT_MAX_GRID_CELLS, DEFAULT_MAX_OPERATIONS, DEFAULT_MAX_VOXELS};
 
 /// Settings shared by `serve` and `run`.
@@ -58,7 +59,7 @@ impl ServiceArgs {
             .unwrap_or_else(|| "landform.db".to_string())
     }
 
-    pub fn open_store(&self) -> anyhow::Result<Arc<dyn JobStore>> {
+    pub fn open_store(&self) -> anyhow::Result<Arc<dyn EventLog>> {
         let location = self.database_location();
         if location.starts_with("postgres://") || location.starts_with("postgresql://") {
             return Ok(Arc::new(PostgresStore::open(&location)?));
@@ -79,9 +80,52 @@ impl ServiceArgs {
                 max_operations: self.max_operations,
                 max_voxels: self.max_voxels,
             },
+            runs_jobs: true,
+        }
+    }
+
+    /// A worker's settings: the same budget, concurrency, time limit and caps as an engine's.
+    pub fn worker_config(&self, worker: &WorkerArgs) -> WorkerConfig {
+        let engine = self.engine_config();
+        WorkerConfig {
+            name: worker.worker_name.clone().unwrap_or_else(|| format!("worker-{}", std::process::id())),
+            memory_budget: engine.memory_budget,
+            concurrent_jobs: engine.concurrent_jobs,
+            lease: Duration::from_secs(worker.lease_secs),
+            poll: crate::jobs::STORE_POLL,
+            job_timeout: engine.job_timeout,
+            limits: engine.limits,
         }
     }
 }
+
+/// Which parts of the service a process runs.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Role {
+    /// The HTTP API and the jobs, in this one process.
+    #[default]
+    All,
+    /// The HTTP API only: jobs wait in the store for workers (`landform worker`) to claim.
+    Api,
+    /// A worker only (as `landform worker`).
+    Worker,
+}
+
+/// Settings of a worker that claims jobs from the store.
+#[derive(Args, Clone, Debug)]
+pub struct WorkerArgs {
+    /// Seconds a claimed job stays this worker's without a renewal (renewed every third of
+    /// it): how soon another worker takes over the jobs of one that died.
+    #[arg(long, env = "LANDFORM_LEASE_SECS", default_value_t = DEFAULT_LEASE_SECS, value_parser = clap::value_parser!(u64).range(1..=3600))]
+    pub lease_secs: u64,
+    /// The name kept with this worker's claims (default `worker-PID`).
+    #[arg(long, env = "LANDFORM_WORKER_NAME")]
+    pub worker_name: Option<String>,
+}
+
+/// Default lease: a crashed worker's job is claimed again within about five seconds, and a
+/// renewal every 1.7 s costs one short UPDATE.
+pub const DEFAULT_LEASE_SECS: u64 = 5;
 
 /// Settings of the HTTP server only.
 #[derive(Args, Clone, Debug)]

@@ -8,8 +8,8 @@ use std::sync::Arc;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use landform::config::{HttpArgs, ServiceArgs};
-use landform::jobs::{Engine, EventFeed, JobStatus, Submitted};
+use landform::config::{HttpArgs, Role, ServiceArgs, WorkerArgs};
+use landform::jobs::{Engine, EngineConfig, EventFeed, JobStatus, Submitted, Worker};
 
 #[derive(Parser)]
 #[command(name = "landform", version, about = "Terrain generation as a service")]
@@ -20,12 +20,25 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run the HTTP service.
+    /// Run the HTTP service (and, with the default role, its jobs).
     Serve {
+        /// `all`: the API and the jobs in this process; `api`: the API only, jobs run by
+        /// workers (`landform worker`) sharing the database; `worker`: a worker only.
+        #[arg(long, env = "LANDFORM_ROLE", value_enum, default_value_t = Role::All)]
+        role: Role,
         #[command(flatten)]
         http: HttpArgs,
         #[command(flatten)]
         service: ServiceArgs,
+        #[command(flatten)]
+        worker: WorkerArgs,
+    },
+    /// Run a worker: claim jobs from the database's queue and run them, until SIGTERM.
+    Worker {
+        #[command(flatten)]
+        service: ServiceArgs,
+        #[command(flatten)]
+        worker: WorkerArgs,
     },
     /// Run one job offline with the same engine, and write its artifacts to a folder.
     Run {
@@ -52,7 +65,10 @@ fn main() -> anyhow::Result<()> {
             print!("{}", landform::http::openapi_yaml(&kinds));
             Ok(())
         }
-        Command::Serve { http, service } => runtime()?.block_on(serve(http, service)),
+        Command::Serve { role: Role::Worker, service, worker: w, .. } | Command::Worker { service, worker: w } => {
+            runtime()?.block_on(worker(service, w))
+        }
+        Command::Serve { role, http, service, .. } => runtime()?.block_on(serve(http, service, role)),
         Command::Run { request, out, kind, service } => runtime()?.block_on(run(request, out, kind, service)),
     }
 }
@@ -66,16 +82,17 @@ fn init_tracing(default: &str) {
     let _ = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).try_init();
 }
 
-fn engine(service: &ServiceArgs) -> anyhow::Result<Engine> {
+fn engine(service: &ServiceArgs, role: Role) -> anyhow::Result<Engine> {
     let store = service.open_store()?;
-    Ok(Engine::new(store, landform::sims::registry(), service.engine_config())?)
+    let config = EngineConfig { runs_jobs: role == Role::All, ..service.engine_config() };
+    Ok(Engine::new(store, landform::sims::registry(), config)?)
 }
 
-async fn serve(http: HttpArgs, service: ServiceArgs) -> anyhow::Result<()> {
+async fn serve(http: HttpArgs, service: ServiceArgs, role: Role) -> anyhow::Result<()> {
     init_tracing("info,tower_http=info");
     // Opening a store and recovering talk to it synchronously (PostgreSQL's client runs a
     // runtime of its own): off the async threads.
-    let engine = tokio::task::block_in_place(|| engine(&service))?;
+    let engine = tokio::task::block_in_place(|| engine(&service, role))?;
     let http_config = http.http_config(engine.config().memory_budget)?;
     tokio::task::block_in_place(|| engine.recover())?;
     engine.start();
@@ -125,6 +142,34 @@ async fn serve(http: HttpArgs, service: ServiceArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A worker process: claims jobs from the store's queue and runs them until SIGTERM, then
+/// lets them finish until the shutdown deadline and gives the rest back to the queue.
+async fn worker(service: ServiceArgs, args: WorkerArgs) -> anyhow::Result<()> {
+    init_tracing("info");
+    let store = tokio::task::block_in_place(|| service.open_store())?;
+    let config = service.worker_config(&args);
+    landform::jobs::build_pool(service.engine_config().workers);
+    tracing::info!(
+        name = %config.name,
+        database = %service.database_location(),
+        memory_budget = config.memory_budget,
+        lease_secs = config.lease.as_secs(),
+        "worker started"
+    );
+    println!("worker {} started", config.name);
+    std::io::stdout().flush()?;
+    let worker = Worker::new(store, landform::sims::registry(), config);
+    let running = tokio::spawn({
+        let worker = worker.clone();
+        async move { worker.run().await }
+    });
+    shutdown_signal().await;
+    tracing::info!("stopping: no more claims; running jobs may finish");
+    worker.shutdown(std::time::Duration::from_secs(service.shutdown_deadline_secs)).await;
+    running.abort();
+    Ok(())
+}
+
 const SHUTDOWN_GRACE: std::time::Duration = std::time::Duration::from_secs(5);
 
 async fn shutdown_signal() {
@@ -163,7 +208,7 @@ async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: 
     } else {
         None
     };
-    let engine = tokio::task::block_in_place(|| engine(&service))?;
+    let engine = tokio::task::block_in_place(|| engine(&service, Role::All))?;
     engine.start();
     let job = match engine.submit(&kind, body, None, &Default::default()).await {
         Ok(Submitted::Created(j) | Submitted::Existing(j)) => j,

@@ -15,7 +15,7 @@ use super::live::{LiveJob, StopReason};
 use super::metrics::Metrics;
 use super::store_terrain::StoreTerrain;
 use super::{Job, JobEvent, JobKind, JobStatus, Progress, RequestError};
-use crate::store::{IdempotentInsert, JobStore, ListFilter, StoreError};
+use crate::store::{EventLog, IdempotentInsert, ListFilter, StoreError};
 use crate::validate::{FieldError, Limits};
 
 pub const DEFAULT_QUEUE_CAPACITY: usize = 64;
@@ -40,6 +40,21 @@ pub struct EngineConfig {
     /// A job still running after this long is stopped and fails.
     pub job_timeout: Duration,
     pub limits: Limits,
+    /// Whether this engine runs jobs itself (`--role all`, in one process); when false
+    /// (`--role api`) it only queues them in the store, and workers elsewhere run them.
+    pub runs_jobs: bool,
+}
+
+/// Size the global Rayon pool that every job's parallel work shares, once per process: a
+/// second engine or worker in the same process (tests) finds it built and uses it as it is.
+pub fn build_pool(threads: usize) {
+    if let Err(e) = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .thread_name(|i| format!("landform-sim-{i}"))
+        .build_global()
+    {
+        tracing::debug!(error = %e, "the Rayon pool was already built");
+    }
 }
 
 /// Default `--concurrent-jobs`: enough for many small jobs side by side on a small machine; the
@@ -79,6 +94,7 @@ impl Default for EngineConfig {
             memory_budget: default_memory_budget(),
             job_timeout: Duration::from_secs(DEFAULT_JOB_TIMEOUT_S),
             limits: Limits::default(),
+            runs_jobs: true,
         }
     }
 }
@@ -132,8 +148,16 @@ impl From<RequestError> for EngineError {
 
 /// Where a job's events come from.
 pub enum EventFeed {
-    Live { backlog: Vec<JobEvent>, rx: tokio::sync::broadcast::Receiver<JobEvent>, live: Arc<LiveJob> },
+    Live {
+        backlog: Vec<JobEvent>,
+        rx: tokio::sync::broadcast::Receiver<JobEvent>,
+        live: Arc<LiveJob>,
+    },
     Ended(Box<Job>),
+    /// The job runs in another process: its events are read from the store, after this id.
+    Stored {
+        after: u64,
+    },
 }
 
 /// Who submits a job: the API key name that will own it, and what that key may hold at once.
@@ -170,7 +194,7 @@ pub(super) struct Queue {
 }
 
 pub(super) struct Inner {
-    pub store: Arc<dyn JobStore>,
+    pub store: Arc<dyn EventLog>,
     pub kinds: HashMap<&'static str, Arc<dyn JobKind>>,
     pub queue: Mutex<Queue>,
     pub queue_notify: Notify,
@@ -207,20 +231,14 @@ impl Engine {
     /// Build the engine. A server then calls [`Engine::recover`] and, inside a tokio runtime,
     /// [`Engine::start`].
     pub fn new(
-        store: Arc<dyn JobStore>,
+        store: Arc<dyn EventLog>,
         kinds: Vec<Box<dyn JobKind>>,
         config: EngineConfig,
     ) -> Result<Self, EngineError> {
         // Each job runs on a thread of its own and its parallel iterators use the global pool,
         // so jobs running side by side share its threads. Sized once per process: a second
         // engine in the same process (tests) finds it built and uses it as it is.
-        if let Err(e) = rayon::ThreadPoolBuilder::new()
-            .num_threads(config.workers.max(1))
-            .thread_name(|i| format!("landform-sim-{i}"))
-            .build_global()
-        {
-            tracing::debug!(error = %e, "the Rayon pool was already built");
-        }
+        build_pool(config.workers);
         let kinds = kinds.into_iter().map(|k| (k.name(), Arc::from(k))).collect();
         let metrics = Metrics::new();
         metrics.set_memory_budget(config.memory_budget);
@@ -241,6 +259,10 @@ impl Engine {
     /// At-least-once: whatever a previous process accepted and did not finish runs again,
     /// unless it has already been interrupted [`MAX_ATTEMPTS`] times.
     pub fn recover(&self) -> Result<(), EngineError> {
+        if !self.inner.config.runs_jobs {
+            // Workers take unfinished jobs over when their leases run out.
+            return Ok(());
+        }
         for mut job in self.inner.store.unfinished()? {
             if job.status == JobStatus::Running {
                 let attempts = self.inner.store.attempts(&job.id)?.unwrap_or(0);
@@ -299,6 +321,9 @@ impl Engine {
 
     /// Spawn the dispatcher that takes jobs off the queue as the budget allows.
     pub fn start(&self) {
+        if !self.inner.config.runs_jobs {
+            return;
+        }
         let engine = self.clone();
         tokio::spawn(async move { engine.dispatch_loop().await });
     }
@@ -366,14 +391,20 @@ impl Engine {
         self.inner.queue_notify.notify_one();
     }
 
-    /// Jobs queued or running for `owner`, and the memory their estimates reserve.
-    pub fn usage(&self, owner: Option<&str>) -> (u32, u64) {
-        self.inner
+    /// Jobs queued or running for `owner`, and the memory their estimates reserve: from this
+    /// process's own jobs when it runs them, else from the store (workers run them elsewhere).
+    pub async fn usage(&self, owner: Option<&str>) -> Result<(u32, u64), EngineError> {
+        if !self.inner.config.runs_jobs {
+            let owner = owner.map(str::to_string);
+            return self.blocking(move |s| s.active(owner.as_deref())).await;
+        }
+        Ok(self
+            .inner
             .live
             .lock()
             .values()
             .filter(|l| l.owner.as_deref() == owner)
-            .fold((0, 0), |(n, m), l| (n + 1, m.saturating_add(l.memory)))
+            .fold((0, 0), |(n, m), l| (n + 1, m.saturating_add(l.memory))))
     }
 
     /// Take a job off the queue if it is still there; true when it was.
@@ -389,7 +420,7 @@ impl Engine {
     /// Run blocking store work off the async threads.
     pub(super) async fn blocking<T: Send + 'static>(
         &self,
-        f: impl FnOnce(&dyn JobStore) -> Result<T, StoreError> + Send + 'static,
+        f: impl FnOnce(&dyn EventLog) -> Result<T, StoreError> + Send + 'static,
     ) -> Result<T, EngineError> {
         let store = self.inner.store.clone();
         tokio::task::spawn_blocking(move || f(store.as_ref()))
@@ -419,7 +450,7 @@ impl Engine {
             .map_err(|e| EngineError::Internal(e.to_string()))??;
         self.check_references(&prepared.references, owner.clone()).await?;
         let (cost, uploads) = self.estimate(kind, &prepared.params, prepared.references.uploads, owner.clone()).await?;
-        self.check_quota(who, &cost)?;
+        self.check_quota(who, &cost).await?;
         self.store_uploads(uploads).await?;
 
         let mut request = match prepared.params {
@@ -437,8 +468,8 @@ impl Engine {
     }
 
     /// A key's jobs at once: how many are queued or running, and the memory they reserve.
-    fn check_quota(&self, who: &Submitter, cost: &super::Cost) -> Result<(), EngineError> {
-        let (jobs, memory) = self.usage(who.owner.as_deref());
+    async fn check_quota(&self, who: &Submitter, cost: &super::Cost) -> Result<(), EngineError> {
+        let (jobs, memory) = self.usage(who.owner.as_deref()).await?;
         if let Some(max) = who.max_active_jobs {
             if jobs >= max {
                 return Err(EngineError::OverQuota(format!(
@@ -540,7 +571,7 @@ impl Engine {
             other => other,
         })?;
         let (cost, _) = self.estimate(&original.kind, &prepared.params, Vec::new(), original.owner.clone()).await?;
-        self.check_quota(who, &cost)?;
+        self.check_quota(who, &cost).await?;
         let replay_of = Some((id.to_string(), until_step));
         let mut job = new_job(&original.kind, original.label.clone(), original.request.clone(), replay_of);
         job.cost = Some(cost);
@@ -596,7 +627,13 @@ impl Engine {
 
     async fn admit(&self, job: Job, idempotency: Option<(String, String)>) -> Result<Submitted, EngineError> {
         let capacity = self.inner.config.queue_capacity;
-        let slot = self.reserve_slot();
+        // Where the job will wait: a place in this process's queue, or (`Some(None)`) the
+        // store's queue, which workers elsewhere claim from; `None` when it is full.
+        let slot = if self.inner.config.runs_jobs {
+            self.reserve_slot().map(Some)
+        } else {
+            self.store_has_room().await?.then_some(None)
+        };
         // An idempotent retry must still find its job when the queue is full.
         if slot.is_none() && idempotency.is_none() {
             return Err(EngineError::QueueFull(capacity));
@@ -612,10 +649,11 @@ impl Engine {
                 job.id
             ))),
             IdempotentInsert::Inserted => match slot {
-                Some(slot) => {
+                Some(Some(slot)) => {
                     self.enqueue_with(&job, Some(slot));
                     Ok(Submitted::Created(job))
                 }
+                Some(None) => Ok(Submitted::Created(job)),
                 None => {
                     let id = job.id.clone();
                     self.blocking(move |s| s.delete(&id)).await?;
@@ -641,8 +679,9 @@ impl Engine {
         let mut job =
             self.blocking(move |s| s.get(&sid)).await?.ok_or_else(|| EngineError::NotFound(id.to_string()))?;
         if job.status == JobStatus::Running {
-            if let Some(live) = self.live_job(id) {
-                job.progress = live.progress();
+            match self.live_job(id) {
+                Some(live) => job.progress = live.progress(),
+                None => self.stored_progress(&mut job).await,
             }
         }
         Ok(job.with_hrefs())
@@ -678,6 +717,9 @@ impl Engine {
             return Err(ended());
         }
         let Some(live) = self.live_job(id) else {
+            if !self.inner.config.runs_jobs {
+                return self.cancel_stored(job).await;
+            }
             // It ended between the two looks.
             return Err(ended());
         };
@@ -701,6 +743,10 @@ impl Engine {
             if self.dequeue(id) {
                 self.end(job, &live, Err(super::SimError::Cancelled), 0.0).await;
             }
+        } else if !job.status.is_terminal() {
+            // Its worker stops at its next renewal, finding the claim gone with the row.
+            let sid = id.to_string();
+            self.blocking(move |s| s.request_cancel(&sid)).await?;
         }
         let sid = id.to_string();
         if self.blocking(move |s| s.delete(&sid)).await? {
@@ -712,11 +758,14 @@ impl Engine {
 
     /// Wait up to `timeout` for the job to end; returns it either way.
     pub async fn wait(&self, id: &str, timeout: Duration) -> Result<Job, EngineError> {
-        if let Some(live) = self.live_job(id) {
-            let mut done = live.done_receiver();
-            let _ = tokio::time::timeout(timeout, done.wait_for(|d| *d)).await;
+        match self.live_job(id) {
+            Some(live) => {
+                let mut done = live.done_receiver();
+                let _ = tokio::time::timeout(timeout, done.wait_for(|d| *d)).await;
+                self.get_any(id).await
+            }
+            None => self.wait_stored(id, timeout).await,
         }
-        self.get_any(id).await
     }
 
     /// A job's event stream from after `last_event_id`: live events while it runs, or just the
@@ -737,6 +786,9 @@ impl Engine {
         if job.status.is_terminal() {
             return Ok(EventFeed::Ended(Box::new(job)));
         }
+        if !self.inner.config.runs_jobs {
+            return Ok(EventFeed::Stored { after: last_event_id.unwrap_or(0) });
+        }
         // Ended between the two looks: the store has its final state by now.
         match self.live_job(id).filter(mine) {
             Some(live) => {
@@ -747,16 +799,29 @@ impl Engine {
         }
     }
 
-    /// The latest live snapshot of a running job `owner` may see (from memory: no store read
-    /// on this often-polled path).
-    pub fn live_snapshot(&self, id: &str, owner: Option<&str>) -> Option<(u64, bytes::Bytes)> {
-        self.live_job(id).filter(|l| l.owner.as_deref() == owner).and_then(|l| l.snapshot())
+    /// The latest live snapshot of a running job `owner` may see: from memory when this
+    /// process runs it (no store read on this often-polled path), else from the store.
+    pub async fn live_snapshot(
+        &self,
+        id: &str,
+        owner: Option<&str>,
+    ) -> Result<Option<(u64, bytes::Bytes)>, EngineError> {
+        if self.inner.config.runs_jobs {
+            return Ok(self.live_job(id).filter(|l| l.owner.as_deref() == owner).and_then(|l| l.snapshot()));
+        }
+        self.stored_snapshot(id, owner).await
     }
 
     /// Prometheus text for `/metrics`.
     pub async fn metrics_text(&self) -> Result<String, EngineError> {
         let counts = self.blocking(|s| s.counts()).await?;
-        self.inner.metrics.set_queue_depth(self.queue_depth());
+        let depth = if self.inner.config.runs_jobs {
+            self.queue_depth()
+        } else {
+            // Jobs wait in the store for workers elsewhere.
+            counts.iter().filter(|(_, status, _)| *status == JobStatus::Queued).map(|(_, _, n)| *n as usize).sum()
+        };
+        self.inner.metrics.set_queue_depth(depth);
         Ok(self.inner.metrics.render(&self.kind_names(), &counts))
     }
 

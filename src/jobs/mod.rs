@@ -12,15 +12,17 @@ pub use kind::{
 mod engine;
 mod live;
 mod metrics;
+mod remote;
 mod runner;
 mod store_terrain;
 mod worker;
 
 pub use engine::{
-    default_memory_budget, Engine, EngineConfig, EngineError, EventFeed, Submitted, Submitter, DEFAULT_CONCURRENT_JOBS,
-    DEFAULT_JOB_TIMEOUT_S, DEFAULT_QUEUE_CAPACITY, MAX_ATTEMPTS,
+    build_pool, default_memory_budget, Engine, EngineConfig, EngineError, EventFeed, Submitted, Submitter,
+    DEFAULT_CONCURRENT_JOBS, DEFAULT_JOB_TIMEOUT_S, DEFAULT_QUEUE_CAPACITY, MAX_ATTEMPTS,
 };
 pub use live::{JobEvent, LiveJob, StopReason};
+pub use remote::STORE_POLL;
 pub use runner::{problem, PROBLEM_TYPE_BASE};
 pub use store_terrain::{StoreTerrain, HEIGHTFIELD_ARTIFACT};
 pub use worker::{Worker, WorkerConfig, MAX_LOST_LEASES};

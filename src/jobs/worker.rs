@@ -201,7 +201,6 @@ impl Worker {
 
         job.started_at = Some(Utc::now());
         job.progress = Progress { stage: "running".into(), ..Progress::default() };
-        running.append("status", &serde_json::json!({ "status": JobStatus::Running }));
 
         let heartbeat = tokio::spawn(heartbeat(self.inner.store.clone(), running.clone(), self.inner.config.lease));
         let timer_job = running.clone();
@@ -215,6 +214,8 @@ impl Worker {
         let (inner, run_job, sink) = (self.inner.clone(), job.clone(), running.clone());
         let spawned = std::thread::Builder::new().name(format!("landform-job-{}", short_id(&id))).spawn(move || {
             let out = std::panic::catch_unwind(AssertUnwindSafe(|| {
+                // Store calls block: they are made here, never on the async threads.
+                sink.append("status", &serde_json::json!({ "status": JobStatus::Running }));
                 let store: Arc<dyn crate::store::JobStore> = inner.store.clone();
                 compute(&inner.kinds, store, &inner.config.limits, &run_job, &sink.flag.cancel, sink.as_ref())
             }));

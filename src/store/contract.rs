@@ -291,6 +291,21 @@ pub fn claims_take_jobs_oldest_first_and_each_once(store: &dyn JobQueue) {
     assert!(store.claim("w1", LONG, NO_LIMIT).unwrap().is_none());
 }
 
+pub fn active_jobs_and_their_memory_count_per_owner(store: &dyn JobQueue) {
+    let mut mine = queued(store, 1, 100);
+    let mut theirs = job(2, "bulldoze", JobStatus::Queued);
+    theirs.owner = Some("bob".into());
+    theirs.cost = mine.cost.clone();
+    store.insert(&theirs, None).unwrap();
+    queued(store, 3, 20);
+    assert_eq!(store.active(None).unwrap(), (2, 120));
+    assert_eq!(store.active(Some("bob")).unwrap(), (1, 100));
+    assert_eq!(store.active(Some("carol")).unwrap(), (0, 0));
+    mine.status = JobStatus::Succeeded;
+    store.update(&mine).unwrap();
+    assert_eq!(store.active(None).unwrap(), (1, 20));
+}
+
 pub fn a_job_over_the_free_budget_waits_and_is_not_passed_over(store: &dyn JobQueue) {
     queued(store, 1, 100);
     queued(store, 2, 10);
@@ -392,6 +407,8 @@ pub fn events_get_growing_store_ids_and_resume_after_any_of_them(store: &dyn Eve
     assert_eq!(store.events_after(&a.job.id, ids[0], 100).unwrap(), all[1..]);
     assert_eq!(store.events_after(&a.job.id, ids[0], 1).unwrap(), all[1..2]);
     assert_eq!(store.events_after(&a.job.id, ids[2], 100).unwrap(), []);
+    assert_eq!(store.last_event(&a.job.id, "progress").unwrap().as_ref(), all.last());
+    assert_eq!(store.last_event(&a.job.id, "status").unwrap(), None);
 
     // The latest snapshot wins; a job's events and snapshot are pruned when it finishes.
     assert!(store.put_snapshot(&a.job.id, a.attempt, ids[0], b"png-0").unwrap());
@@ -453,6 +470,7 @@ macro_rules! store_contract_tests {
             attempts_count_each_entry_into_running,
             claims_take_jobs_oldest_first_and_each_once,
             a_job_over_the_free_budget_waits_and_is_not_passed_over,
+            active_jobs_and_their_memory_count_per_owner,
             an_expired_lease_is_taken_over_and_the_old_claims_writes_are_refused,
             a_renewed_lease_holds_and_a_released_job_is_claimed_again_at_once,
             workers_claiming_at_once_take_each_job_exactly_once,

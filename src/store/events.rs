@@ -25,6 +25,9 @@ pub trait EventLog: JobQueue {
     /// The job's events with ids above `after`, oldest first, at most `limit`.
     fn events_after(&self, job_id: &str, after: u64, limit: u32) -> Result<Vec<StoredEvent>, StoreError>;
 
+    /// The job's latest event of kind `event`, if it has one.
+    fn last_event(&self, job_id: &str, event: &str) -> Result<Option<StoredEvent>, StoreError>;
+
     /// Keep `png` as the job's latest live snapshot, announced by event `event_id`; false
     /// when the claim is no longer the job's.
     fn put_snapshot(&self, job_id: &str, attempt: u32, event_id: u64, png: &[u8]) -> Result<bool, StoreError>;

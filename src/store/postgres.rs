@@ -384,6 +384,19 @@ impl JobQueue for PostgresStore {
         Ok(n > 0)
     }
 
+    fn active(&self, owner: Option<&str>) -> Result<(u32, u64), StoreError> {
+        let row = self
+            .client()
+            .query_one(
+                "SELECT count(*), coalesce(sum(memory_bytes), 0)::bigint FROM jobs \
+                 WHERE owner IS NOT DISTINCT FROM $1 AND status IN ('queued', 'running')",
+                &[&owner],
+            )
+            .map_err(db)?;
+        let (n, memory): (i64, i64) = (row.try_get(0).map_err(db)?, row.try_get(1).map_err(db)?);
+        Ok((count("active jobs", "*", n)?, u64::try_from(memory).unwrap_or(0)))
+    }
+
     fn update_claimed(&self, job: &Job, attempt: u32) -> Result<bool, StoreError> {
         self.update_and_prune(JobRow::encode(job)?.fenced(attempt))
     }
@@ -421,6 +434,25 @@ impl EventLog for PostgresStore {
                 })
             })
             .collect()
+    }
+
+    fn last_event(&self, job_id: &str, event: &str) -> Result<Option<StoredEvent>, StoreError> {
+        let found = self
+            .client()
+            .query_opt(
+                "SELECT id, data FROM job_events WHERE job_id = $1 AND event = $2 ORDER BY id DESC LIMIT 1",
+                &[&job_id, &event],
+            )
+            .map_err(db)?;
+        found
+            .map(|r| {
+                Ok(StoredEvent {
+                    id: event_id(r.try_get(0).map_err(db)?)?,
+                    event: event.to_string(),
+                    data: r.try_get(1).map_err(db)?,
+                })
+            })
+            .transpose()
     }
 
     fn put_snapshot(&self, job_id: &str, attempt: u32, event: u64, png: &[u8]) -> Result<bool, StoreError> {

@@ -51,6 +51,10 @@ pub trait JobQueue: JobStore {
     /// claim is no longer the job's.
     fn release(&self, id: &str, attempt: u32) -> Result<bool, StoreError>;
 
+    /// Jobs queued or running for `owner` (None: jobs made without a key), and the memory
+    /// their estimates reserve: what a key's quotas count, whichever process runs them.
+    fn active(&self, owner: Option<&str>) -> Result<(u32, u64), StoreError>;
+
     /// `JobStore::update` under a claim; false (nothing written) when the claim is no longer
     /// the job's.
     fn update_claimed(&self, job: &Job, attempt: u32) -> Result<bool, StoreError>;

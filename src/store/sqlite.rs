@@ -598,6 +598,19 @@ impl JobQueue for SqliteStore {
         Ok(n > 0)
     }
 
+    fn active(&self, owner: Option<&str>) -> Result<(u32, u64), StoreError> {
+        let (n, memory): (i64, i64) = self
+            .reader()
+            .prepare_cached(
+                "SELECT count(*), coalesce(sum(memory_bytes), 0) FROM jobs \
+                 WHERE owner IS ?1 AND status IN ('queued', 'running')",
+            )
+            .map_err(db)?
+            .query_row([owner], |r| Ok((r.get(0)?, r.get(1)?)))
+            .map_err(db)?;
+        Ok((count("active jobs", "*", n)?, u64::try_from(memory).unwrap_or(0)))
+    }
+
     fn update_claimed(&self, job: &Job, attempt: u32) -> Result<bool, StoreError> {
         self.update_row(JobRow::encode(job)?.fenced(attempt))
     }
@@ -636,6 +649,17 @@ impl EventLog for SqliteStore {
             Ok(StoredEvent { id: event_id(id)?, event, data })
         })
         .collect()
+    }
+
+    fn last_event(&self, job_id: &str, event: &str) -> Result<Option<StoredEvent>, StoreError> {
+        let found: Option<(i64, String)> = self
+            .reader()
+            .prepare_cached("SELECT id, data FROM job_events WHERE job_id = ?1 AND event = ?2 ORDER BY id DESC LIMIT 1")
+            .map_err(db)?
+            .query_row([job_id, event], |r| Ok((r.get(0)?, r.get(1)?)))
+            .optional()
+            .map_err(db)?;
+        found.map(|(id, data)| Ok(StoredEvent { id: event_id(id)?, event: event.to_string(), data })).transpose()
     }
 
     fn put_snapshot(&self, job_id: &str, attempt: u32, event: u64, png: &[u8]) -> Result<bool, StoreError> {

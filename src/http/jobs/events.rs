@@ -12,7 +12,7 @@ use serde::Deserialize;
 use tokio::sync::broadcast::{error::RecvError, Receiver};
 
 use crate::http::{AppState, Caller, Problem};
-use crate::jobs::{EventFeed, JobEvent, LiveJob};
+use crate::jobs::{Engine, EventFeed, JobEvent, LiveJob, STORE_POLL};
 
 /// One server-sent event as a client's parser sees it.
 #[derive(utoipa::ToSchema)]
@@ -74,6 +74,57 @@ pub async fn job_events(
         }
         EventFeed::Live { backlog, rx, live } => {
             Sse::new(live_stream(backlog, rx, live, last.unwrap_or(0))).keep_alive(keep_alive).into_response()
+        }
+        EventFeed::Stored { after } => {
+            let owner = caller.owner().map(str::to_string);
+            Sse::new(stored_stream(state.engine.clone(), id, owner, after)).keep_alive(keep_alive).into_response()
+        }
+    })
+}
+
+/// A job running in another process, followed through the store: its events as they are
+/// appended (ids from the store, so a client may resume on any replica), then its final
+/// status and `done` once the job has ended. A job deleted meanwhile ends the stream.
+fn stored_stream(
+    engine: Engine,
+    id: String,
+    owner: Option<String>,
+    after: u64,
+) -> impl Stream<Item = Result<Event, Infallible>> {
+    let state = (engine, id, owner, after, VecDeque::<Event>::new(), false);
+    stream::unfold(state, |(engine, id, owner, mut last, mut pending, mut ended)| async move {
+        loop {
+            if let Some(ev) = pending.pop_front() {
+                return Some((Ok(ev), (engine, id, owner, last, pending, ended)));
+            }
+            if ended {
+                return None;
+            }
+            match engine.stored_events(&id, last).await {
+                Ok(events) if !events.is_empty() => {
+                    for e in events {
+                        last = e.id;
+                        pending.push_back(Event::default().id(e.id.to_string()).event(e.event).data(e.data));
+                    }
+                    continue;
+                }
+                Ok(_) => {}
+                Err(e) => {
+                    tracing::warn!(job = %id, error = %e, "could not read a job's events");
+                    return None;
+                }
+            }
+            match engine.get(&id, owner.as_deref()).await {
+                Ok(job) if job.status.is_terminal() => {
+                    let status = serde_json::json!({ "status": job.status }).to_string();
+                    let done = serde_json::to_string(&job).unwrap_or_default();
+                    pending.push_back(Event::default().id((last + 1).to_string()).event("status").data(status));
+                    pending.push_back(Event::default().id((last + 2).to_string()).event("done").data(done));
+                    ended = true;
+                }
+                Ok(_) => tokio::time::sleep(STORE_POLL).await,
+                Err(_) => return None,
+            }
         }
     })
 }

@@ -18,7 +18,7 @@ pub async fn live_png(
     Path(id): Path<String>,
     headers: HeaderMap,
 ) -> Result<Response, Problem> {
-    if let Some((_, png)) = state.engine.live_snapshot(&id, caller.owner()) {
+    if let Some((_, png)) = state.engine.live_snapshot(&id, caller.owner()).await? {
         return Ok(([(header::CONTENT_TYPE, "image/png"), (header::CACHE_CONTROL, "no-store")], png).into_response());
     }
     let job = state.engine.get(&id, caller.owner()).await?;

@@ -1,0 +1,101 @@
+//! The API's view of jobs that run in other processes (`--role api`, workers elsewhere): the
+//! queue's room, progress, events, waiting, cancelling and live snapshots, all read from the
+//! store, so every API replica answers the same for every job.
+
+use std::time::{Duration, Instant};
+
+use chrono::Utc;
+
+use super::engine::{Engine, EngineError};
+use super::runner::problem;
+use super::{Job, JobStatus, Progress};
+use crate::store::StoredEvent;
+
+/// How often a waiting request or an event stream looks at the store again.
+pub const STORE_POLL: Duration = Duration::from_millis(100);
+/// How long a cancel request waits for the job's worker to stop it.
+const CANCEL_WAIT: Duration = Duration::from_secs(5);
+
+impl Engine {
+    /// Whether the store's queue has room for one more job.
+    pub(super) async fn store_has_room(&self) -> Result<bool, EngineError> {
+        let counts = self.blocking(|s| s.counts()).await?;
+        let queued: u64 = counts.iter().filter(|(_, status, _)| *status == JobStatus::Queued).map(|(_, _, n)| n).sum();
+        Ok(queued < self.config().queue_capacity as u64)
+    }
+
+    /// A running job's progress: its latest progress event.
+    pub(super) async fn stored_progress(&self, job: &mut Job) {
+        let id = job.id.clone();
+        match self.blocking(move |s| s.last_event(&id, "progress")).await {
+            Ok(Some(event)) => {
+                if let Ok(progress) = serde_json::from_str::<Progress>(&event.data) {
+                    job.progress = progress;
+                }
+            }
+            Ok(None) => {}
+            Err(e) => tracing::warn!(job = %job.id, error = %e, "could not read a job's progress"),
+        }
+    }
+
+    /// A job's events after `after`, for a stream that follows it from this replica.
+    pub async fn stored_events(&self, id: &str, after: u64) -> Result<Vec<StoredEvent>, EngineError> {
+        let id = id.to_string();
+        self.blocking(move |s| s.events_after(&id, after, 256)).await
+    }
+
+    /// Wait up to `timeout` for a job running elsewhere to end; returns it either way.
+    pub(super) async fn wait_stored(&self, id: &str, timeout: Duration) -> Result<Job, EngineError> {
+        let started = Instant::now();
+        loop {
+            let job = self.get_any(id).await?;
+            if job.status.is_terminal() || started.elapsed() >= timeout {
+                return Ok(job);
+            }
+            tokio::time::sleep(STORE_POLL.min(timeout.saturating_sub(started.elapsed()))).await;
+        }
+    }
+
+    /// Cancel a job that runs (or waits) for a worker elsewhere: a queued job ends here, under
+    /// the fence of its attempt count so a worker claiming it at that moment wins or loses
+    /// cleanly; a running one is asked to stop, and its worker sees that at its next renewal.
+    pub(super) async fn cancel_stored(&self, mut job: Job) -> Result<Job, EngineError> {
+        let id = job.id.clone();
+        if job.status == JobStatus::Queued {
+            let sid = id.clone();
+            let attempts = self.blocking(move |s| s.attempts(&sid)).await?.unwrap_or(0);
+            job.status = JobStatus::Cancelled;
+            job.finished_at = Some(Utc::now());
+            job.error = Some(problem("cancelled", "Job cancelled", "the job was cancelled on request", 409));
+            job.progress.message = job.status.as_str().to_string();
+            let stored = job.clone();
+            if self.blocking(move |s| s.update_claimed(&stored, attempts)).await? {
+                return self.get_any(&id).await;
+            }
+            // A worker claimed it meanwhile: ask that worker to stop it.
+        }
+        let sid = id.clone();
+        if !self.blocking(move |s| s.request_cancel(&sid)).await? {
+            return Err(EngineError::Conflict(format!("job {id} has already ended")));
+        }
+        self.wait_stored(&id, CANCEL_WAIT).await
+    }
+
+    /// The latest live snapshot of a job running elsewhere, if `owner` may see it.
+    pub(super) async fn stored_snapshot(
+        &self,
+        id: &str,
+        owner: Option<&str>,
+    ) -> Result<Option<(u64, bytes::Bytes)>, EngineError> {
+        let job = match self.get(id, owner).await {
+            Ok(job) => job,
+            Err(EngineError::NotFound(_)) => return Ok(None),
+            Err(e) => return Err(e),
+        };
+        if job.status.is_terminal() {
+            return Ok(None);
+        }
+        let sid = id.to_string();
+        Ok(self.blocking(move |s| s.snapshot(&sid)).await?.map(|(n, png)| (n, bytes::Bytes::from(png))))
+    }
+}

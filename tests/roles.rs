@@ -1,0 +1,132 @@
+//! The service split across processes: API replicas (`serve --role api`) and workers
+//! (`landform worker`) on one database — the embedded SQLite file, and PostgreSQL when
+//! `LANDFORM_TEST_DATABASE_URL` names one. A job submitted to one replica is followed on
+//! another and makes the same bytes as in a single process.
+
+mod common;
+
+use std::process::{Child, Command, Stdio};
+
+use common::bodies::{slow_bulldoze, small_bulldoze};
+use common::server::{artifact_hashes, Options, TestServer};
+use common::sse::read_events;
+use serde_json::json;
+
+/// A `landform worker` process, killed when dropped.
+struct WorkerProcess(Child);
+
+impl WorkerProcess {
+    fn start(database: &str) -> Self {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_landform"))
+            .args(["worker", "--database", database, "--workers", "2", "--lease-secs", "3"])
+            .env("RUST_LOG", "warn")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("start a worker");
+        let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+        let mut line = String::new();
+        std::io::BufRead::read_line(&mut out, &mut line).expect("the worker's first line");
+        assert!(line.starts_with("worker "), "{line}");
+        std::thread::spawn(move || std::io::copy(&mut out, &mut std::io::sink()));
+        WorkerProcess(child)
+    }
+}
+
+impl Drop for WorkerProcess {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+async fn api_replica(database: &str, db_file: &std::path::Path) -> TestServer {
+    let options = Options {
+        database_url: Some(database.to_string()),
+        extra: vec!["--role".into(), "api".into()],
+        ..Options::default()
+    };
+    TestServer::start_on(db_file, &options).await
+}
+
+/// Two API replicas and two workers on `database`: jobs cross between them.
+async fn jobs_cross_replicas_and_workers(database: &str) {
+    let unused = std::path::Path::new("unused");
+    let _workers = [WorkerProcess::start(database), WorkerProcess::start(database)];
+    let (one, two) = (api_replica(database, unused).await, api_replica(database, unused).await);
+
+    // Submitted to one replica, followed to the end on the other, from its first event.
+    let job = one.submit("bulldoze", &small_bulldoze()).await;
+    let id = job["id"].as_str().unwrap().to_string();
+    let events = read_events(&two.client, &two.url(&format!("/v1/jobs/{id}/events")), None, 10_000).await;
+    let done = events.last().expect("events");
+    assert_eq!((done.event.as_str(), done.data["status"].as_str()), ("done", Some("succeeded")), "{events:?}");
+    let ids: Vec<u64> = events.iter().filter_map(|e| e.id).collect();
+    assert!(ids.windows(2).all(|w| w[0] < w[1]), "event ids grow: {ids:?}");
+
+    // Every replica lists and serves it the same, with the bytes one process makes.
+    let (_, from_one) = one.get_json(&format!("/v1/jobs/{id}")).await;
+    let (_, from_two) = two.get_json(&format!("/v1/jobs/{id}")).await;
+    assert_eq!(from_one, from_two);
+    let single = TestServer::start().await;
+    let alone = single.run("bulldoze", &small_bulldoze()).await;
+    assert_eq!(artifact_hashes(&from_two), artifact_hashes(&alone));
+    let glb = one.artifact(&id, "mesh.glb").await;
+    assert_eq!(glb, single.artifact(alone["id"].as_str().unwrap(), "mesh.glb").await);
+    let (_, page_one) = one.get_json("/v1/jobs?limit=10").await;
+    let (_, page_two) = two.get_json("/v1/jobs?limit=10").await;
+    assert_eq!(page_one["items"], page_two["items"]);
+
+    // A long job: progress from its worker reaches a stream on either replica, a client
+    // resuming with Last-Event-ID on the other replica misses nothing after it, and a cancel
+    // sent to either stops it.
+    let slow = one.submit("bulldoze", &slow_bulldoze()).await;
+    let slow_id = slow["id"].as_str().unwrap().to_string();
+    let first = read_events(&two.client, &two.url(&format!("/v1/jobs/{slow_id}/events")), None, 3).await;
+    assert!(first.iter().any(|e| e.event == "progress"), "{first:?}");
+    let seen = first.last().and_then(|e| e.id).unwrap();
+    let (status, cancelled) = two.post(&format!("/v1/jobs/{slow_id}/cancel"), &json!({})).await;
+    assert_eq!(status, 200, "{cancelled}");
+    let rest = read_events(&one.client, &one.url(&format!("/v1/jobs/{slow_id}/events")), Some(seen), 10_000).await;
+    assert!(rest.iter().filter_map(|e| e.id).all(|i| i > seen), "{rest:?}");
+    let end = rest.last().unwrap();
+    assert_eq!((end.event.as_str(), end.data["status"].as_str()), ("done", Some("cancelled")));
+
+    // Prefer: wait holds the answer on a replica that runs no job itself.
+    let res = two
+        .client
+        .post(two.url("/v1/jobs/bulldoze"))
+        .header("prefer", "wait=60")
+        .json(&small_bulldoze())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), 200);
+    let waited: serde_json::Value = res.json().await.unwrap();
+    assert_eq!(waited["status"], "succeeded", "{waited}");
+    assert_eq!(artifact_hashes(&waited), artifact_hashes(&alone));
+}
+
+#[tokio::test]
+async fn two_api_replicas_and_two_workers_share_one_sqlite_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("shared.db");
+    jobs_cross_replicas_and_workers(db.to_str().unwrap()).await;
+}
+
+#[tokio::test]
+async fn two_api_replicas_and_two_workers_share_one_postgres_database() {
+    let Some(base) = std::env::var("LANDFORM_TEST_DATABASE_URL").ok().filter(|u| !u.is_empty()) else { return };
+    let name = format!("r_{}", uuid::Uuid::now_v7().simple());
+    let sql = format!("CREATE SCHEMA {name}");
+    let admin_url = base.clone();
+    std::thread::spawn(move || postgres::Client::connect(&admin_url, postgres::NoTls).unwrap().batch_execute(&sql))
+        .join()
+        .unwrap()
+        .unwrap();
+    let sep = if base.contains('?') { '&' } else { '?' };
+    jobs_cross_replicas_and_workers(&format!("{base}{sep}options=-csearch_path%3D{name}")).await;
+    let sql = format!("DROP SCHEMA {name} CASCADE");
+    let _ = std::thread::spawn(move || postgres::Client::connect(&base, postgres::NoTls).unwrap().batch_execute(&sql))
+        .join();
+}
