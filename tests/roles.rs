@@ -5,55 +5,16 @@
 
 mod common;
 
-use std::process::{Child, Command, Stdio};
-
 use common::bodies::{slow_bulldoze, small_bulldoze};
-use common::server::{artifact_hashes, Options, TestServer};
+use common::processes::{api_replica, with_schema, WorkerProcess};
+use common::server::{artifact_hashes, TestServer};
 use common::sse::read_events;
 use serde_json::json;
 
-/// A `landform worker` process, killed when dropped.
-struct WorkerProcess(Child);
-
-impl WorkerProcess {
-    fn start(database: &str) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_landform"))
-            .args(["worker", "--database", database, "--workers", "2", "--lease-secs", "3"])
-            .env("RUST_LOG", "warn")
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("start a worker");
-        let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
-        let mut line = String::new();
-        std::io::BufRead::read_line(&mut out, &mut line).expect("the worker's first line");
-        assert!(line.starts_with("worker "), "{line}");
-        std::thread::spawn(move || std::io::copy(&mut out, &mut std::io::sink()));
-        WorkerProcess(child)
-    }
-}
-
-impl Drop for WorkerProcess {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-async fn api_replica(database: &str, db_file: &std::path::Path) -> TestServer {
-    let options = Options {
-        database_url: Some(database.to_string()),
-        extra: vec!["--role".into(), "api".into()],
-        ..Options::default()
-    };
-    TestServer::start_on(db_file, &options).await
-}
-
 /// Two API replicas and two workers on `database`: jobs cross between them.
 async fn jobs_cross_replicas_and_workers(database: &str) {
-    let unused = std::path::Path::new("unused");
-    let _workers = [WorkerProcess::start(database), WorkerProcess::start(database)];
-    let (one, two) = (api_replica(database, unused).await, api_replica(database, unused).await);
+    let _workers = [WorkerProcess::start(database, 3), WorkerProcess::start(database, 3)];
+    let (one, two) = (api_replica(database).await, api_replica(database).await);
 
     // Submitted to one replica, followed to the end on the other, from its first event.
     let job = one.submit("bulldoze", &small_bulldoze()).await;
@@ -116,17 +77,6 @@ async fn two_api_replicas_and_two_workers_share_one_sqlite_file() {
 
 #[tokio::test]
 async fn two_api_replicas_and_two_workers_share_one_postgres_database() {
-    let Some(base) = std::env::var("LANDFORM_TEST_DATABASE_URL").ok().filter(|u| !u.is_empty()) else { return };
-    let name = format!("r_{}", uuid::Uuid::now_v7().simple());
-    let sql = format!("CREATE SCHEMA {name}");
-    let admin_url = base.clone();
-    std::thread::spawn(move || postgres::Client::connect(&admin_url, postgres::NoTls).unwrap().batch_execute(&sql))
-        .join()
-        .unwrap()
-        .unwrap();
-    let sep = if base.contains('?') { '&' } else { '?' };
-    jobs_cross_replicas_and_workers(&format!("{base}{sep}options=-csearch_path%3D{name}")).await;
-    let sql = format!("DROP SCHEMA {name} CASCADE");
-    let _ = std::thread::spawn(move || postgres::Client::connect(&base, postgres::NoTls).unwrap().batch_execute(&sql))
-        .join();
+    let Some(schema) = with_schema() else { return };
+    jobs_cross_replicas_and_workers(&schema.url).await;
 }

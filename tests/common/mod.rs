@@ -3,5 +3,6 @@
 pub mod bodies;
 pub mod glb_topology;
 pub mod gltf_validator;
+pub mod processes;
 pub mod server;
 pub mod sse;

@@ -1,0 +1,83 @@
+//! The service as separate processes: workers (`landform worker`) and API replicas
+//! (`serve --role api`) on one database, and a PostgreSQL schema of their own.
+
+use std::process::{Child, Command, Stdio};
+
+use super::server::{Options, TestServer};
+
+/// A `landform worker` process, killed when dropped.
+pub struct WorkerProcess(pub Child);
+
+impl WorkerProcess {
+    /// A worker on `database` whose claims last `lease_secs`; returns once it has started.
+    pub fn start(database: &str, lease_secs: u64) -> Self {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_landform"))
+            .args(["worker", "--database", database, "--workers", "2", "--lease-secs", &lease_secs.to_string()])
+            .env("RUST_LOG", "warn")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("start a worker");
+        let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+        let mut line = String::new();
+        std::io::BufRead::read_line(&mut out, &mut line).expect("the worker's first line");
+        assert!(line.starts_with("worker "), "{line}");
+        std::thread::spawn(move || std::io::copy(&mut out, &mut std::io::sink()));
+        WorkerProcess(child)
+    }
+
+    /// Send a signal (`KILL`, `STOP`, `CONT`, `TERM`).
+    pub fn signal(&self, name: &str) {
+        let ok = Command::new("kill").args([&format!("-{name}"), &self.0.id().to_string()]).status().unwrap();
+        assert!(ok.success(), "kill -{name}");
+    }
+}
+
+impl Drop for WorkerProcess {
+    fn drop(&mut self) {
+        let _ = Command::new("kill").args(["-CONT", &self.0.id().to_string()]).status();
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// An API replica on `database` that runs no job itself.
+pub async fn api_replica(database: &str) -> TestServer {
+    let options = Options {
+        database_url: Some(database.to_string()),
+        extra: vec!["--role".into(), "api".into()],
+        ..Options::default()
+    };
+    TestServer::start_on(std::path::Path::new("unused"), &options).await
+}
+
+/// A fresh schema on `LANDFORM_TEST_DATABASE_URL`, dropped afterwards; None without the variable.
+pub struct Schema {
+    base: String,
+    name: String,
+    pub url: String,
+}
+
+pub fn with_schema() -> Option<Schema> {
+    let base = std::env::var("LANDFORM_TEST_DATABASE_URL").ok().filter(|u| !u.is_empty())?;
+    let name = format!("p_{}", uuid::Uuid::now_v7().simple());
+    run_sql(&base, format!("CREATE SCHEMA {name}"));
+    let sep = if base.contains('?') { '&' } else { '?' };
+    let url = format!("{base}{sep}options=-csearch_path%3D{name}");
+    Some(Schema { base, name, url })
+}
+
+impl Drop for Schema {
+    fn drop(&mut self) {
+        run_sql(&self.base, format!("DROP SCHEMA {} CASCADE", self.name));
+    }
+}
+
+/// The synchronous client runs a runtime of its own: on a thread of its own.
+fn run_sql(url: &str, sql: String) {
+    let url = url.to_string();
+    std::thread::spawn(move || postgres::Client::connect(&url, postgres::NoTls).unwrap().batch_execute(&sql))
+        .join()
+        .unwrap()
+        .unwrap();
+}

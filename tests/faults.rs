@@ -1,0 +1,133 @@
+//! Faults across processes, on the SQLite file and on PostgreSQL (when
+//! `LANDFORM_TEST_DATABASE_URL` names one): a worker SIGKILLed mid-job, a worker stalled
+//! (SIGSTOP) past its lease and resumed, an API replica SIGKILLed while clients stream from it.
+//! Nothing accepted is lost, and every job ends with the bytes an undisturbed run makes.
+
+mod common;
+
+use std::time::{Duration, Instant};
+
+use common::processes::{api_replica, with_schema, WorkerProcess};
+use common::server::{artifact_hashes, TestServer};
+use common::sse::read_events;
+use serde_json::{json, Value};
+
+/// Leases short enough that a takeover comes within a test's patience.
+const LEASE_SECS: u64 = 2;
+
+/// A bulldoze job of a few seconds that reports progress often: many mounds over the grid.
+fn seconds_long() -> Value {
+    let ops: Vec<Value> = (0..1500)
+        .map(|i| {
+            json!({"primitive": {"shape": {"mound": {
+                "center": {"x": 20 + (i * 37) % 220, "z": 20 + (i * 53) % 220},
+                "radius_m": 200, "height_m": 0.5
+            }}, "operator": "add"}})
+        })
+        .collect();
+    json!({"terrain": {"fractal": {"size": 257, "relief": 50.0, "seed": 9}}, "operations": ops})
+}
+
+/// The artifacts an undisturbed single process makes for `body`.
+async fn undisturbed(body: &Value) -> Vec<(String, String)> {
+    let single = TestServer::start().await;
+    artifact_hashes(&single.run("bulldoze", body).await)
+}
+
+async fn wait_running(api: &TestServer, id: &str) {
+    let started = Instant::now();
+    loop {
+        let (_, job) = api.get_json(&format!("/v1/jobs/{id}")).await;
+        if job["status"] == "running" {
+            return;
+        }
+        assert_eq!(job["status"], "queued", "{job}");
+        assert!(started.elapsed() < Duration::from_secs(60), "never started: {job}");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
+async fn a_killed_workers_job_finishes_on_another_worker(database: &str) {
+    let doomed = WorkerProcess::start(database, LEASE_SECS);
+    let api = api_replica(database).await;
+    let body = seconds_long();
+    let id = api.submit("bulldoze", &body).await["id"].as_str().unwrap().to_string();
+    wait_running(&api, &id).await;
+    doomed.signal("KILL");
+    let _other = WorkerProcess::start(database, LEASE_SECS);
+    let done = api.wait_done(&id).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    assert_eq!(artifact_hashes(&done), undisturbed(&body).await);
+}
+
+async fn a_stalled_workers_late_writes_are_refused(database: &str) {
+    let stalled = WorkerProcess::start(database, LEASE_SECS);
+    let api = api_replica(database).await;
+    let body = seconds_long();
+    let id = api.submit("bulldoze", &body).await["id"].as_str().unwrap().to_string();
+    wait_running(&api, &id).await;
+    stalled.signal("STOP");
+    let _other = WorkerProcess::start(database, LEASE_SECS);
+    let done = api.wait_done(&id).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    // The stalled worker wakes up holding a claim that is no longer the job's: whatever it
+    // still tries to write (progress, the outcome) is refused by the fence.
+    stalled.signal("CONT");
+    tokio::time::sleep(Duration::from_secs(LEASE_SECS + 2)).await;
+    let (_, after) = api.get_json(&format!("/v1/jobs/{id}")).await;
+    assert_eq!(after, done, "the job changed after the stalled worker resumed");
+    assert_eq!(artifact_hashes(&after), undisturbed(&body).await);
+}
+
+async fn clients_of_a_killed_api_resume_on_another_and_miss_nothing(database: &str) {
+    let _worker = WorkerProcess::start(database, LEASE_SECS);
+    let (doomed, other) = (api_replica(database).await, api_replica(database).await);
+    let id = doomed.submit("bulldoze", &seconds_long()).await["id"].as_str().unwrap().to_string();
+    let url = |api: &TestServer| api.url(&format!("/v1/jobs/{id}/events"));
+    let before = read_events(&doomed.client, &url(&doomed), None, 4).await;
+    let seen = before.last().and_then(|e| e.id).expect("an event id");
+    doomed.kill();
+    let after = read_events(&other.client, &url(&other), Some(seen), 100_000).await;
+    let done = after.last().expect("events after the reconnect");
+    assert_eq!((done.event.as_str(), done.data["status"].as_str()), ("done", Some("succeeded")), "{after:?}");
+    // The job's events carry consecutive ids: the stream went on exactly after the last one seen.
+    let ids: Vec<u64> = after.iter().map(|e| e.id.expect("id")).collect();
+    assert_eq!(ids, (seen + 1..seen + 1 + ids.len() as u64).collect::<Vec<_>>(), "{after:?}");
+    assert!(after.len() > 2, "the job was still running when the client came back: {after:?}");
+}
+
+#[tokio::test]
+async fn sqlite_a_killed_workers_job_finishes_on_another_worker() {
+    let dir = tempfile::tempdir().unwrap();
+    a_killed_workers_job_finishes_on_another_worker(dir.path().join("f.db").to_str().unwrap()).await;
+}
+
+#[tokio::test]
+async fn sqlite_a_stalled_workers_late_writes_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    a_stalled_workers_late_writes_are_refused(dir.path().join("f.db").to_str().unwrap()).await;
+}
+
+#[tokio::test]
+async fn sqlite_clients_of_a_killed_api_resume_on_another_and_miss_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    clients_of_a_killed_api_resume_on_another_and_miss_nothing(dir.path().join("f.db").to_str().unwrap()).await;
+}
+
+#[tokio::test]
+async fn postgres_a_killed_workers_job_finishes_on_another_worker() {
+    let Some(schema) = with_schema() else { return };
+    a_killed_workers_job_finishes_on_another_worker(&schema.url).await;
+}
+
+#[tokio::test]
+async fn postgres_a_stalled_workers_late_writes_are_refused() {
+    let Some(schema) = with_schema() else { return };
+    a_stalled_workers_late_writes_are_refused(&schema.url).await;
+}
+
+#[tokio::test]
+async fn postgres_clients_of_a_killed_api_resume_on_another_and_miss_nothing() {
+    let Some(schema) = with_schema() else { return };
+    clients_of_a_killed_api_resume_on_another_and_miss_nothing(&schema.url).await;
+}
