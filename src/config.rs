@@ -84,6 +84,31 @@ impl ServiceArgs {
         }
     }
 
+    /// The flags that give a `landform worker` child these settings.
+    pub fn worker_command_args(&self, worker: &WorkerArgs) -> Vec<String> {
+        let engine = self.engine_config();
+        let mut args: Vec<String> = [
+            ("--database", self.database_location()),
+            ("--workers", engine.workers.to_string()),
+            ("--queue-capacity", self.queue_capacity.to_string()),
+            ("--concurrent-jobs", self.concurrent_jobs.to_string()),
+            ("--memory-budget", engine.memory_budget.to_string()),
+            ("--job-timeout-secs", self.job_timeout_secs.to_string()),
+            ("--shutdown-deadline-secs", self.shutdown_deadline_secs.to_string()),
+            ("--max-grid-cells", self.max_grid_cells.to_string()),
+            ("--max-voxels", self.max_voxels.to_string()),
+            ("--max-operations", self.max_operations.to_string()),
+            ("--lease-secs", worker.lease_secs.to_string()),
+        ]
+        .into_iter()
+        .flat_map(|(flag, value)| [flag.to_string(), value])
+        .collect();
+        if let Some(name) = &worker.worker_name {
+            args.extend(["--worker-name".to_string(), name.clone()]);
+        }
+        args
+    }
+
     /// A worker's settings: the same budget, concurrency, time limit and caps as an engine's.
     pub fn worker_config(&self, worker: &WorkerArgs) -> WorkerConfig {
         let engine = self.engine_config();
@@ -102,7 +127,7 @@ impl ServiceArgs {
 /// Which parts of the service a process runs.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Role {
-    /// The HTTP API and the jobs, in this one process.
+    /// The HTTP API, and the jobs in a worker process it supervises.
     #[default]
     All,
     /// The HTTP API only: jobs wait in the store for workers (`landform worker`) to claim.
@@ -121,6 +146,10 @@ pub struct WorkerArgs {
     /// The name kept with this worker's claims (default `worker-PID`).
     #[arg(long, env = "LANDFORM_WORKER_NAME")]
     pub worker_name: Option<String>,
+    /// Give the jobs back and exit when standard input closes: `serve` holds it open for the
+    /// worker it supervises, so the worker never outlives it.
+    #[arg(long, hide = true)]
+    pub exit_with_parent: bool,
 }
 
 /// Default lease: a crashed worker's job is claimed again within about five seconds, and a

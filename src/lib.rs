@@ -17,5 +17,6 @@ pub mod model;
 pub mod sims;
 pub mod stop;
 pub mod store;
+pub mod supervisor;
 pub mod terrain;
 pub mod validate;

@@ -10,6 +10,7 @@ use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use landform::config::{HttpArgs, Role, ServiceArgs, WorkerArgs};
 use landform::jobs::{Engine, EngineConfig, EventFeed, JobStatus, Submitted, Worker};
+use landform::supervisor::Supervisor;
 
 #[derive(Parser)]
 #[command(name = "landform", version, about = "Terrain generation as a service")]
@@ -68,7 +69,7 @@ fn main() -> anyhow::Result<()> {
         Command::Serve { role: Role::Worker, service, worker: w, .. } | Command::Worker { service, worker: w } => {
             runtime()?.block_on(worker(service, w))
         }
-        Command::Serve { role, http, service, .. } => runtime()?.block_on(serve(http, service, role)),
+        Command::Serve { role, http, service, worker } => runtime()?.block_on(serve(http, service, role, worker)),
         Command::Run { request, out, kind, service } => runtime()?.block_on(run(request, out, kind, service)),
     }
 }
@@ -82,17 +83,24 @@ fn init_tracing(default: &str) {
     let _ = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).try_init();
 }
 
-fn engine(service: &ServiceArgs, role: Role) -> anyhow::Result<Engine> {
+/// An engine that runs jobs itself (`runs_jobs`, as `landform run` does), or one that leaves
+/// them in the store for workers.
+fn engine(service: &ServiceArgs, runs_jobs: bool) -> anyhow::Result<Engine> {
     let store = service.open_store()?;
-    let config = EngineConfig { runs_jobs: role == Role::All, ..service.engine_config() };
+    let config = EngineConfig { runs_jobs, ..service.engine_config() };
     Ok(Engine::new(store, landform::sims::registry(), config)?)
 }
 
-async fn serve(http: HttpArgs, service: ServiceArgs, role: Role) -> anyhow::Result<()> {
+async fn serve(http: HttpArgs, service: ServiceArgs, role: Role, worker_args: WorkerArgs) -> anyhow::Result<()> {
     init_tracing("info,tower_http=info");
     // Opening a store and recovering talk to it synchronously (PostgreSQL's client runs a
-    // runtime of its own): off the async threads.
-    let engine = tokio::task::block_in_place(|| engine(&service, role))?;
+    // runtime of its own): off the async threads. Workers run the jobs: with the role `all`
+    // one supervised child process, with `api` workers started on their own.
+    let engine = tokio::task::block_in_place(|| engine(&service, false))?;
+    let supervisor = match role {
+        Role::All => Some(Supervisor::spawn(service.worker_command_args(&worker_args))?),
+        Role::Api | Role::Worker => None,
+    };
     let http_config = http.http_config(engine.config().memory_budget)?;
     tokio::task::block_in_place(|| engine.recover())?;
     engine.start();
@@ -136,6 +144,9 @@ async fn serve(http: HttpArgs, service: ServiceArgs, role: Role) -> anyhow::Resu
     let drained = async {
         let _ = stopping_engine_rx.await;
         engine_handle.shutdown(std::time::Duration::from_secs(deadline_secs)).await;
+        if let Some(supervisor) = supervisor {
+            supervisor.stop().await;
+        }
     };
     let (served, ()) = tokio::join!(http, drained);
     served?;
@@ -163,11 +174,39 @@ async fn worker(service: ServiceArgs, args: WorkerArgs) -> anyhow::Result<()> {
         let worker = worker.clone();
         async move { worker.run().await }
     });
-    shutdown_signal().await;
-    tracing::info!("stopping: no more claims; running jobs may finish");
-    worker.shutdown(std::time::Duration::from_secs(service.shutdown_deadline_secs)).await;
+    let deadline = tokio::select! {
+        _ = shutdown_signal() => {
+            tracing::info!("stopping: no more claims; running jobs may finish");
+            std::time::Duration::from_secs(service.shutdown_deadline_secs)
+        }
+        _ = parent_gone(args.exit_with_parent) => {
+            tracing::warn!("the API process that started this worker is gone: giving the jobs back");
+            std::time::Duration::ZERO
+        }
+    };
+    worker.shutdown(deadline).await;
     running.abort();
-    Ok(())
+    // Everything is written (store calls are synchronous). Exit here rather than drop the
+    // store inside the runtime: the synchronous PostgreSQL client closes its connection with a
+    // runtime of its own, which may not start within this one.
+    std::process::exit(0)
+}
+
+/// Resolves when standard input closes (the supervising process has ended), if asked to
+/// watch it; never otherwise.
+async fn parent_gone(watch: bool) {
+    if !watch {
+        return std::future::pending().await;
+    }
+    // A thread of its own, never joined: a blocking task would hold the runtime's shutdown
+    // until the pipe closes, which is never while the parent waits for this process.
+    let (tx, rx) = tokio::sync::oneshot::channel::<()>();
+    std::thread::spawn(move || {
+        let mut buf = [0u8; 64];
+        while matches!(std::io::Read::read(&mut std::io::stdin(), &mut buf), Ok(n) if n > 0) {}
+        let _ = tx.send(());
+    });
+    let _ = rx.await;
 }
 
 const SHUTDOWN_GRACE: std::time::Duration = std::time::Duration::from_secs(5);
@@ -208,7 +247,7 @@ async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: 
     } else {
         None
     };
-    let engine = tokio::task::block_in_place(|| engine(&service, Role::All))?;
+    let engine = tokio::task::block_in_place(|| engine(&service, true))?;
     engine.start();
     let job = match engine.submit(&kind, body, None, &Default::default()).await {
         Ok(Submitted::Created(j) | Submitted::Existing(j)) => j,

@@ -7,8 +7,8 @@ mod common;
 
 use std::time::{Duration, Instant};
 
-use common::processes::{api_replica, with_schema, WorkerProcess};
-use common::server::{artifact_hashes, TestServer};
+use common::processes::{api_replica, children_of, kill_pid, with_schema, WorkerProcess};
+use common::server::{artifact_hashes, Options, TestServer};
 use common::sse::read_events;
 use serde_json::{json, Value};
 
@@ -130,4 +130,57 @@ async fn postgres_a_stalled_workers_late_writes_are_refused() {
 async fn postgres_clients_of_a_killed_api_resume_on_another_and_miss_nothing() {
     let Some(schema) = with_schema() else { return };
     clients_of_a_killed_api_resume_on_another_and_miss_nothing(&schema.url).await;
+}
+
+/// The embedded default: `serve` and the worker process it supervises, with short leases.
+async fn supervised(db: &std::path::Path) -> TestServer {
+    let options = Options { extra: vec!["--lease-secs".into(), LEASE_SECS.to_string()], ..Options::default() };
+    TestServer::start_on(db, &options).await
+}
+
+/// The worker the server supervises, once it has started.
+async fn worker_child(server: &TestServer) -> u32 {
+    let started = Instant::now();
+    loop {
+        if let Some(&pid) = children_of(server.pid()).first() {
+            return pid;
+        }
+        assert!(started.elapsed() < Duration::from_secs(30), "no worker process");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
+#[tokio::test]
+async fn sqlite_a_killed_worker_child_is_restarted_and_its_job_finishes_while_the_api_answers() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = supervised(&dir.path().join("s.db")).await;
+    let body = seconds_long();
+    let id = server.submit("bulldoze", &body).await["id"].as_str().unwrap().to_string();
+    wait_running(&server, &id).await;
+    let first = worker_child(&server).await;
+    kill_pid(first);
+    // The API never went away.
+    let (status, _) = server.get_json("/healthz").await;
+    assert_eq!(status, 200);
+    let done = server.wait_done(&id).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    assert_ne!(worker_child(&server).await, first, "a new worker process took over");
+    assert_eq!(artifact_hashes(&done), undisturbed(&body).await);
+}
+
+#[tokio::test]
+async fn sqlite_a_killed_process_group_restarted_finishes_the_job() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("s.db");
+    let server = supervised(&db).await;
+    let body = seconds_long();
+    let id = server.submit("bulldoze", &body).await["id"].as_str().unwrap().to_string();
+    wait_running(&server, &id).await;
+    let worker = worker_child(&server).await;
+    kill_pid(worker);
+    server.kill();
+    let again = supervised(&db).await;
+    let done = again.wait_done(&id).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    assert_eq!(artifact_hashes(&done), undisturbed(&body).await);
 }

@@ -199,6 +199,8 @@ pub(super) struct Inner {
     pub queue: Mutex<Queue>,
     pub queue_notify: Notify,
     pub live: Mutex<HashMap<String, Arc<LiveJob>>>,
+    /// Jobs that ended up to here are in the metrics (see `observe_stored`).
+    pub metrics_since: Mutex<chrono::DateTime<Utc>>,
     /// Set on shutdown: the dispatcher takes no more jobs.
     pub draining: std::sync::atomic::AtomicBool,
     pub metrics: Metrics,
@@ -249,6 +251,7 @@ impl Engine {
                 queue: Mutex::new(Queue::default()),
                 queue_notify: Notify::new(),
                 live: Mutex::new(HashMap::new()),
+                metrics_since: Mutex::new(Utc::now()),
                 draining: std::sync::atomic::AtomicBool::new(false),
                 metrics,
                 config,
@@ -818,6 +821,7 @@ impl Engine {
         let depth = if self.inner.config.runs_jobs {
             self.queue_depth()
         } else {
+            self.observe_stored().await?;
             // Jobs wait in the store for workers elsewhere.
             counts.iter().filter(|(_, status, _)| *status == JobStatus::Queued).map(|(_, _, n)| *n as usize).sum()
         };

@@ -81,6 +81,26 @@ impl Engine {
         self.wait_stored(&id, CANCEL_WAIT).await
     }
 
+    /// Count in this process's metrics what its workers did since the last look: each job that
+    /// ended (its run time and its wait in the queue), and the memory running jobs reserve.
+    pub(super) async fn observe_stored(&self) -> Result<(), EngineError> {
+        let since = *self.inner.metrics_since.lock();
+        let (ended, reserved) = self.blocking(move |s| Ok((s.ended_after(since, 10_000)?, s.reserved()?))).await?;
+        let metrics = &self.inner.metrics;
+        for job in &ended {
+            if let (Some(started), Some(finished)) = (job.started_at, job.finished_at) {
+                let run = (finished - started).to_std().unwrap_or_default().as_secs_f64();
+                metrics.observe_duration(&job.kind, job.status, run);
+                metrics.observe_queue_wait((started - job.created_at).to_std().unwrap_or_default().as_secs_f64());
+            }
+        }
+        if let Some(last) = ended.last().and_then(|j| j.finished_at) {
+            *self.inner.metrics_since.lock() = last;
+        }
+        metrics.set_memory_reserved(reserved);
+        Ok(())
+    }
+
     /// The latest live snapshot of a job running elsewhere, if `owner` may see it.
     pub(super) async fn stored_snapshot(
         &self,

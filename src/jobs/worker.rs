@@ -26,6 +26,11 @@ use crate::validate::Limits;
 /// instead of being claimed again.
 pub const MAX_LOST_LEASES: u32 = 3;
 
+/// How long an ended job's events stay for the streams still reading them, and how often a
+/// worker deletes the older ones: the event table holds about the running jobs only.
+const EVENTS_KEPT: chrono::TimeDelta = chrono::TimeDelta::seconds(60);
+const PRUNE_EVERY: Duration = Duration::from_secs(30);
+
 #[derive(Clone, Debug)]
 pub struct WorkerConfig {
     /// Who holds the claims (kept with the lease, for operators).
@@ -87,7 +92,15 @@ impl Worker {
     /// Claim and run jobs until `shutdown`.
     pub async fn run(&self) {
         let c = &self.inner.config;
+        let mut last_prune: Option<std::time::Instant> = None;
         while !self.inner.draining.load(Ordering::SeqCst) {
+            if last_prune.is_none_or(|at| at.elapsed() >= PRUNE_EVERY) {
+                last_prune = Some(std::time::Instant::now());
+                let cutoff = Utc::now() - EVENTS_KEPT;
+                if let Err(e) = self.blocking(move |s| s.prune_ended(cutoff)).await {
+                    tracing::warn!(error = %e, "could not prune the events of ended jobs");
+                }
+            }
             // A claim in flight counts as running, so shutdown waits for whatever it brings.
             let max_memory = {
                 let mut held = self.inner.held.lock();

@@ -88,7 +88,6 @@ async fn two_workers_run_every_job_once_and_record_its_artifacts() {
         assert_eq!(store.artifact(&j.id, "n.txt").unwrap().unwrap().1, n);
         // One claim each: nobody ran a job twice.
         assert_eq!(store.attempts(&j.id).unwrap(), Some(1));
-        assert_eq!(store.events_after(&j.id, 0, 100).unwrap(), [], "pruned once ended");
     }
     for w in &workers {
         w.shutdown(Duration::from_secs(1)).await;

@@ -301,9 +301,16 @@ pub fn active_jobs_and_their_memory_count_per_owner(store: &dyn JobQueue) {
     assert_eq!(store.active(None).unwrap(), (2, 120));
     assert_eq!(store.active(Some("bob")).unwrap(), (1, 100));
     assert_eq!(store.active(Some("carol")).unwrap(), (0, 0));
+    let c = store.claim("w", LONG, NO_LIMIT).unwrap().unwrap();
+    assert_eq!(store.reserved().unwrap(), 100, "the running job's estimate");
     mine.status = JobStatus::Succeeded;
-    store.update(&mine).unwrap();
+    mine.finished_at = Some(Utc.timestamp_opt(1_750_000_100, 0).unwrap());
+    assert!(store.update_claimed(&mine, c.attempt).unwrap());
     assert_eq!(store.active(None).unwrap(), (1, 20));
+    assert_eq!(store.reserved().unwrap(), 0);
+    let before = Utc.timestamp_opt(1_750_000_099, 0).unwrap();
+    assert_eq!(ids(&store.ended_after(before, 10).unwrap()), [mine.id.clone()]);
+    assert_eq!(store.ended_after(Utc.timestamp_opt(1_750_000_100, 0).unwrap(), 10).unwrap(), []);
 }
 
 pub fn a_job_over_the_free_budget_waits_and_is_not_passed_over(store: &dyn JobQueue) {
@@ -410,19 +417,26 @@ pub fn events_get_growing_store_ids_and_resume_after_any_of_them(store: &dyn Eve
     assert_eq!(store.last_event(&a.job.id, "progress").unwrap().as_ref(), all.last());
     assert_eq!(store.last_event(&a.job.id, "status").unwrap(), None);
 
-    // The latest snapshot wins; a job's events and snapshot are pruned when it finishes.
+    // The latest snapshot wins; a job's events and snapshot outlive its end (a stream still
+    // reads them) until the cleaner prunes jobs that ended before its cut-off.
     assert!(store.put_snapshot(&a.job.id, a.attempt, ids[0], b"png-0").unwrap());
     assert!(store.put_snapshot(&a.job.id, a.attempt, ids[2], b"png-2").unwrap());
     assert_eq!(store.snapshot(&a.job.id).unwrap(), Some((ids[2], b"png-2".to_vec())));
+    let ended = Utc.timestamp_opt(1_750_000_500, 0).unwrap();
     let mut done = a.job.clone();
     done.status = JobStatus::Succeeded;
+    done.finished_at = Some(ended);
     assert!(store.finish_claimed(&done, a.attempt, &artifacts()).unwrap());
-    assert_eq!(store.events_after(&a.job.id, 0, 100).unwrap(), []);
-    assert_eq!(store.snapshot(&a.job.id).unwrap(), None);
+    assert_eq!(store.events_after(&a.job.id, 0, 100).unwrap(), all);
     let mut failed = b.job.clone();
     failed.status = JobStatus::Failed;
+    failed.finished_at = Some(ended + chrono::Duration::seconds(60));
     assert!(store.update_claimed(&failed, b.attempt).unwrap());
-    assert_eq!(store.events_after(&b.job.id, 0, 100).unwrap(), []);
+    assert_eq!(store.prune_ended(ended).unwrap(), 0, "nothing ended before the cut-off");
+    assert_eq!(store.prune_ended(ended + chrono::Duration::seconds(1)).unwrap(), 4, "a's three events and snapshot");
+    assert_eq!(store.events_after(&a.job.id, 0, 100).unwrap(), []);
+    assert_eq!(store.snapshot(&a.job.id).unwrap(), None);
+    assert_eq!(store.events_after(&b.job.id, 0, 100).unwrap().len(), 3, "b ended later");
 }
 
 pub fn a_claim_that_lost_its_lease_appends_no_event_and_no_snapshot(store: &dyn EventLog) {

@@ -2,8 +2,9 @@
 //! job running on any worker: ids come from the store (one sequence for the whole database),
 //! not from a process's clock, so `Last-Event-ID` means the same on every replica. A worker
 //! appends under its claim (a worker whose lease ran out appends nothing), the latest live
-//! snapshot sits beside the events, and both are pruned when the job finishes: a finished job's
-//! stream is its `done`, read from the job itself.
+//! snapshot sits beside the events. A minute after a job has ended its events and snapshot are
+//! pruned by the workers' cleaner (a stream that was following it has read them by then; one
+//! opened after the end gets `done` at once), so the table holds about the running jobs only.
 
 use super::{JobQueue, StoreError};
 
@@ -34,6 +35,9 @@ pub trait EventLog: JobQueue {
 
     /// The job's latest live snapshot and the event that announced it.
     fn snapshot(&self, job_id: &str) -> Result<Option<(u64, Vec<u8>)>, StoreError>;
+
+    /// Delete the events and snapshots of jobs that ended before `ended_before`; how many rows.
+    fn prune_ended(&self, ended_before: chrono::DateTime<chrono::Utc>) -> Result<u64, StoreError>;
 }
 
 /// An id column read back as u64.

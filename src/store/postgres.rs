@@ -14,7 +14,7 @@ use postgres::{Client, GenericClient, IsolationLevel, NoTls, Row};
 use super::artifacts::{assemble, chunks, span};
 use super::events::{event_id, EventLog, StoredEvent};
 use super::queue::{count, lease_ms, Claim, JobQueue, Renewal};
-use super::row::{describe, JobRow, RawJob, JOB_COLUMNS};
+use super::row::{describe, timestamp, JobRow, RawJob, JOB_COLUMNS};
 use super::{ArtifactStore, IdempotentInsert, JobStore, ListFilter, StoreError, CHUNK_BYTES};
 use crate::export::Artifact;
 use crate::model::{ArtifactMeta, Job, JobStatus};
@@ -69,19 +69,6 @@ impl PostgresStore {
         Ok(Self { clients, next: AtomicUsize::new(0) })
     }
 
-    /// Save a job's row (pruning its events once it has ended); false when nothing was
-    /// written (no such job, or the row's fence is no longer the job's attempt).
-    fn update_and_prune(&self, row: JobRow<'_>) -> Result<bool, StoreError> {
-        let mut client = self.client();
-        let mut tx = client.transaction().map_err(db)?;
-        let written = update_row(&mut tx, &row)?;
-        if written && row.job.status.is_terminal() {
-            prune_events(&mut tx, &row.job.id)?;
-        }
-        tx.commit().map_err(db)?;
-        Ok(written)
-    }
-
     /// Save a finished job's row and its artifacts in one transaction; false when nothing
     /// was written (no such job, or the row's fence is no longer the job's attempt).
     fn finish_row(&self, row: JobRow<'_>, artifacts: &[Artifact]) -> Result<bool, StoreError> {
@@ -92,7 +79,6 @@ impl PostgresStore {
         if !update_row(&mut tx, &row)? {
             return Ok(false);
         }
-        prune_events(&mut tx, &job.id)?;
         // The job's chunks go with its artifact rows (ON DELETE CASCADE).
         tx.execute("DELETE FROM artifacts WHERE job_id = $1", &[&job.id]).map_err(db)?;
         let artifact = tx
@@ -216,13 +202,6 @@ fn insert_row(c: &mut impl GenericClient, row: &JobRow) -> Result<(), StoreError
         ],
     )
     .map_err(db)?;
-    Ok(())
-}
-
-/// A finished job's stream is its `done`: its events and snapshot are not needed any more.
-fn prune_events(c: &mut impl GenericClient, job_id: &str) -> Result<(), StoreError> {
-    c.execute("DELETE FROM job_events WHERE job_id = $1", &[&job_id]).map_err(db)?;
-    c.execute("DELETE FROM job_snapshots WHERE job_id = $1", &[&job_id]).map_err(db)?;
     Ok(())
 }
 
@@ -397,8 +376,24 @@ impl JobQueue for PostgresStore {
         Ok((count("active jobs", "*", n)?, u64::try_from(memory).unwrap_or(0)))
     }
 
+    fn reserved(&self) -> Result<u64, StoreError> {
+        let row = self
+            .client()
+            .query_one("SELECT coalesce(sum(memory_bytes), 0)::bigint FROM jobs WHERE status = 'running'", &[])
+            .map_err(db)?;
+        Ok(u64::try_from(row.try_get::<_, i64>(0).map_err(db)?).unwrap_or(0))
+    }
+
+    fn ended_after(&self, after: chrono::DateTime<chrono::Utc>, limit: u32) -> Result<Vec<Job>, StoreError> {
+        let sql = format!(
+            "SELECT {JOB_COLUMNS} FROM jobs WHERE finished_at > $1 AND status IN ('succeeded', 'failed', 'cancelled') \
+             ORDER BY finished_at LIMIT $2"
+        );
+        load_jobs(&mut *self.client(), &sql, &[&timestamp(&after), &i64::from(limit)])
+    }
+
     fn update_claimed(&self, job: &Job, attempt: u32) -> Result<bool, StoreError> {
-        self.update_and_prune(JobRow::encode(job)?.fenced(attempt))
+        update_row(&mut *self.client(), &JobRow::encode(job)?.fenced(attempt))
     }
 
     fn finish_claimed(&self, job: &Job, attempt: u32, artifacts: &[Artifact]) -> Result<bool, StoreError> {
@@ -463,6 +458,20 @@ impl EventLog for PostgresStore {
         let event = i64::try_from(event).unwrap_or(i64::MAX);
         let n = self.client().execute(&sql, &[&job_id, &event, &png, &i64::from(attempt)]).map_err(db)?;
         Ok(n > 0)
+    }
+
+    fn prune_ended(&self, ended_before: chrono::DateTime<chrono::Utc>) -> Result<u64, StoreError> {
+        let before = timestamp(&ended_before);
+        let mut client = self.client();
+        let mut n = 0;
+        for table in ["job_events", "job_snapshots"] {
+            let sql = format!(
+                "DELETE FROM {table} t WHERE EXISTS (SELECT 1 FROM jobs j WHERE j.id = t.job_id \
+                 AND j.status IN ('succeeded', 'failed', 'cancelled') AND j.finished_at < $1)"
+            );
+            n += client.execute(&sql, &[&before]).map_err(db)?;
+        }
+        Ok(n)
     }
 
     fn snapshot(&self, job_id: &str) -> Result<Option<(u64, Vec<u8>)>, StoreError> {
@@ -539,7 +548,7 @@ impl JobStore for PostgresStore {
 
     /// A job that no longer exists (deleted while it ran) is left deleted.
     fn update(&self, job: &Job) -> Result<(), StoreError> {
-        self.update_and_prune(JobRow::encode(job)?).map(|_| ())
+        update_row(&mut *self.client(), &JobRow::encode(job)?).map(|_| ())
     }
 
     /// Replaces any artifacts the job had. A job deleted meanwhile is left deleted.

@@ -55,6 +55,13 @@ pub trait JobQueue: JobStore {
     /// their estimates reserve: what a key's quotas count, whichever process runs them.
     fn active(&self, owner: Option<&str>) -> Result<(u32, u64), StoreError>;
 
+    /// The memory the estimates of all running jobs reserve.
+    fn reserved(&self) -> Result<u64, StoreError>;
+
+    /// Jobs that ended after `after` (oldest end first, at most `limit`): what a process's
+    /// metrics have not yet counted of the jobs its workers ran.
+    fn ended_after(&self, after: chrono::DateTime<chrono::Utc>, limit: u32) -> Result<Vec<Job>, StoreError>;
+
     /// `JobStore::update` under a claim; false (nothing written) when the claim is no longer
     /// the job's.
     fn update_claimed(&self, job: &Job, attempt: u32) -> Result<bool, StoreError>;

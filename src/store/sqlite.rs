@@ -17,7 +17,7 @@ use rusqlite::{params, Connection, OpenFlags, OptionalExtension, Row, Transactio
 use super::artifacts::{assemble, chunks, span};
 use super::events::{event_id, EventLog, StoredEvent};
 use super::queue::{count, lease_ms, Claim, JobQueue, Renewal};
-use super::row::{describe, JobRow, RawJob, JOB_COLUMNS};
+use super::row::{describe, timestamp, JobRow, RawJob, JOB_COLUMNS};
 use super::{ArtifactStore, IdempotentInsert, JobStore, ListFilter, StoreError, CHUNK_BYTES};
 use crate::export::Artifact;
 use crate::model::{ArtifactMeta, Job, JobStatus};
@@ -187,17 +187,10 @@ impl SqliteStore {
             .transpose()
     }
 
-    /// Save a job's row (pruning its events once it has ended); false when nothing was
-    /// written (no such job, or the row's fence is no longer the job's attempt).
+    /// Save a job's row; false when nothing was written (no such job, or the row's fence is
+    /// no longer the job's attempt).
     fn update_row(&self, row: JobRow<'_>) -> Result<bool, StoreError> {
-        let mut conn = self.writer.lock();
-        let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate).map_err(db)?;
-        let written = row.update(&tx).map_err(db)?;
-        if written && row.job.status.is_terminal() {
-            prune_events(&tx, &row.job.id)?;
-        }
-        tx.commit().map_err(db)?;
-        Ok(written)
+        row.update(&self.writer.lock()).map_err(db)
     }
 
     /// Save a finished job's row and its artifacts in one transaction; false when nothing
@@ -210,7 +203,6 @@ impl SqliteStore {
         if !row.update(&tx).map_err(db)? {
             return Ok(false);
         }
-        prune_events(&tx, &job.id)?;
         // The job's chunks go with its artifact rows (ON DELETE CASCADE).
         tx.prepare_cached("DELETE FROM artifacts WHERE job_id = ?1").map_err(db)?.execute([&job.id]).map_err(db)?;
         {
@@ -287,14 +279,6 @@ fn migrate(conn: &mut Connection) -> Result<(), StoreError> {
         tx.pragma_update(None, "user_version", SCHEMA_VERSION).map_err(db)?;
     }
     tx.commit().map_err(db)
-}
-
-/// A finished job's stream is its `done`: its events and snapshot are not needed any more.
-fn prune_events(conn: &Connection, job_id: &str) -> Result<(), StoreError> {
-    for sql in ["DELETE FROM job_events WHERE job_id = ?1", "DELETE FROM job_snapshots WHERE job_id = ?1"] {
-        conn.prepare_cached(sql).map_err(db)?.execute([job_id]).map_err(db)?;
-    }
-    Ok(())
 }
 
 fn open_error(path: &str, e: rusqlite::Error) -> StoreError {
@@ -611,6 +595,22 @@ impl JobQueue for SqliteStore {
         Ok((count("active jobs", "*", n)?, u64::try_from(memory).unwrap_or(0)))
     }
 
+    fn reserved(&self) -> Result<u64, StoreError> {
+        let n: i64 = self
+            .reader()
+            .query_row("SELECT coalesce(sum(memory_bytes), 0) FROM jobs WHERE status = 'running'", [], |r| r.get(0))
+            .map_err(db)?;
+        Ok(u64::try_from(n).unwrap_or(0))
+    }
+
+    fn ended_after(&self, after: chrono::DateTime<Utc>, limit: u32) -> Result<Vec<Job>, StoreError> {
+        let sql = format!(
+            "SELECT {JOB_COLUMNS} FROM jobs WHERE finished_at > ?1 AND status IN ('succeeded', 'failed', 'cancelled') \
+             ORDER BY finished_at LIMIT ?2"
+        );
+        read_snapshot(&mut self.reader(), |c| load_jobs(c, &sql, params![timestamp(&after), limit]))
+    }
+
     fn update_claimed(&self, job: &Job, attempt: u32) -> Result<bool, StoreError> {
         self.update_row(JobRow::encode(job)?.fenced(attempt))
     }
@@ -619,6 +619,9 @@ impl JobQueue for SqliteStore {
         self.finish_row(JobRow::encode(job)?.fenced(attempt), artifacts)
     }
 }
+
+/// Jobs that ended before the time ?1, whose events may go.
+const ENDED_BEFORE: &str = "status IN ('succeeded', 'failed', 'cancelled') AND finished_at < ?1";
 
 /// Appends and snapshots under a claim: only while the claim is still the job's.
 const HELD: &str = "EXISTS (SELECT 1 FROM jobs WHERE id = ?1 AND attempts = ?4 AND status = 'running')";
@@ -671,6 +674,17 @@ impl EventLog for SqliteStore {
         let event = i64::try_from(event).unwrap_or(i64::MAX);
         let n = self.writer.lock().execute(&sql, params![job_id, event, png, attempt]).map_err(db)?;
         Ok(n > 0)
+    }
+
+    fn prune_ended(&self, ended_before: chrono::DateTime<Utc>) -> Result<u64, StoreError> {
+        let before = timestamp(&ended_before);
+        let conn = self.writer.lock();
+        let mut n = 0;
+        for table in ["job_events", "job_snapshots"] {
+            let sql = format!("DELETE FROM {table} WHERE job_id IN (SELECT id FROM jobs WHERE {ENDED_BEFORE})");
+            n += conn.execute(&sql, [&before]).map_err(db)? as u64;
+        }
+        Ok(n)
     }
 
     fn snapshot(&self, job_id: &str) -> Result<Option<(u64, Vec<u8>)>, StoreError> {

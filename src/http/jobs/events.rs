@@ -116,6 +116,13 @@ fn stored_stream(
             }
             match engine.get(&id, owner.as_deref()).await {
                 Ok(job) if job.status.is_terminal() => {
+                    // Events appended between the last read and the end are still there.
+                    if let Ok(events) = engine.stored_events(&id, last).await {
+                        for e in events {
+                            last = e.id;
+                            pending.push_back(Event::default().id(e.id.to_string()).event(e.event).data(e.data));
+                        }
+                    }
                     let status = serde_json::json!({ "status": job.status }).to_string();
                     let done = serde_json::to_string(&job).unwrap_or_default();
                     pending.push_back(Event::default().id((last + 1).to_string()).event("status").data(status));
