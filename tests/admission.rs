@@ -6,21 +6,9 @@ mod common;
 
 use std::time::{Duration, Instant};
 
+use common::bodies::seconds_bulldoze;
 use common::server::{Options, TestServer};
 use serde_json::{json, Value};
-
-/// A bulldoze job of a few seconds on a small grid: many mounds, each over the whole grid.
-fn small_slow(seed: u64) -> Value {
-    let ops: Vec<Value> = (0..1500)
-        .map(|i| {
-            json!({"primitive": {"shape": {"mound": {
-                "center": {"x": 20 + (i * 37) % 220, "z": 20 + (i * 53) % 220},
-                "radius_m": 200, "height_m": 0.5
-            }}, "operator": "add"}})
-        })
-        .collect();
-    json!({"terrain": {"fractal": {"size": 257, "relief": 50.0, "seed": seed}}, "operations": ops})
-}
 
 /// A larger job: one mound on a 513² grid (its exports need about three small jobs' memory).
 fn large() -> Value {
@@ -48,7 +36,7 @@ async fn statuses(server: &TestServer, ids: &[String]) -> Vec<String> {
 #[tokio::test]
 async fn four_small_jobs_run_at_once_while_a_large_one_waits() {
     let probe = TestServer::start().await;
-    let small = estimate(&probe, &small_slow(1)).await;
+    let small = estimate(&probe, &seconds_bulldoze(1)).await;
     let big = estimate(&probe, &large()).await;
     drop(probe);
     assert!(big > 2 * small && big < 4 * small, "small {small}, large {big}: pick other sizes");
@@ -61,7 +49,7 @@ async fn four_small_jobs_run_at_once_while_a_large_one_waits() {
 
     let mut smalls = Vec::new();
     for seed in 0..4 {
-        smalls.push(server.submit("bulldoze", &small_slow(seed)).await["id"].as_str().unwrap().to_string());
+        smalls.push(server.submit("bulldoze", &seconds_bulldoze(seed)).await["id"].as_str().unwrap().to_string());
     }
     let large_id = server.submit("bulldoze", &large()).await["id"].as_str().unwrap().to_string();
     let started = Instant::now();

@@ -7,26 +7,14 @@ mod common;
 
 use std::time::{Duration, Instant};
 
+use common::bodies::seconds_bulldoze;
 use common::processes::{api_replica, children_of, kill_pid, with_schema, WorkerProcess};
 use common::server::{artifact_hashes, Options, TestServer};
 use common::sse::read_events;
-use serde_json::{json, Value};
+use serde_json::Value;
 
 /// Leases short enough that a takeover comes within a test's patience.
 const LEASE_SECS: u64 = 2;
-
-/// A bulldoze job of a few seconds that reports progress often: many mounds over the grid.
-fn seconds_long() -> Value {
-    let ops: Vec<Value> = (0..1500)
-        .map(|i| {
-            json!({"primitive": {"shape": {"mound": {
-                "center": {"x": 20 + (i * 37) % 220, "z": 20 + (i * 53) % 220},
-                "radius_m": 200, "height_m": 0.5
-            }}, "operator": "add"}})
-        })
-        .collect();
-    json!({"terrain": {"fractal": {"size": 257, "relief": 50.0, "seed": 9}}, "operations": ops})
-}
 
 /// The artifacts an undisturbed single process makes for `body`.
 async fn undisturbed(body: &Value) -> Vec<(String, String)> {
@@ -50,7 +38,7 @@ async fn wait_running(api: &TestServer, id: &str) {
 async fn a_killed_workers_job_finishes_on_another_worker(database: &str) {
     let doomed = WorkerProcess::start(database, LEASE_SECS);
     let api = api_replica(database).await;
-    let body = seconds_long();
+    let body = seconds_bulldoze(9);
     let id = api.submit("bulldoze", &body).await["id"].as_str().unwrap().to_string();
     wait_running(&api, &id).await;
     doomed.signal("KILL");
@@ -63,7 +51,7 @@ async fn a_killed_workers_job_finishes_on_another_worker(database: &str) {
 async fn a_stalled_workers_late_writes_are_refused(database: &str) {
     let stalled = WorkerProcess::start(database, LEASE_SECS);
     let api = api_replica(database).await;
-    let body = seconds_long();
+    let body = seconds_bulldoze(9);
     let id = api.submit("bulldoze", &body).await["id"].as_str().unwrap().to_string();
     wait_running(&api, &id).await;
     stalled.signal("STOP");
@@ -82,7 +70,7 @@ async fn a_stalled_workers_late_writes_are_refused(database: &str) {
 async fn clients_of_a_killed_api_resume_on_another_and_miss_nothing(database: &str) {
     let _worker = WorkerProcess::start(database, LEASE_SECS);
     let (doomed, other) = (api_replica(database).await, api_replica(database).await);
-    let id = doomed.submit("bulldoze", &seconds_long()).await["id"].as_str().unwrap().to_string();
+    let id = doomed.submit("bulldoze", &seconds_bulldoze(9)).await["id"].as_str().unwrap().to_string();
     let url = |api: &TestServer| api.url(&format!("/v1/jobs/{id}/events"));
     let before = read_events(&doomed.client, &url(&doomed), None, 4).await;
     let seen = before.last().and_then(|e| e.id).expect("an event id");
@@ -154,7 +142,7 @@ async fn worker_child(server: &TestServer) -> u32 {
 async fn sqlite_a_killed_worker_child_is_restarted_and_its_job_finishes_while_the_api_answers() {
     let dir = tempfile::tempdir().unwrap();
     let server = supervised(&dir.path().join("s.db")).await;
-    let body = seconds_long();
+    let body = seconds_bulldoze(9);
     let id = server.submit("bulldoze", &body).await["id"].as_str().unwrap().to_string();
     wait_running(&server, &id).await;
     let first = worker_child(&server).await;
@@ -173,7 +161,7 @@ async fn sqlite_a_killed_process_group_restarted_finishes_the_job() {
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("s.db");
     let server = supervised(&db).await;
-    let body = seconds_long();
+    let body = seconds_bulldoze(9);
     let id = server.submit("bulldoze", &body).await["id"].as_str().unwrap().to_string();
     wait_running(&server, &id).await;
     let worker = worker_child(&server).await;

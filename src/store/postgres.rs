@@ -232,16 +232,16 @@ fn update_row(c: &mut impl GenericClient, row: &JobRow) -> Result<bool, StoreErr
     Ok(n > 0)
 }
 
+/// One read-only snapshot for an artifact's row and chunks: a job finished again meanwhile
+/// can't mix its old and new chunks.
+fn chunk_snapshot(client: &mut Client) -> Result<postgres::Transaction<'_>, StoreError> {
+    client.build_transaction().read_only(true).isolation_level(IsolationLevel::RepeatableRead).start().map_err(db)
+}
+
 impl ArtifactStore for PostgresStore {
     fn read_artifact(&self, id: &str, name: &str, offset: u64, len: usize) -> Result<Option<Vec<u8>>, StoreError> {
         let mut client = self.client();
-        // One snapshot: a job finished again meanwhile can't mix its old and new chunks.
-        let mut tx = client
-            .build_transaction()
-            .read_only(true)
-            .isolation_level(IsolationLevel::RepeatableRead)
-            .start()
-            .map_err(db)?;
+        let mut tx = chunk_snapshot(&mut client)?;
         let found = tx
             .query_opt("SELECT bytes, chunk_bytes FROM artifacts WHERE job_id = $1 AND name = $2", &[&id, &name])
             .map_err(db)?;
@@ -264,12 +264,7 @@ impl ArtifactStore for PostgresStore {
 
     fn artifact(&self, id: &str, name: &str) -> Result<Option<(String, Vec<u8>)>, StoreError> {
         let mut client = self.client();
-        let mut tx = client
-            .build_transaction()
-            .read_only(true)
-            .isolation_level(IsolationLevel::RepeatableRead)
-            .start()
-            .map_err(db)?;
+        let mut tx = chunk_snapshot(&mut client)?;
         let found = tx
             .query_opt("SELECT media_type, bytes FROM artifacts WHERE job_id = $1 AND name = $2", &[&id, &name])
             .map_err(db)?;

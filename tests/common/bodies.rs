@@ -59,3 +59,17 @@ pub fn slow_bulldoze() -> Value {
         .collect();
     json!({"terrain": {"fractal": {"size": 1025, "relief": 50.0, "octaves": 4}}, "operations": ops})
 }
+
+/// A bulldoze job of a few seconds on a small grid that reports progress often: many mounds,
+/// each over the whole grid.
+pub fn seconds_bulldoze(seed: u64) -> Value {
+    let ops: Vec<Value> = (0..1500)
+        .map(|i| {
+            json!({"primitive": {"shape": {"mound": {
+                "center": {"x": 20 + (i * 37) % 220, "z": 20 + (i * 53) % 220},
+                "radius_m": 200, "height_m": 0.5
+            }}, "operator": "add"}})
+        })
+        .collect();
+    json!({"terrain": {"fractal": {"size": 257, "relief": 50.0, "seed": seed}}, "operations": ops})
+}
