@@ -22,7 +22,7 @@ pub use engine::{
     DEFAULT_CONCURRENT_JOBS, DEFAULT_JOB_TIMEOUT_S, DEFAULT_QUEUE_CAPACITY, MAX_ATTEMPTS,
 };
 pub use live::{JobEvent, LiveJob, StopReason};
-pub use remote::STORE_POLL;
+pub use remote::{until_changed, STORE_POLL};
 pub use runner::{problem, PROBLEM_TYPE_BASE};
 pub use store_terrain::{StoreTerrain, HEIGHTFIELD_ARTIFACT};
 pub use worker::{Worker, WorkerConfig, MAX_LOST_LEASES};

@@ -5,14 +5,36 @@
 use std::time::{Duration, Instant};
 
 use chrono::Utc;
+use tokio::sync::broadcast;
 
 use super::engine::{Engine, EngineError};
 use super::runner::problem;
 use super::{Job, JobStatus, Progress};
-use crate::store::StoredEvent;
+use crate::store::{Notice, StoredEvent};
 
-/// How often a waiting request or an event stream looks at the store again.
+/// How often a waiting request or an event stream looks at the store again when the store
+/// sends no notices (SQLite).
 pub const STORE_POLL: Duration = Duration::from_millis(100);
+/// With notices (PostgreSQL), how often it looks all the same, in case one was missed.
+pub const NOTICE_FALLBACK: Duration = Duration::from_secs(1);
+
+/// Wait until job `id` may have changed: a notice for it or a reconnect of the listener, or
+/// the fallback look; without notices, one poll interval.
+pub async fn until_changed(id: &str, notices: &mut Option<broadcast::Receiver<Notice>>) {
+    let Some(rx) = notices else {
+        return tokio::time::sleep(STORE_POLL).await;
+    };
+    let heard = async {
+        loop {
+            match rx.recv().await {
+                Ok(Notice::Changed(job) | Notice::Queued(job)) if job != id => continue,
+                Ok(_) | Err(broadcast::error::RecvError::Lagged(_)) => return,
+                Err(broadcast::error::RecvError::Closed) => return std::future::pending().await,
+            }
+        }
+    };
+    let _ = tokio::time::timeout(NOTICE_FALLBACK, heard).await;
+}
 /// How long a cancel request waits for the job's worker to stop it.
 const CANCEL_WAIT: Duration = Duration::from_secs(5);
 
@@ -47,13 +69,20 @@ impl Engine {
     /// Wait up to `timeout` for a job running elsewhere to end; returns it either way.
     pub(super) async fn wait_stored(&self, id: &str, timeout: Duration) -> Result<Job, EngineError> {
         let started = Instant::now();
+        let mut notices = self.notices();
         loop {
             let job = self.get_any(id).await?;
-            if job.status.is_terminal() || started.elapsed() >= timeout {
+            let left = timeout.saturating_sub(started.elapsed());
+            if job.status.is_terminal() || left.is_zero() {
                 return Ok(job);
             }
-            tokio::time::sleep(STORE_POLL.min(timeout.saturating_sub(started.elapsed()))).await;
+            let _ = tokio::time::timeout(left, until_changed(id, &mut notices)).await;
         }
+    }
+
+    /// Notices of changes from any process, where the store sends them.
+    pub fn notices(&self) -> Option<broadcast::Receiver<Notice>> {
+        self.inner.store.notices()
     }
 
     /// Cancel a job that runs (or waits) for a worker elsewhere: a queued job ends here, under

@@ -17,10 +17,12 @@ use parking_lot::Mutex;
 use tokio::sync::Notify;
 
 use super::live::{progress_data, StopFlag, StopReason, Throttle};
+use super::remote::NOTICE_FALLBACK;
 use super::runner::{compute, panic_message, problem, settle, short_id};
 use super::{Job, JobKind, JobOutput, JobStatus, Progress, ProgressSink, SimError};
-use crate::store::{Claim, EventLog, Renewal, StoreError};
+use crate::store::{Claim, EventLog, Notice, Renewal, StoreError};
 use crate::validate::Limits;
+use tokio::sync::broadcast::error::RecvError;
 
 /// A job that took its worker down this many times (its lease ran out each time) is failed
 /// instead of being claimed again.
@@ -93,6 +95,10 @@ impl Worker {
     pub async fn run(&self) {
         let c = &self.inner.config;
         let mut last_prune: Option<std::time::Instant> = None;
+        // Where the store sends notices, a submission wakes an idle worker at once and the
+        // poll is only a fallback.
+        let mut notices = self.inner.store.notices();
+        let idle_for = if notices.is_some() { NOTICE_FALLBACK } else { c.poll };
         while !self.inner.draining.load(Ordering::SeqCst) {
             if last_prune.is_none_or(|at| at.elapsed() >= PRUNE_EVERY) {
                 last_prune = Some(std::time::Instant::now());
@@ -150,7 +156,22 @@ impl Worker {
                     if max_memory.is_some() {
                         self.inner.held.lock().running -= 1;
                     }
-                    let _ = tokio::time::timeout(c.poll, self.inner.wake.notified()).await;
+                    let heard = async {
+                        match notices.as_mut() {
+                            Some(rx) => loop {
+                                tokio::select! {
+                                    _ = self.inner.wake.notified() => return,
+                                    notice = rx.recv() => match notice {
+                                        Ok(Notice::Changed(_)) => continue,
+                                        Ok(_) | Err(RecvError::Lagged(_)) => return,
+                                        Err(RecvError::Closed) => std::future::pending::<()>().await,
+                                    },
+                                }
+                            },
+                            None => self.inner.wake.notified().await,
+                        }
+                    };
+                    let _ = tokio::time::timeout(idle_for, heard).await;
                 }
             }
         }

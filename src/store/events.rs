@@ -18,8 +18,25 @@ pub struct StoredEvent {
     pub data: String,
 }
 
+/// What a store's notification path says. Ids only: whoever hears it reads the tables.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Notice {
+    /// A job was queued (submitted, or given back by a worker).
+    Queued(String),
+    /// A job has new events, or has ended.
+    Changed(String),
+    /// The listener lost its connection and has it again: anything may have changed meanwhile.
+    Reconnected,
+}
+
 /// Events and live snapshots, across processes.
 pub trait EventLog: JobQueue {
+    /// Notices of changes made by any process, where the store has a way to send them
+    /// (PostgreSQL's LISTEN/NOTIFY); `None` where waiting means polling (SQLite).
+    fn notices(&self) -> Option<tokio::sync::broadcast::Receiver<Notice>> {
+        None
+    }
+
     /// Append an event under a claim; its id, or `None` when the claim is no longer the job's.
     fn append_event(&self, job_id: &str, attempt: u32, event: &str, data: &str) -> Result<Option<u64>, StoreError>;
 

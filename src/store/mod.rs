@@ -4,13 +4,14 @@ mod artifacts;
 #[cfg(test)]
 pub(crate) mod contract;
 mod events;
+mod listener;
 mod postgres;
 mod queue;
 mod row;
 mod sqlite;
 
 pub use artifacts::{ArtifactStore, CHUNK_BYTES};
-pub use events::{EventLog, StoredEvent};
+pub use events::{EventLog, Notice, StoredEvent};
 pub use postgres::PostgresStore;
 pub use queue::{Claim, JobQueue, Renewal};
 pub use sqlite::SqliteStore;

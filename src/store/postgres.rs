@@ -10,9 +10,11 @@ use std::time::Duration;
 use parking_lot::{Mutex, MutexGuard};
 use postgres::types::ToSql;
 use postgres::{Client, GenericClient, IsolationLevel, NoTls, Row};
+use tokio::sync::broadcast;
 
 use super::artifacts::{assemble, chunks, span};
-use super::events::{event_id, EventLog, StoredEvent};
+use super::events::{event_id, EventLog, Notice, StoredEvent};
+use super::listener::{self, EVENTS_CHANNEL, JOBS_CHANNEL};
 use super::queue::{count, lease_ms, Claim, JobQueue, Renewal};
 use super::row::{describe, timestamp, JobRow, RawJob, JOB_COLUMNS};
 use super::{ArtifactStore, IdempotentInsert, JobStore, ListFilter, StoreError, CHUNK_BYTES};
@@ -31,6 +33,9 @@ const MIGRATION_LOCK: i64 = 0x4c41_4e44_464f_524d; // "LANDFORM"
 pub struct PostgresStore {
     clients: Vec<Mutex<Client>>,
     next: AtomicUsize,
+    url: String,
+    /// The listener's fan-out, once anyone in this process has asked for notices.
+    notices: Mutex<Option<broadcast::Sender<Notice>>>,
 }
 
 impl std::fmt::Debug for PostgresStore {
@@ -66,7 +71,7 @@ impl PostgresStore {
         for _ in 1..CONNECTIONS {
             clients.push(Mutex::new(connect()?));
         }
-        Ok(Self { clients, next: AtomicUsize::new(0) })
+        Ok(Self { clients, next: AtomicUsize::new(0), url: url.to_string(), notices: Mutex::new(None) })
     }
 
     /// Save a finished job's row and its artifacts in one transaction; false when nothing
@@ -205,6 +210,13 @@ fn insert_row(c: &mut impl GenericClient, row: &JobRow) -> Result<(), StoreError
     Ok(())
 }
 
+/// Tell listeners in every process (delivered when the transaction commits); the payload is
+/// the job's id only.
+fn notify(c: &mut impl GenericClient, channel: &str, job_id: &str) -> Result<(), StoreError> {
+    c.execute("SELECT pg_notify($1, $2)", &[&channel, &job_id]).map_err(db)?;
+    Ok(())
+}
+
 /// Save the mutable columns; false if there is no such job.
 fn update_row(c: &mut impl GenericClient, row: &JobRow) -> Result<bool, StoreError> {
     let j = row.job;
@@ -229,6 +241,9 @@ fn update_row(c: &mut impl GenericClient, row: &JobRow) -> Result<bool, StoreErr
             ],
         )
         .map_err(db)?;
+    if n > 0 && j.status.is_terminal() {
+        notify(c, EVENTS_CHANNEL, &j.id)?;
+    }
     Ok(n > 0)
 }
 
@@ -347,14 +362,17 @@ impl JobQueue for PostgresStore {
     }
 
     fn release(&self, id: &str, attempt: u32) -> Result<bool, StoreError> {
-        let n = self
-            .client()
+        let mut client = self.client();
+        let n = client
             .execute(
                 "UPDATE jobs SET status = 'queued', lease_until = NULL, lease_owner = NULL \
                  WHERE id = $1 AND attempts = $2::bigint AND status = 'running'",
                 &[&id, &i64::from(attempt)],
             )
             .map_err(db)?;
+        if n > 0 {
+            notify(&mut *client, JOBS_CHANNEL, id)?;
+        }
         Ok(n > 0)
     }
 
@@ -400,10 +418,27 @@ impl JobQueue for PostgresStore {
 const HELD: &str = "EXISTS (SELECT 1 FROM jobs WHERE id = $1 AND attempts = $4::bigint AND status = 'running')";
 
 impl EventLog for PostgresStore {
+    fn notices(&self) -> Option<broadcast::Receiver<Notice>> {
+        let mut notices = self.notices.lock();
+        if let Some(tx) = notices.as_ref() {
+            return Some(tx.subscribe());
+        }
+        // Subscribed before the listener starts, so its first `Reconnected` is heard.
+        let (tx, rx) = broadcast::channel(1024);
+        listener::spawn(self.url.clone(), tx.clone());
+        *notices = Some(tx);
+        Some(rx)
+    }
+
     fn append_event(&self, job_id: &str, attempt: u32, event: &str, data: &str) -> Result<Option<u64>, StoreError> {
         let sql = format!("INSERT INTO job_events (job_id, event, data) SELECT $1, $2, $3 WHERE {HELD} RETURNING id");
-        let found = self.client().query_opt(&sql, &[&job_id, &event, &data, &i64::from(attempt)]).map_err(db)?;
-        found.map(|r| event_id(r.try_get(0).map_err(db)?)).transpose()
+        let mut client = self.client();
+        let found = client.query_opt(&sql, &[&job_id, &event, &data, &i64::from(attempt)]).map_err(db)?;
+        let id = found.map(|r| event_id(r.try_get(0).map_err(db)?)).transpose()?;
+        if id.is_some() {
+            notify(&mut *client, EVENTS_CHANNEL, job_id)?;
+        }
+        Ok(id)
     }
 
     fn events_after(&self, job_id: &str, after: u64, limit: u32) -> Result<Vec<StoredEvent>, StoreError> {
@@ -484,6 +519,9 @@ impl JobStore for PostgresStore {
         let mut client = self.client();
         let mut tx = client.transaction().map_err(db)?;
         insert_row(&mut tx, &row)?;
+        if job.status == JobStatus::Queued {
+            notify(&mut tx, JOBS_CHANNEL, &job.id)?;
+        }
         if let Some((key, body_sha256)) = idempotency {
             let claimed = tx
                 .execute(
@@ -663,6 +701,49 @@ mod tests {
         assert_eq!(store.artifact("j1", "a.bin").unwrap().unwrap().1, vec![1, 2, 3, 4, 5]);
         assert_eq!(store.artifact("j1", "empty.json").unwrap().unwrap().1, Vec::<u8>::new());
         assert_eq!(store.read_artifact("j1", "empty.json", 0, 10).unwrap(), Some(vec![]));
+    }
+
+    /// The next notice that `wanted` accepts, within ten seconds.
+    fn expect(rx: &mut broadcast::Receiver<Notice>, wanted: impl Fn(&Notice) -> bool) -> Notice {
+        let deadline = std::time::Instant::now() + Duration::from_secs(10);
+        while std::time::Instant::now() < deadline {
+            match rx.try_recv() {
+                Ok(n) if wanted(&n) => return n,
+                Ok(_) => {}
+                Err(broadcast::error::TryRecvError::Empty) => std::thread::sleep(Duration::from_millis(10)),
+                Err(e) => panic!("{e}"),
+            }
+        }
+        panic!("no such notice within 10 s");
+    }
+
+    #[test]
+    fn notices_carry_ids_and_the_listener_comes_back_after_its_connection_drops() {
+        let Some(f) = fixture() else { return };
+        let store = f.store.as_ref();
+        let mut rx = store.notices().expect("PostgreSQL sends notices");
+        expect(&mut rx, |n| *n == Notice::Reconnected);
+        let job = crate::store::contract::job(1, "bulldoze", JobStatus::Queued);
+        store.insert(&job, None).unwrap();
+        expect(&mut rx, |n| *n == Notice::Queued(job.id.clone()));
+        let claim = store.claim("w", Duration::from_secs(60), u64::MAX).unwrap().unwrap();
+        store.append_event(&job.id, claim.attempt, "progress", "{}").unwrap().unwrap();
+        expect(&mut rx, |n| *n == Notice::Changed(job.id.clone()));
+
+        // The listener's connection is cut (a restart, a network fault): it connects again,
+        // says so, and hears what comes after.
+        let url = std::env::var("LANDFORM_TEST_DATABASE_URL").unwrap();
+        let mut admin = Client::connect(&url, NoTls).unwrap();
+        admin
+            .batch_execute(
+                "SELECT pg_terminate_backend(pid) FROM pg_stat_activity \
+                 WHERE query LIKE 'LISTEN landform_jobs%' AND pid <> pg_backend_pid()",
+            )
+            .unwrap();
+        expect(&mut rx, |n| *n == Notice::Reconnected);
+        let next = crate::store::contract::job(2, "bulldoze", JobStatus::Queued);
+        store.insert(&next, None).unwrap();
+        expect(&mut rx, |n| *n == Notice::Queued(next.id.clone()));
     }
 
     #[test]

@@ -12,7 +12,7 @@ use serde::Deserialize;
 use tokio::sync::broadcast::{error::RecvError, Receiver};
 
 use crate::http::{AppState, Caller, Problem};
-use crate::jobs::{Engine, EventFeed, JobEvent, LiveJob, STORE_POLL};
+use crate::jobs::{until_changed, Engine, EventFeed, JobEvent, LiveJob};
 
 /// One server-sent event as a client's parser sees it.
 #[derive(utoipa::ToSchema)]
@@ -91,11 +91,12 @@ fn stored_stream(
     owner: Option<String>,
     after: u64,
 ) -> impl Stream<Item = Result<Event, Infallible>> {
-    let state = (engine, id, owner, after, VecDeque::<Event>::new(), false);
-    stream::unfold(state, |(engine, id, owner, mut last, mut pending, mut ended)| async move {
+    let notices = engine.notices();
+    let state = (engine, id, owner, after, VecDeque::<Event>::new(), false, notices);
+    stream::unfold(state, |(engine, id, owner, mut last, mut pending, mut ended, mut notices)| async move {
         loop {
             if let Some(ev) = pending.pop_front() {
-                return Some((Ok(ev), (engine, id, owner, last, pending, ended)));
+                return Some((Ok(ev), (engine, id, owner, last, pending, ended, notices)));
             }
             if ended {
                 return None;
@@ -129,7 +130,7 @@ fn stored_stream(
                     pending.push_back(Event::default().id((last + 2).to_string()).event("done").data(done));
                     ended = true;
                 }
-                Ok(_) => tokio::time::sleep(STORE_POLL).await,
+                Ok(_) => until_changed(&id, &mut notices).await,
                 Err(_) => return None,
             }
         }
