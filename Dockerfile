@@ -4,6 +4,8 @@ WORKDIR /src
 COPY Cargo.toml Cargo.lock ./
 COPY src ./src
 COPY benches ./benches
+# Embedded in the binary at compile time (refinery's PostgreSQL migrations).
+COPY migrations ./migrations
 RUN cargo build --locked --release --bin landform
 
 FROM debian:bookworm-slim
