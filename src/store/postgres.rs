@@ -656,13 +656,21 @@ mod tests {
     /// A schema of its own on the database `LANDFORM_TEST_DATABASE_URL` names, dropped after the
     /// test; `None` when the variable is not set (then PostgreSQL is not tested here).
     pub fn fixture() -> Option<Fixture> {
+        let (guard, scoped) = scoped_schema()?;
+        let store = PostgresStore::open(&scoped).expect("open");
+        Some(Fixture { store: Box::new(store), _guard: Box::new(guard) })
+    }
+
+    /// A fresh schema (dropped with the guard) and the URL whose connections use it; `None`
+    /// without `LANDFORM_TEST_DATABASE_URL`.
+    fn scoped_schema() -> Option<(DropSchema, String)> {
         let url = std::env::var("LANDFORM_TEST_DATABASE_URL").ok().filter(|u| !u.is_empty())?;
         let schema = format!("t_{}", uuid::Uuid::now_v7().simple());
         let mut admin = Client::connect(&url, NoTls).expect("connect to LANDFORM_TEST_DATABASE_URL");
         admin.batch_execute(&format!("CREATE SCHEMA {schema}")).expect("create a test schema");
         let sep = if url.contains('?') { '&' } else { '?' };
-        let store = PostgresStore::open(&format!("{url}{sep}options=-csearch_path%3D{schema}")).expect("open");
-        Some(Fixture { store: Box::new(store), _guard: Box::new(DropSchema(admin, schema)) })
+        let scoped = format!("{url}{sep}options=-csearch_path%3D{schema}");
+        Some((DropSchema(admin, schema), scoped))
     }
 
     struct DropSchema(Client, String);
@@ -679,13 +687,7 @@ mod tests {
     /// artifacts when V2 moves them into chunks.
     #[test]
     fn artifacts_stored_whole_by_an_earlier_version_read_back_after_migrating() {
-        let Some(url) = std::env::var("LANDFORM_TEST_DATABASE_URL").ok().filter(|u| !u.is_empty()) else { return };
-        let schema = format!("t_{}", uuid::Uuid::now_v7().simple());
-        let mut admin = Client::connect(&url, NoTls).unwrap();
-        admin.batch_execute(&format!("CREATE SCHEMA {schema}")).unwrap();
-        let _drop = DropSchema(admin, schema.clone());
-        let sep = if url.contains('?') { '&' } else { '?' };
-        let scoped = format!("{url}{sep}options=-csearch_path%3D{schema}");
+        let Some((_drop, scoped)) = scoped_schema() else { return };
         let mut old = Client::connect(&scoped, NoTls).unwrap();
         embedded::migrations::runner().set_target(refinery::Target::Version(1)).run(&mut old).unwrap();
         old.batch_execute(
@@ -748,13 +750,7 @@ mod tests {
 
     #[test]
     fn replicas_opening_one_database_at_once_migrate_it_once() {
-        let Some(url) = std::env::var("LANDFORM_TEST_DATABASE_URL").ok().filter(|u| !u.is_empty()) else { return };
-        let schema = format!("t_{}", uuid::Uuid::now_v7().simple());
-        let mut admin = Client::connect(&url, NoTls).unwrap();
-        admin.batch_execute(&format!("CREATE SCHEMA {schema}")).unwrap();
-        let _drop = DropSchema(admin, schema.clone());
-        let sep = if url.contains('?') { '&' } else { '?' };
-        let scoped = format!("{url}{sep}options=-csearch_path%3D{schema}");
+        let Some((_drop, scoped)) = scoped_schema() else { return };
         let opened: Vec<_> = std::thread::scope(|s| {
             let handles: Vec<_> = (0..4).map(|_| s.spawn(|| PostgresStore::open(&scoped).map(|_| ()))).collect();
             handles.into_iter().map(|h| h.join().unwrap()).collect()

@@ -103,10 +103,7 @@ fn stored_stream(
             }
             match engine.stored_events(&id, last).await {
                 Ok(events) if !events.is_empty() => {
-                    for e in events {
-                        last = e.id;
-                        pending.push_back(Event::default().id(e.id.to_string()).event(e.event).data(e.data));
-                    }
+                    last = queue_stored(&mut pending, events, last);
                     continue;
                 }
                 Ok(_) => {}
@@ -119,10 +116,7 @@ fn stored_stream(
                 Ok(job) if job.status.is_terminal() => {
                     // Events appended between the last read and the end are still there.
                     if let Ok(events) = engine.stored_events(&id, last).await {
-                        for e in events {
-                            last = e.id;
-                            pending.push_back(Event::default().id(e.id.to_string()).event(e.event).data(e.data));
-                        }
+                        last = queue_stored(&mut pending, events, last);
                     }
                     let status = serde_json::json!({ "status": job.status }).to_string();
                     let done = serde_json::to_string(&job).unwrap_or_default();
@@ -142,6 +136,14 @@ fn stored_stream(
 fn parse_event_id(v: &str) -> Option<u64> {
     let v = v.trim();
     (!v.is_empty() && v.len() <= 19 && v.bytes().all(|b| b.is_ascii_digit())).then(|| v.parse().ok()).flatten()
+}
+
+/// Queue stored events to send; returns the id of the last (or `last` when there are none).
+fn queue_stored(pending: &mut VecDeque<Event>, events: Vec<crate::store::StoredEvent>, last: u64) -> u64 {
+    events.into_iter().fold(last, |_, e| {
+        pending.push_back(Event::default().id(e.id.to_string()).event(e.event).data(e.data));
+        e.id
+    })
 }
 
 struct Feed {
