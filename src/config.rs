@@ -12,7 +12,7 @@ use crate::jobs::{
     default_memory_budget, EngineConfig, WorkerConfig, DEFAULT_CONCURRENT_JOBS, DEFAULT_JOB_TIMEOUT_S,
     DEFAULT_QUEUE_CAPACITY,
 };
-use crate::store::{EventLog, PostgresStore, SqliteStore};
+use crate::store::{EventLog, ObjectArtifacts, PostgresStore, SqliteStore};
 use crate::validate::{Limits, DEFAULT_MAX_GRID_CELLS, DEFAULT_MAX_OPERATIONS, DEFAULT_MAX_VOXELS};
 
 /// Settings shared by `serve` and `run`.
@@ -21,6 +21,12 @@ pub struct ServiceArgs {
     /// Job store: a SQLite file path (default `landform.db`). Falls back to DATABASE_URL.
     #[arg(long, env = "LANDFORM_DATABASE")]
     pub database: Option<String>,
+    /// Where artifacts' bytes are kept: in the job store (the default), an S3-compatible bucket
+    /// (`s3://bucket[/prefix]`; credentials, region and endpoint from the usual `AWS_*`
+    /// variables, e.g. `AWS_ENDPOINT` and `AWS_ALLOW_HTTP=true` for a local server) or a
+    /// directory (`file:///path`). Every process of a deployment needs the same one.
+    #[arg(long, env = "LANDFORM_ARTIFACT_STORE")]
+    pub artifact_store: Option<String>,
     /// Threads of the simulation pool (default: all cores).
     #[arg(long, env = "LANDFORM_WORKERS")]
     pub workers: Option<usize>,
@@ -61,11 +67,21 @@ impl ServiceArgs {
 
     pub fn open_store(&self) -> anyhow::Result<Arc<dyn EventLog>> {
         let location = self.database_location();
+        let objects =
+            self.artifact_store.as_deref().filter(|s| !s.is_empty()).map(ObjectArtifacts::open).transpose()?;
         if location.starts_with("postgres://") || location.starts_with("postgresql://") {
-            return Ok(Arc::new(PostgresStore::open(&location)?));
+            let store = PostgresStore::open(&location)?;
+            return Ok(Arc::new(match objects {
+                Some(o) => store.with_objects(o),
+                None => store,
+            }));
         }
         let path = location.strip_prefix("sqlite://").unwrap_or(&location);
-        Ok(Arc::new(SqliteStore::open(path)?))
+        let store = SqliteStore::open(path)?;
+        Ok(Arc::new(match objects {
+            Some(o) => store.with_objects(o),
+            None => store,
+        }))
     }
 
     pub fn engine_config(&self) -> EngineConfig {
@@ -103,6 +119,9 @@ impl ServiceArgs {
         .into_iter()
         .flat_map(|(flag, value)| [flag.to_string(), value])
         .collect();
+        if let Some(location) = &self.artifact_store {
+            args.extend(["--artifact-store".to_string(), location.clone()]);
+        }
         if let Some(name) = &worker.worker_name {
             args.extend(["--worker-name".to_string(), name.clone()]);
         }

@@ -504,3 +504,68 @@ macro_rules! store_contract_tests {
         )*
     };
 }
+
+/// Every file under `dir` (relative path → bytes): the objects a store keeps in a directory.
+fn objects_in(dir: &std::path::Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+    fn walk(root: &std::path::Path, at: &std::path::Path, out: &mut std::collections::BTreeMap<String, Vec<u8>>) {
+        let Ok(entries) = std::fs::read_dir(at) else { return };
+        for e in entries.map(Result::unwrap) {
+            let path = e.path();
+            if path.is_dir() {
+                walk(root, &path, out);
+            } else {
+                let rel = path.strip_prefix(root).unwrap().to_string_lossy().into_owned();
+                out.insert(rel, std::fs::read(&path).unwrap());
+            }
+        }
+    }
+    let mut out = std::collections::BTreeMap::new();
+    walk(dir, dir, &mut out);
+    out
+}
+
+/// A store keeping artifacts in the object store at `dir` (a directory): the bytes are there,
+/// one object per artifact under the job's id, and no object outlives the row that points at
+/// it — not after a finish replaced them, a fenced-off worker's refused finish, or a delete.
+pub fn objects_hold_the_bytes_and_none_outlives_its_row(store: &dyn JobQueue, dir: &std::path::Path) {
+    queued(store, 1, 10);
+    let stale = store.claim("w1", Duration::from_millis(1), NO_LIMIT).unwrap().unwrap();
+    std::thread::sleep(Duration::from_millis(30));
+    let fresh = store.claim("w2", LONG, NO_LIMIT).unwrap().unwrap();
+
+    // The stalled worker's finish is refused and leaves no object behind.
+    let mut late = stale.job.clone();
+    late.status = JobStatus::Succeeded;
+    assert!(!store
+        .finish_claimed(&late, stale.attempt, &[Artifact::new("mesh.glb", "model/gltf-binary", b"stale".to_vec())])
+        .unwrap());
+    assert!(objects_in(dir).is_empty(), "a refused finish left {:?}", objects_in(dir).keys());
+
+    let mut done = fresh.job.clone();
+    done.status = JobStatus::Succeeded;
+    assert!(store.finish_claimed(&done, fresh.attempt, &artifacts()).unwrap());
+    let objects = objects_in(dir);
+    let mut held: Vec<(String, Vec<u8>)> = objects
+        .iter()
+        .map(|(k, v)| {
+            let mut parts = k.split('/');
+            assert_eq!(parts.next(), Some(done.id.as_str()), "object {k} is not under its job's id");
+            (parts.nth(1).unwrap().to_string(), v.clone())
+        })
+        .collect();
+    held.sort();
+    let mut expected: Vec<(String, Vec<u8>)> = artifacts().into_iter().map(|a| (a.name.to_string(), a.bytes)).collect();
+    expected.sort();
+    assert_eq!(held, expected);
+    assert_eq!(store.artifact(&done.id, "heightmap.png").unwrap(), Some(("image/png".into(), b"abc".to_vec())));
+    assert_eq!(store.read_artifact(&done.id, "mesh.glb", 998, 10).unwrap(), Some(vec![7, 7]));
+
+    // Finishing again replaces the objects; deleting the job removes them.
+    store.finish(&done, &[Artifact::new("sequence.json", "application/json", b"[1]".to_vec())]).unwrap();
+    let objects = objects_in(dir);
+    assert_eq!(objects.len(), 1, "{:?}", objects.keys());
+    assert!(objects.keys().all(|k| k.ends_with("/sequence.json")));
+    assert_eq!(store.artifact(&done.id, "sequence.json").unwrap().map(|a| a.1), Some(b"[1]".to_vec()));
+    assert!(store.delete(&done.id).unwrap());
+    assert!(objects_in(dir).is_empty());
+}

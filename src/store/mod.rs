@@ -5,6 +5,7 @@ mod artifacts;
 pub(crate) mod contract;
 mod events;
 mod listener;
+mod objects;
 mod postgres;
 mod queue;
 mod row;
@@ -12,6 +13,7 @@ mod sqlite;
 
 pub use artifacts::{ArtifactStore, CHUNK_BYTES};
 pub use events::{EventLog, Notice, StoredEvent};
+pub use objects::ObjectArtifacts;
 pub use postgres::PostgresStore;
 pub use queue::{Claim, JobQueue, Renewal};
 pub use sqlite::SqliteStore;

@@ -15,6 +15,7 @@ use tokio::sync::broadcast;
 use super::artifacts::{assemble, chunks, span};
 use super::events::{event_id, EventLog, Notice, StoredEvent};
 use super::listener::{self, EVENTS_CHANNEL, JOBS_CHANNEL};
+use super::objects::{object_range, ObjectArtifacts};
 use super::queue::{count, lease_ms, Claim, JobQueue, Renewal};
 use super::row::{describe, timestamp, JobRow, RawJob, JOB_COLUMNS};
 use super::{ArtifactStore, IdempotentInsert, JobStore, ListFilter, StoreError, CHUNK_BYTES};
@@ -36,6 +37,8 @@ pub struct PostgresStore {
     url: String,
     /// The listener's fan-out, once anyone in this process has asked for notices.
     notices: Mutex<Option<broadcast::Sender<Notice>>>,
+    /// Where new artifacts' bytes go when not into the database.
+    objects: Option<ObjectArtifacts>,
 }
 
 impl std::fmt::Debug for PostgresStore {
@@ -71,7 +74,19 @@ impl PostgresStore {
         for _ in 1..CONNECTIONS {
             clients.push(Mutex::new(connect()?));
         }
-        Ok(Self { clients, next: AtomicUsize::new(0), url: url.to_string(), notices: Mutex::new(None) })
+        Ok(Self { clients, next: AtomicUsize::new(0), url: url.to_string(), notices: Mutex::new(None), objects: None })
+    }
+
+    /// Keep the bytes of artifacts finished from now on in `objects` (the rows stay here).
+    pub fn with_objects(mut self, objects: ObjectArtifacts) -> Self {
+        self.objects = Some(objects);
+        self
+    }
+
+    fn remove_objects(&self, keys: &[String]) {
+        if let Some(o) = &self.objects {
+            o.remove(keys);
+        }
     }
 
     /// Save a finished job's row and its artifacts in one transaction; false when nothing
@@ -79,17 +94,20 @@ impl PostgresStore {
     fn finish_row(&self, row: JobRow<'_>, artifacts: &[Artifact]) -> Result<bool, StoreError> {
         let job = row.job;
         let metas = describe(artifacts)?;
+        // Objects first, outside the transaction; removed again if it does not commit.
+        let placed = self.objects.as_ref().map(|o| o.put_all(&job.id, artifacts)).transpose()?;
         let mut client = self.client();
         let mut tx = client.transaction().map_err(db)?;
         if !update_row(&mut tx, &row)? {
             return Ok(false);
         }
+        let replaced = object_keys(&mut tx, &job.id)?;
         // The job's chunks go with its artifact rows (ON DELETE CASCADE).
         tx.execute("DELETE FROM artifacts WHERE job_id = $1", &[&job.id]).map_err(db)?;
         let artifact = tx
             .prepare(
-                "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, chunk_bytes) \
-                 VALUES ($1, $2, $3, $4, $5, $6, $7)",
+                "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, chunk_bytes, object_key) \
+                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8)",
             )
             .map_err(db)?;
         let chunk =
@@ -97,13 +115,21 @@ impl PostgresStore {
         let chunk_bytes = CHUNK_BYTES as i64;
         for (ordinal, (a, m)) in artifacts.iter().zip(&metas).enumerate() {
             let (ordinal, bytes) = (ordinal as i32, a.bytes.len() as i64);
-            tx.execute(&artifact, &[&job.id, &m.name, &ordinal, &m.media_type, &bytes, &m.sha256, &chunk_bytes])
+            let key = placed.as_ref().map(|p| p.keys[ordinal as usize].as_str());
+            tx.execute(&artifact, &[&job.id, &m.name, &ordinal, &m.media_type, &bytes, &m.sha256, &chunk_bytes, &key])
                 .map_err(db)?;
-            for (seq, data) in chunks(&a.bytes) {
-                tx.execute(&chunk, &[&job.id, &m.name, &(seq as i32), &data]).map_err(db)?;
+            if key.is_none() {
+                for (seq, data) in chunks(&a.bytes) {
+                    tx.execute(&chunk, &[&job.id, &m.name, &(seq as i32), &data]).map_err(db)?;
+                }
             }
         }
         tx.commit().map_err(db)?;
+        drop(client);
+        if let Some(p) = placed {
+            p.keep();
+        }
+        self.remove_objects(&replaced);
         Ok(true)
     }
 
@@ -247,6 +273,14 @@ fn update_row(c: &mut impl GenericClient, row: &JobRow) -> Result<bool, StoreErr
     Ok(n > 0)
 }
 
+/// The object keys of a job's artifacts kept in an object store.
+fn object_keys(c: &mut impl GenericClient, job_id: &str) -> Result<Vec<String>, StoreError> {
+    let rows = c
+        .query("SELECT object_key FROM artifacts WHERE job_id = $1 AND object_key IS NOT NULL", &[&job_id])
+        .map_err(db)?;
+    rows.iter().map(|r| r.try_get(0).map_err(db)).collect()
+}
+
 /// One read-only snapshot for an artifact's row and chunks: a job finished again meanwhile
 /// can't mix its old and new chunks.
 fn chunk_snapshot(client: &mut Client) -> Result<postgres::Transaction<'_>, StoreError> {
@@ -258,10 +292,18 @@ impl ArtifactStore for PostgresStore {
         let mut client = self.client();
         let mut tx = chunk_snapshot(&mut client)?;
         let found = tx
-            .query_opt("SELECT bytes, chunk_bytes FROM artifacts WHERE job_id = $1 AND name = $2", &[&id, &name])
+            .query_opt(
+                "SELECT bytes, chunk_bytes, object_key FROM artifacts WHERE job_id = $1 AND name = $2",
+                &[&id, &name],
+            )
             .map_err(db)?;
         let Some(row) = found else { return Ok(None) };
         let (total, chunk): (i64, i64) = (row.try_get(0).map_err(db)?, row.try_get(1).map_err(db)?);
+        if let Some(key) = row.try_get::<_, Option<String>>(2).map_err(db)? {
+            tx.commit().map_err(db)?;
+            drop(client);
+            return object_range(self.objects.as_ref(), &key, total, offset, len);
+        }
         let Some(s) = span(total.max(0) as u64, chunk.max(0) as u64, offset, len)? else {
             return Ok(Some(Vec::new()));
         };
@@ -281,10 +323,19 @@ impl ArtifactStore for PostgresStore {
         let mut client = self.client();
         let mut tx = chunk_snapshot(&mut client)?;
         let found = tx
-            .query_opt("SELECT media_type, bytes FROM artifacts WHERE job_id = $1 AND name = $2", &[&id, &name])
+            .query_opt(
+                "SELECT media_type, bytes, object_key FROM artifacts WHERE job_id = $1 AND name = $2",
+                &[&id, &name],
+            )
             .map_err(db)?;
         let Some(row) = found else { return Ok(None) };
         let (media_type, total): (String, i64) = (row.try_get(0).map_err(db)?, row.try_get(1).map_err(db)?);
+        if let Some(key) = row.try_get::<_, Option<String>>(2).map_err(db)? {
+            tx.commit().map_err(db)?;
+            drop(client);
+            let whole = object_range(self.objects.as_ref(), &key, total, 0, usize::MAX)?;
+            return Ok(whole.map(|data| (media_type, data)));
+        }
         let mut data = Vec::with_capacity(total.max(0) as usize);
         for r in tx
             .query("SELECT data FROM artifact_chunks WHERE job_id = $1 AND name = $2 ORDER BY seq", &[&id, &name])
@@ -590,8 +641,16 @@ impl JobStore for PostgresStore {
     }
 
     fn delete(&self, id: &str) -> Result<bool, StoreError> {
+        let mut client = self.client();
+        let mut tx = client.transaction().map_err(db)?;
+        // The job's row locked first: a finish committing meanwhile can't slip objects past.
+        tx.execute("SELECT 1 FROM jobs WHERE id = $1 FOR UPDATE", &[&id]).map_err(db)?;
+        let objects = object_keys(&mut tx, id)?;
         // Artifacts and idempotency keys go with the job (ON DELETE CASCADE).
-        let n = self.client().execute("DELETE FROM jobs WHERE id = $1", &[&id]).map_err(db)?;
+        let n = tx.execute("DELETE FROM jobs WHERE id = $1", &[&id]).map_err(db)?;
+        tx.commit().map_err(db)?;
+        drop(client);
+        self.remove_objects(&objects);
         Ok(n > 0)
     }
 
@@ -682,6 +741,36 @@ mod tests {
     }
 
     crate::store_contract_tests!(fixture);
+
+    /// The whole contract again with artifacts in an object store (a directory).
+    mod with_objects {
+        use super::*;
+        use crate::store::ObjectArtifacts;
+
+        fn open(dir: &std::path::Path) -> Option<(DropSchema, PostgresStore)> {
+            let (guard, scoped) = scoped_schema()?;
+            let objects = ObjectArtifacts::open(&format!("file://{}", dir.join("objects").display())).unwrap();
+            Some((guard, PostgresStore::open(&scoped).unwrap().with_objects(objects)))
+        }
+
+        fn fixture() -> Option<Fixture> {
+            let dir = tempfile::tempdir().unwrap();
+            let (guard, store) = open(dir.path())?;
+            Some(Fixture { store: Box::new(store), _guard: Box::new((guard, dir)) })
+        }
+
+        crate::store_contract_tests!(fixture);
+
+        #[test]
+        fn objects_hold_the_bytes_and_none_outlives_its_row() {
+            let dir = tempfile::tempdir().unwrap();
+            let Some((_guard, store)) = open(dir.path()) else { return };
+            crate::store::contract::objects_hold_the_bytes_and_none_outlives_its_row(
+                &store,
+                &dir.path().join("objects"),
+            );
+        }
+    }
 
     /// A schema migrated before artifacts were chunked (V1, bytes in `artifacts.data`) keeps its
     /// artifacts when V2 moves them into chunks.

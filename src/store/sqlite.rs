@@ -16,6 +16,7 @@ use rusqlite::{params, Connection, OpenFlags, OptionalExtension, Row, Transactio
 
 use super::artifacts::{assemble, chunks, span};
 use super::events::{event_id, EventLog, StoredEvent};
+use super::objects::{object_range, ObjectArtifacts};
 use super::queue::{count, lease_ms, Claim, JobQueue, Renewal};
 use super::row::{describe, timestamp, JobRow, RawJob, JOB_COLUMNS};
 use super::{ArtifactStore, IdempotentInsert, JobStore, ListFilter, StoreError, CHUNK_BYTES};
@@ -23,7 +24,7 @@ use crate::export::Artifact;
 use crate::model::{ArtifactMeta, Job, JobStatus};
 
 /// The schema version this build writes (`PRAGMA user_version`).
-pub const SCHEMA_VERSION: i64 = 6;
+pub const SCHEMA_VERSION: i64 = 7;
 
 /// Migrations in order: `MIGRATIONS[n]` takes the schema from version `n` to `n + 1`.
 const MIGRATIONS: [&str; SCHEMA_VERSION as usize] = [
@@ -126,6 +127,10 @@ CREATE TABLE job_snapshots (
 );
 ALTER TABLE jobs ADD COLUMN cancel_requested INTEGER NOT NULL DEFAULT 0;
 "#,
+    r#"
+-- An artifact kept in an object store (store/objects.rs): its key there, and no chunks here.
+ALTER TABLE artifacts ADD COLUMN object_key TEXT;
+"#,
 ];
 
 /// The database's clock in milliseconds since 1970: leases are set and compared by it alone.
@@ -143,6 +148,8 @@ pub struct SqliteStore {
     writer: Mutex<Connection>,
     readers: Vec<Mutex<Connection>>,
     next_reader: AtomicUsize,
+    /// Where new artifacts' bytes go when not into the database.
+    objects: Option<ObjectArtifacts>,
 }
 
 impl std::fmt::Debug for SqliteStore {
@@ -173,7 +180,13 @@ impl SqliteStore {
                 })
                 .collect::<Result<Vec<_>, StoreError>>()?
         };
-        Ok(Self { writer: Mutex::new(writer), readers, next_reader: AtomicUsize::new(0) })
+        Ok(Self { writer: Mutex::new(writer), readers, next_reader: AtomicUsize::new(0), objects: None })
+    }
+
+    /// Keep the bytes of artifacts finished from now on in `objects` (the rows stay here).
+    pub fn with_objects(mut self, objects: ObjectArtifacts) -> Self {
+        self.objects = Some(objects);
+        self
     }
 
     /// How many times the job has entered `running` (0 if it never ran); `None` if there is
@@ -198,18 +211,21 @@ impl SqliteStore {
     fn finish_row(&self, row: JobRow<'_>, artifacts: &[Artifact]) -> Result<bool, StoreError> {
         let job = row.job;
         let metas = describe(artifacts)?;
+        // Objects first, outside the transaction; removed again if it does not commit.
+        let placed = self.objects.as_ref().map(|o| o.put_all(&job.id, artifacts)).transpose()?;
         let mut conn = self.writer.lock();
         let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate).map_err(db)?;
         if !row.update(&tx).map_err(db)? {
             return Ok(false);
         }
+        let replaced = object_keys(&tx, &job.id)?;
         // The job's chunks go with its artifact rows (ON DELETE CASCADE).
         tx.prepare_cached("DELETE FROM artifacts WHERE job_id = ?1").map_err(db)?.execute([&job.id]).map_err(db)?;
         {
             let mut artifact = tx
                 .prepare_cached(
-                    "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, chunk_bytes) \
-                     VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+                    "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, chunk_bytes, object_key) \
+                     VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
                 )
                 .map_err(db)?;
             let mut chunk = tx
@@ -217,16 +233,39 @@ impl SqliteStore {
                 .map_err(db)?;
             for (ordinal, (a, m)) in artifacts.iter().zip(&metas).enumerate() {
                 let bytes = a.bytes.len() as i64;
+                let key = placed.as_ref().map(|p| p.keys[ordinal].as_str());
                 artifact
-                    .execute(params![job.id, m.name, ordinal as i64, m.media_type, bytes, m.sha256, CHUNK_BYTES as i64])
+                    .execute(params![
+                        job.id,
+                        m.name,
+                        ordinal as i64,
+                        m.media_type,
+                        bytes,
+                        m.sha256,
+                        CHUNK_BYTES as i64,
+                        key
+                    ])
                     .map_err(db)?;
-                for (seq, data) in chunks(&a.bytes) {
-                    chunk.execute(params![job.id, m.name, seq, data]).map_err(db)?;
+                if key.is_none() {
+                    for (seq, data) in chunks(&a.bytes) {
+                        chunk.execute(params![job.id, m.name, seq, data]).map_err(db)?;
+                    }
                 }
             }
         }
         tx.commit().map_err(db)?;
+        drop(conn);
+        if let Some(p) = placed {
+            p.keep();
+        }
+        self.remove_objects(&replaced);
         Ok(true)
+    }
+
+    fn remove_objects(&self, keys: &[String]) {
+        if let Some(o) = &self.objects {
+            o.remove(keys);
+        }
     }
 
     /// A free read connection, or the next one in turn if all are busy.
@@ -242,6 +281,15 @@ impl SqliteStore {
         let i = self.next_reader.fetch_add(1, Ordering::Relaxed) % self.readers.len();
         self.readers[i].lock()
     }
+}
+
+/// The object keys of a job's artifacts kept in an object store.
+fn object_keys(c: &Connection, job_id: &str) -> Result<Vec<String>, StoreError> {
+    let mut stmt = c
+        .prepare_cached("SELECT object_key FROM artifacts WHERE job_id = ?1 AND object_key IS NOT NULL")
+        .map_err(db)?;
+    let keys = stmt.query_map([job_id], |r| r.get(0)).map_err(db)?.collect::<Result<Vec<String>, _>>().map_err(db);
+    keys
 }
 
 fn is_in_memory(path: &str) -> bool {
@@ -455,13 +503,16 @@ fn read_snapshot<T>(
 impl ArtifactStore for SqliteStore {
     fn read_artifact(&self, id: &str, name: &str, offset: u64, len: usize) -> Result<Option<Vec<u8>>, StoreError> {
         read_snapshot(&mut self.reader(), |c| {
-            let found: Option<(i64, i64)> = c
-                .prepare_cached("SELECT bytes, chunk_bytes FROM artifacts WHERE job_id = ?1 AND name = ?2")
+            let found: Option<(i64, i64, Option<String>)> = c
+                .prepare_cached("SELECT bytes, chunk_bytes, object_key FROM artifacts WHERE job_id = ?1 AND name = ?2")
                 .map_err(db)?
-                .query_row([id, name], |r| Ok((r.get(0)?, r.get(1)?)))
+                .query_row([id, name], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))
                 .optional()
                 .map_err(db)?;
-            let Some((total, chunk)) = found else { return Ok(None) };
+            let Some((total, chunk, key)) = found else { return Ok(None) };
+            if let Some(key) = key {
+                return object_range(self.objects.as_ref(), &key, total, offset, len);
+            }
             let Some(s) = span(total.max(0) as u64, chunk.max(0) as u64, offset, len)? else {
                 return Ok(Some(Vec::new()));
             };
@@ -482,13 +533,17 @@ impl ArtifactStore for SqliteStore {
 
     fn artifact(&self, id: &str, name: &str) -> Result<Option<(String, Vec<u8>)>, StoreError> {
         read_snapshot(&mut self.reader(), |c| {
-            let found: Option<(String, i64)> = c
-                .prepare_cached("SELECT media_type, bytes FROM artifacts WHERE job_id = ?1 AND name = ?2")
+            let found: Option<(String, i64, Option<String>)> = c
+                .prepare_cached("SELECT media_type, bytes, object_key FROM artifacts WHERE job_id = ?1 AND name = ?2")
                 .map_err(db)?
-                .query_row([id, name], |r| Ok((r.get(0)?, r.get(1)?)))
+                .query_row([id, name], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))
                 .optional()
                 .map_err(db)?;
-            let Some((media_type, total)) = found else { return Ok(None) };
+            let Some((media_type, total, key)) = found else { return Ok(None) };
+            if let Some(key) = key {
+                let whole = object_range(self.objects.as_ref(), &key, total, 0, usize::MAX)?;
+                return Ok(whole.map(|data| (media_type, data)));
+            }
             let mut data = Vec::with_capacity(total.max(0) as usize);
             let mut stmt = c
                 .prepare_cached("SELECT data FROM artifact_chunks WHERE job_id = ?1 AND name = ?2 ORDER BY seq")
@@ -782,9 +837,14 @@ impl JobStore for SqliteStore {
     }
 
     fn delete(&self, id: &str) -> Result<bool, StoreError> {
-        let conn = self.writer.lock();
+        let mut conn = self.writer.lock();
+        let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate).map_err(db)?;
+        let objects = object_keys(&tx, id)?;
         // Artifacts and idempotency keys go with the job (ON DELETE CASCADE).
-        let n = conn.prepare_cached("DELETE FROM jobs WHERE id = ?1").map_err(db)?.execute([id]).map_err(db)?;
+        let n = tx.prepare_cached("DELETE FROM jobs WHERE id = ?1").map_err(db)?.execute([id]).map_err(db)?;
+        tx.commit().map_err(db)?;
+        drop(conn);
+        self.remove_objects(&objects);
         Ok(n > 0)
     }
 
@@ -849,6 +909,33 @@ mod tests {
     }
 
     crate::store_contract_tests!(fixture);
+
+    /// The whole contract again with artifacts in an object store (a directory).
+    mod with_objects {
+        use super::*;
+        use crate::store::ObjectArtifacts;
+
+        fn open(dir: &std::path::Path) -> SqliteStore {
+            let objects = ObjectArtifacts::open(&format!("file://{}", dir.join("objects").display())).unwrap();
+            SqliteStore::open(dir.join("landform.db").to_str().unwrap()).unwrap().with_objects(objects)
+        }
+
+        fn fixture() -> Option<Fixture> {
+            let dir = tempfile::tempdir().unwrap();
+            Some(Fixture { store: Box::new(open(dir.path())), _guard: Box::new(dir) })
+        }
+
+        crate::store_contract_tests!(fixture);
+
+        #[test]
+        fn objects_hold_the_bytes_and_none_outlives_its_row() {
+            let dir = tempfile::tempdir().unwrap();
+            crate::store::contract::objects_hold_the_bytes_and_none_outlives_its_row(
+                &open(dir.path()),
+                &dir.path().join("objects"),
+            );
+        }
+    }
 
     fn temp_store() -> (tempfile::TempDir, String, SqliteStore) {
         let dir = tempfile::tempdir().unwrap();

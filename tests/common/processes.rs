@@ -11,8 +11,15 @@ pub struct WorkerProcess(pub Child);
 impl WorkerProcess {
     /// A worker on `database` whose claims last `lease_secs`; returns once it has started.
     pub fn start(database: &str, lease_secs: u64) -> Self {
+        Self::start_with(database, lease_secs, &[], &[])
+    }
+
+    /// A worker with more flags and environment variables.
+    pub fn start_with(database: &str, lease_secs: u64, extra: &[String], envs: &[(String, String)]) -> Self {
         let mut child = Command::new(env!("CARGO_BIN_EXE_landform"))
             .args(["worker", "--database", database, "--workers", "2", "--lease-secs", &lease_secs.to_string()])
+            .args(extra)
+            .envs(envs.iter().map(|(k, v)| (k, v)))
             .env("RUST_LOG", "warn")
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())

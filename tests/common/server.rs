@@ -20,6 +20,8 @@ pub struct Options {
     pub extra: Vec<String>,
     /// A database URL (PostgreSQL) to use instead of the SQLite file.
     pub database_url: Option<String>,
+    /// Environment variables for the process (e.g. an object store's `AWS_*`).
+    pub envs: Vec<(String, String)>,
 }
 
 impl Default for Options {
@@ -32,6 +34,7 @@ impl Default for Options {
             max_grid_cells: 1025 * 1025,
             extra: Vec::new(),
             database_url: None,
+            envs: Vec::new(),
         }
     }
 }
@@ -68,6 +71,7 @@ impl TestServer {
             .args(["--max-body-bytes", &options.max_body_bytes.to_string()])
             .args(["--max-grid-cells", &options.max_grid_cells.to_string()])
             .args(&options.extra)
+            .envs(options.envs.iter().map(|(k, v)| (k, v)))
             .env("RUST_LOG", "warn")
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
