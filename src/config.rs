@@ -115,6 +115,7 @@ impl ServiceArgs {
             ("--max-voxels", self.max_voxels.to_string()),
             ("--max-operations", self.max_operations.to_string()),
             ("--lease-secs", worker.lease_secs.to_string()),
+            ("--nice", worker.nice.to_string()),
         ]
         .into_iter()
         .flat_map(|(flag, value)| [flag.to_string(), value])
@@ -165,11 +166,20 @@ pub struct WorkerArgs {
     /// The name kept with this worker's claims (default `worker-PID`).
     #[arg(long, env = "LANDFORM_WORKER_NAME")]
     pub worker_name: Option<String>,
+    /// Lower this worker's CPU priority by N (0–19; `nice`): an API process on the same machine
+    /// (`serve`'s own, or replicas beside workers) then answers promptly however busy the jobs
+    /// keep the cores. A worker with a machine to itself loses nothing by it.
+    #[arg(long, env = "LANDFORM_WORKER_NICE", default_value_t = DEFAULT_WORKER_NICE, value_parser = clap::value_parser!(i32).range(0..=19))]
+    pub nice: i32,
     /// Give the jobs back and exit when standard input closes: `serve` holds it open for the
     /// worker it supervises, so the worker never outlives it.
     #[arg(long, hide = true)]
     pub exit_with_parent: bool,
 }
+
+/// Default niceness of a worker: 10, which leaves about 90 % of a contended core to a
+/// process at 0, such as the API beside it.
+pub const DEFAULT_WORKER_NICE: i32 = 10;
 
 /// Default lease: a crashed worker's job is claimed again within about five seconds, and a
 /// renewal every 1.7 s costs one short UPDATE.

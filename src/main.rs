@@ -67,11 +67,27 @@ fn main() -> anyhow::Result<()> {
             Ok(())
         }
         Command::Serve { role: Role::Worker, service, worker: w, .. } | Command::Worker { service, worker: w } => {
+            lower_priority(w.nice)?;
             runtime()?.block_on(worker(service, w))
         }
         Command::Serve { role, http, service, worker } => runtime()?.block_on(serve(http, service, role, worker)),
         Command::Run { request, out, kind, service } => runtime()?.block_on(run(request, out, kind, service)),
     }
+}
+
+/// Lower the process's CPU priority by `nice`. Called before any thread starts: Linux keeps a
+/// niceness per thread, and every thread started later inherits this one's.
+fn lower_priority(nice: i32) -> anyhow::Result<()> {
+    if nice == 0 {
+        return Ok(());
+    }
+    // SAFETY: setpriority has no memory-safety preconditions; 0 names the calling thread.
+    let current = unsafe { libc::getpriority(libc::PRIO_PROCESS, 0) };
+    // SAFETY: as above.
+    if unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, current.saturating_add(nice).min(19)) } != 0 {
+        anyhow::bail!("cannot lower the worker's priority by {nice}: {}", std::io::Error::last_os_error());
+    }
+    Ok(())
 }
 
 fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {

@@ -139,7 +139,24 @@ const NOW_MS: &str = "CAST(unixepoch('subsec') * 1000 AS INTEGER)";
 /// Read connections opened beside the writer (none for an in-memory database, whose
 /// connections would each see a different database).
 const READERS: usize = 4;
-const BUSY_TIMEOUT: Duration = Duration::from_secs(5);
+/// Attempts of `retry_busy` before a locked database is an error: about 5 s in all.
+const BUSY_ATTEMPTS: i32 = 1_100;
+
+/// How long to wait before trying a locked database again (SQLite calls this with the number of
+/// attempts so far; false gives up). The API and its worker are separate processes writing one
+/// file, so the write lock is often held for a moment by the other: SQLite's own busy timeout
+/// sleeps 1, 2, 5, 10… 100 ms between attempts, which turns a lock held for a millisecond into
+/// a submission that waits tens of them. Short sleeps first, longer ones only when the wait
+/// is long anyway.
+fn retry_busy(attempts: i32) -> bool {
+    let pause = match attempts {
+        0..100 => Duration::from_micros(100), // the first 10 ms
+        100..300 => Duration::from_millis(1), // then 200 ms
+        _ => Duration::from_millis(6),        // then about 4.8 s
+    };
+    std::thread::sleep(pause);
+    attempts < BUSY_ATTEMPTS
+}
 /// The WAL is truncated back to this size after a checkpoint (large artifacts pass through it).
 const JOURNAL_SIZE_LIMIT_BYTES: i64 = 32 * 1024 * 1024;
 
@@ -297,7 +314,7 @@ fn is_in_memory(path: &str) -> bool {
 }
 
 fn configure(conn: &Connection, writer: bool) -> rusqlite::Result<()> {
-    conn.busy_timeout(BUSY_TIMEOUT)?;
+    conn.busy_handler(Some(retry_busy))?;
     conn.pragma_update(None, "foreign_keys", "ON")?;
     if writer {
         // An in-memory database answers "memory"; WAL needs a file.
