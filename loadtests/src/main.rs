@@ -52,6 +52,9 @@ struct Args {
     /// Jobs of each kind run one at a time to measure the floor (after two to warm up).
     #[arg(long, default_value_t = 20)]
     floor_jobs: usize,
+    /// Milliseconds between a polling client's status requests.
+    #[arg(long, default_value_t = 100)]
+    poll_ms: u64,
     /// Skip the burst phase.
     #[arg(long)]
     no_burst: bool,
@@ -184,6 +187,7 @@ async fn main() -> Result<()> {
         small: bodies(&root.join("bodies/small"))?,
         large: bodies(&root.join("bodies/large"))?,
         phase: Mutex::new("floor".into()),
+        poll_every: Duration::from_millis(args.poll_ms),
         accepted: Mutex::new(Vec::new()),
         seen_succeeded: Default::default(),
         burst_503: Default::default(),

@@ -1,7 +1,7 @@
 //! What the simulated clients do. Each goose user is one client:
 //!
 //! - **steady** (`small_job`): submit a small job (the kinds in turn), follow it — even users
-//!   over SSE, odd users by polling every 100 ms — on another API replica where there are
+//!   over SSE, odd users by polling (every 100 ms by default) — on another API replica where there are
 //!   several, then download one of its artifacts (in turn) and check its sha256; again.
 //! - **burst** (`burst`): submit 8 small jobs back to back without waiting; `503` (queue full)
 //!   is expected and counted apart.
@@ -34,6 +34,8 @@ pub struct Shared {
     pub small: Vec<(String, Value)>,
     pub large: Vec<(String, Value)>,
     pub phase: Mutex<String>,
+    /// How often polling clients ask for a job's status.
+    pub poll_every: Duration,
     pub accepted: Mutex<Vec<Accepted>>,
     /// Jobs a client saw end, and how (per phase, as it ran).
     pub seen_succeeded: AtomicU64,
@@ -165,7 +167,7 @@ async fn poll(user: &mut GooseUser, api: &str, id: &str) -> Step<Option<Value>> 
         if is_terminal(job["status"].as_str().unwrap_or_default()) {
             return Ok(Some(job));
         }
-        tokio::time::sleep(Duration::from_millis(100)).await;
+        tokio::time::sleep(shared().poll_every).await;
     }
 }
 

@@ -41,8 +41,7 @@ const CANCEL_WAIT: Duration = Duration::from_secs(5);
 impl Engine {
     /// Whether the store's queue has room for one more job.
     pub(super) async fn store_has_room(&self) -> Result<bool, EngineError> {
-        let counts = self.blocking(|s| s.counts()).await?;
-        let queued: u64 = counts.iter().filter(|(_, status, _)| *status == JobStatus::Queued).map(|(_, _, n)| n).sum();
+        let queued = self.blocking(|s| s.queued()).await?;
         Ok(queued < self.config().queue_capacity as u64)
     }
 

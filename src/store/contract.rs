@@ -240,6 +240,7 @@ pub fn unfinished_is_oldest_first_and_counts_group_by_kind_and_status(store: &dy
             ("grow-cave".to_string(), JobStatus::Succeeded, 1),
         ]
     );
+    assert_eq!(store.queued().unwrap(), 3);
 }
 
 pub fn attempts_count_each_entry_into_running(store: &dyn JobStore) {

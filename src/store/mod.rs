@@ -6,6 +6,7 @@ pub(crate) mod contract;
 mod events;
 mod listener;
 mod objects;
+mod pg_conn;
 mod postgres;
 mod queue;
 mod row;
@@ -75,6 +76,9 @@ pub trait JobStore: ArtifactStore {
     fn has_input(&self, sha256: &str) -> Result<bool, StoreError>;
     /// How many times the job has entered `running` (0 if it never ran); None if there is none.
     fn attempts(&self, id: &str) -> Result<Option<u32>, StoreError>;
+    /// Number of jobs waiting in the queue (what admission compares with its capacity, on
+    /// every submission: an index lookup, not a count of every job ever stored).
+    fn queued(&self) -> Result<u64, StoreError>;
     /// Number of jobs per (kind, status).
     fn counts(&self) -> Result<Vec<(String, JobStatus, u64)>, StoreError>;
 }

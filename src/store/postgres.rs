@@ -9,13 +9,14 @@ use std::time::Duration;
 
 use parking_lot::{Mutex, MutexGuard};
 use postgres::types::ToSql;
-use postgres::{Client, GenericClient, IsolationLevel, NoTls, Row};
+use postgres::{Client, NoTls, Row};
 use tokio::sync::broadcast;
 
 use super::artifacts::{assemble, chunks, span};
 use super::events::{event_id, EventLog, Notice, StoredEvent};
 use super::listener::{self, EVENTS_CHANNEL, JOBS_CHANNEL};
 use super::objects::{object_range, ObjectArtifacts};
+use super::pg_conn::{Conn, Sql, Tx};
 use super::queue::{count, lease_ms, Claim, JobQueue, Renewal};
 use super::row::{describe, timestamp, JobRow, RawJob, JOB_COLUMNS};
 use super::{ArtifactStore, IdempotentInsert, JobStore, ListFilter, StoreError, CHUNK_BYTES};
@@ -27,12 +28,12 @@ mod embedded {
 }
 
 /// Connections opened per store: a reader or writer each, used in turn.
-const CONNECTIONS: usize = 4;
+const CONNECTIONS: usize = 8;
 /// Any constant: replicas starting at once take this lock to migrate one after another.
 const MIGRATION_LOCK: i64 = 0x4c41_4e44_464f_524d; // "LANDFORM"
 
 pub struct PostgresStore {
-    clients: Vec<Mutex<Client>>,
+    clients: Vec<Mutex<Conn>>,
     next: AtomicUsize,
     url: String,
     /// The listener's fan-out, once anyone in this process has asked for notices.
@@ -70,9 +71,9 @@ impl PostgresStore {
         let migrated = embedded::migrations::runner().run(&mut first).map_err(migration);
         first.execute("SELECT pg_advisory_unlock($1)", &[&MIGRATION_LOCK]).map_err(db)?;
         migrated?;
-        let mut clients = vec![Mutex::new(first)];
+        let mut clients = vec![Mutex::new(Conn::new(first))];
         for _ in 1..CONNECTIONS {
-            clients.push(Mutex::new(connect()?));
+            clients.push(Mutex::new(Conn::new(connect()?)));
         }
         Ok(Self { clients, next: AtomicUsize::new(0), url: url.to_string(), notices: Mutex::new(None), objects: None })
     }
@@ -104,23 +105,18 @@ impl PostgresStore {
         let replaced = object_keys(&mut tx, &job.id)?;
         // The job's chunks go with its artifact rows (ON DELETE CASCADE).
         tx.execute("DELETE FROM artifacts WHERE job_id = $1", &[&job.id]).map_err(db)?;
-        let artifact = tx
-            .prepare(
-                "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, chunk_bytes, object_key) \
-                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8)",
-            )
-            .map_err(db)?;
-        let chunk =
-            tx.prepare("INSERT INTO artifact_chunks (job_id, name, seq, data) VALUES ($1, $2, $3, $4)").map_err(db)?;
+        let artifact = "INSERT INTO artifacts (job_id, name, ordinal, media_type, bytes, sha256, chunk_bytes, object_key) \
+                        VALUES ($1, $2, $3, $4, $5, $6, $7, $8)";
+        let chunk = "INSERT INTO artifact_chunks (job_id, name, seq, data) VALUES ($1, $2, $3, $4)";
         let chunk_bytes = CHUNK_BYTES as i64;
         for (ordinal, (a, m)) in artifacts.iter().zip(&metas).enumerate() {
             let (ordinal, bytes) = (ordinal as i32, a.bytes.len() as i64);
             let key = placed.as_ref().map(|p| p.keys[ordinal as usize].as_str());
-            tx.execute(&artifact, &[&job.id, &m.name, &ordinal, &m.media_type, &bytes, &m.sha256, &chunk_bytes, &key])
+            tx.execute(artifact, &[&job.id, &m.name, &ordinal, &m.media_type, &bytes, &m.sha256, &chunk_bytes, &key])
                 .map_err(db)?;
             if key.is_none() {
                 for (seq, data) in chunks(&a.bytes) {
-                    tx.execute(&chunk, &[&job.id, &m.name, &(seq as i32), &data]).map_err(db)?;
+                    tx.execute(chunk, &[&job.id, &m.name, &(seq as i32), &data]).map_err(db)?;
                 }
             }
         }
@@ -134,7 +130,7 @@ impl PostgresStore {
     }
 
     /// A free connection if there is one, else the next in turn.
-    fn client(&self) -> MutexGuard<'_, Client> {
+    fn client(&self) -> MutexGuard<'_, Conn> {
         let n = self.clients.len();
         let start = self.next.fetch_add(1, Ordering::Relaxed);
         for k in 0..n {
@@ -170,7 +166,7 @@ fn raw_job(row: &Row) -> Result<RawJob, StoreError> {
     })
 }
 
-fn artifact_metas(c: &mut impl GenericClient, job_id: &str) -> Result<Vec<ArtifactMeta>, StoreError> {
+fn artifact_metas(c: &mut impl Sql, job_id: &str) -> Result<Vec<ArtifactMeta>, StoreError> {
     let rows = c
         .query("SELECT name, media_type, bytes, sha256 FROM artifacts WHERE job_id = $1 ORDER BY ordinal", &[&job_id])
         .map_err(db)?;
@@ -190,7 +186,7 @@ fn artifact_metas(c: &mut impl GenericClient, job_id: &str) -> Result<Vec<Artifa
         .collect()
 }
 
-fn load_jobs(c: &mut impl GenericClient, sql: &str, params: &[&(dyn ToSql + Sync)]) -> Result<Vec<Job>, StoreError> {
+fn load_jobs(c: &mut impl Sql, sql: &str, params: &[&(dyn ToSql + Sync)]) -> Result<Vec<Job>, StoreError> {
     let rows = c.query(sql, params).map_err(db)?;
     let raws = rows.iter().map(raw_job).collect::<Result<Vec<_>, _>>()?;
     raws.into_iter()
@@ -201,11 +197,11 @@ fn load_jobs(c: &mut impl GenericClient, sql: &str, params: &[&(dyn ToSql + Sync
         .collect()
 }
 
-fn load_job(c: &mut impl GenericClient, id: &str) -> Result<Option<Job>, StoreError> {
+fn load_job(c: &mut impl Sql, id: &str) -> Result<Option<Job>, StoreError> {
     Ok(load_jobs(c, &format!("SELECT {JOB_COLUMNS} FROM jobs WHERE id = $1"), &[&id])?.pop())
 }
 
-fn insert_row(c: &mut impl GenericClient, row: &JobRow) -> Result<(), StoreError> {
+fn insert_row(c: &mut impl Sql, row: &JobRow) -> Result<(), StoreError> {
     let j = row.job;
     let running = i32::from(j.status == JobStatus::Running);
     c.execute(
@@ -238,13 +234,13 @@ fn insert_row(c: &mut impl GenericClient, row: &JobRow) -> Result<(), StoreError
 
 /// Tell listeners in every process (delivered when the transaction commits); the payload is
 /// the job's id only.
-fn notify(c: &mut impl GenericClient, channel: &str, job_id: &str) -> Result<(), StoreError> {
+fn notify(c: &mut impl Sql, channel: &str, job_id: &str) -> Result<(), StoreError> {
     c.execute("SELECT pg_notify($1, $2)", &[&channel, &job_id]).map_err(db)?;
     Ok(())
 }
 
 /// Save the mutable columns; false if there is no such job.
-fn update_row(c: &mut impl GenericClient, row: &JobRow) -> Result<bool, StoreError> {
+fn update_row(c: &mut impl Sql, row: &JobRow) -> Result<bool, StoreError> {
     let j = row.job;
     // SET expressions see the row as it was, so `status` there is the previous status.
     let n = c
@@ -274,7 +270,7 @@ fn update_row(c: &mut impl GenericClient, row: &JobRow) -> Result<bool, StoreErr
 }
 
 /// The object keys of a job's artifacts kept in an object store.
-fn object_keys(c: &mut impl GenericClient, job_id: &str) -> Result<Vec<String>, StoreError> {
+fn object_keys(c: &mut impl Sql, job_id: &str) -> Result<Vec<String>, StoreError> {
     let rows = c
         .query("SELECT object_key FROM artifacts WHERE job_id = $1 AND object_key IS NOT NULL", &[&job_id])
         .map_err(db)?;
@@ -283,8 +279,8 @@ fn object_keys(c: &mut impl GenericClient, job_id: &str) -> Result<Vec<String>, 
 
 /// One read-only snapshot for an artifact's row and chunks: a job finished again meanwhile
 /// can't mix its old and new chunks.
-fn chunk_snapshot(client: &mut Client) -> Result<postgres::Transaction<'_>, StoreError> {
-    client.build_transaction().read_only(true).isolation_level(IsolationLevel::RepeatableRead).start().map_err(db)
+fn chunk_snapshot(client: &mut Conn) -> Result<Tx<'_>, StoreError> {
+    client.read_only(true).map_err(db)
 }
 
 impl ArtifactStore for PostgresStore {
@@ -607,7 +603,7 @@ impl JobStore for PostgresStore {
 
     fn get(&self, id: &str) -> Result<Option<Job>, StoreError> {
         let mut client = self.client();
-        let mut tx = client.build_transaction().read_only(true).start().map_err(db)?;
+        let mut tx = client.read_only(false).map_err(db)?;
         let job = load_job(&mut tx, id)?;
         tx.commit().map_err(db)?;
         Ok(job)
@@ -624,7 +620,7 @@ impl JobStore for PostgresStore {
              ORDER BY id DESC LIMIT $5"
         );
         let mut client = self.client();
-        let mut tx = client.build_transaction().read_only(true).start().map_err(db)?;
+        let mut tx = client.read_only(false).map_err(db)?;
         let jobs = load_jobs(&mut tx, &sql, &[&filter.kind, &status, &filter.owner, &filter.before_id, &limit])?;
         tx.commit().map_err(db)?;
         Ok(jobs)
@@ -688,6 +684,16 @@ impl JobStore for PostgresStore {
                 u32::try_from(n).map_err(|_| StoreError::Corrupt(format!("job {id}: attempts {n}")))
             })
             .transpose()
+    }
+
+    fn queued(&self) -> Result<u64, StoreError> {
+        let n: i64 = self
+            .client()
+            .query_one("SELECT COUNT(*) FROM jobs WHERE status = 'queued'", &[])
+            .map_err(db)?
+            .try_get(0)
+            .map_err(db)?;
+        Ok(n.max(0) as u64)
     }
 
     fn counts(&self) -> Result<Vec<(String, JobStatus, u64)>, StoreError> {

@@ -892,6 +892,15 @@ impl JobStore for SqliteStore {
         conn.prepare_cached("SELECT 1 FROM inputs WHERE sha256 = ?1").and_then(|mut s| s.exists([sha256])).map_err(db)
     }
 
+    fn queued(&self) -> Result<u64, StoreError> {
+        let n: i64 = self
+            .reader()
+            .prepare_cached("SELECT COUNT(*) FROM jobs WHERE status = 'queued'")
+            .and_then(|mut s| s.query_row([], |r| r.get(0)))
+            .map_err(db)?;
+        Ok(n.max(0) as u64)
+    }
+
     fn counts(&self) -> Result<Vec<(String, JobStatus, u64)>, StoreError> {
         let conn = self.reader();
         let mut stmt = conn
