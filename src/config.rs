@@ -65,12 +65,17 @@ impl ServiceArgs {
             .unwrap_or_else(|| "landform.db".to_string())
     }
 
-    pub fn open_store(&self) -> anyhow::Result<Arc<dyn EventLog>> {
+    /// The job store; `for_worker`: a worker's (on PostgreSQL, commits that need not wait for
+    /// the disk, see `PostgresStore::with_relaxed_commits`).
+    pub fn open_store(&self, for_worker: bool) -> anyhow::Result<Arc<dyn EventLog>> {
         let location = self.database_location();
         let objects =
             self.artifact_store.as_deref().filter(|s| !s.is_empty()).map(ObjectArtifacts::open).transpose()?;
         if location.starts_with("postgres://") || location.starts_with("postgresql://") {
-            let store = PostgresStore::open(&location)?;
+            let mut store = PostgresStore::open(&location)?;
+            if for_worker {
+                store = store.with_relaxed_commits()?;
+            }
             return Ok(Arc::new(match objects {
                 Some(o) => store.with_objects(o),
                 None => store,

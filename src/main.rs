@@ -102,7 +102,7 @@ fn init_tracing(default: &str) {
 /// An engine that runs jobs itself (`runs_jobs`, as `landform run` does), or one that leaves
 /// them in the store for workers.
 fn engine(service: &ServiceArgs, runs_jobs: bool) -> anyhow::Result<Engine> {
-    let store = service.open_store()?;
+    let store = service.open_store(false)?;
     let config = EngineConfig { runs_jobs, ..service.engine_config() };
     Ok(Engine::new(store, landform::sims::registry(), config)?)
 }
@@ -173,7 +173,7 @@ async fn serve(http: HttpArgs, service: ServiceArgs, role: Role, worker_args: Wo
 /// lets them finish until the shutdown deadline and gives the rest back to the queue.
 async fn worker(service: ServiceArgs, args: WorkerArgs) -> anyhow::Result<()> {
     init_tracing("info");
-    let store = tokio::task::block_in_place(|| service.open_store())?;
+    let store = tokio::task::block_in_place(|| service.open_store(true))?;
     let config = service.worker_config(&args);
     landform::jobs::build_pool(service.engine_config().workers);
     tracing::info!(

@@ -72,7 +72,12 @@ pub async fn run(client: &reqwest::Client, within: Duration) -> (Checks, HashMap
                     checks.succeeded += 1;
                     for a in j["artifacts"].as_array().into_iter().flatten() {
                         let (name, sha, bytes) = (a["name"].as_str(), a["sha256"].as_str(), a["bytes"].as_u64());
-                        downloads.push((id.clone(), name.unwrap_or_default().to_string(), sha.unwrap_or_default().to_string(), bytes.unwrap_or(0)));
+                        downloads.push((
+                            id.clone(),
+                            name.unwrap_or_default().to_string(),
+                            sha.unwrap_or_default().to_string(),
+                            bytes.unwrap_or(0),
+                        ));
                     }
                 } else {
                     checks.failed += 1;
@@ -84,7 +89,10 @@ pub async fn run(client: &reqwest::Client, within: Duration) -> (Checks, HashMap
                 let accepted = shared().accepted.lock().unwrap();
                 let a = accepted.iter().find(|a| &a.id == id);
                 let (kind, phase) = a.map_or(("?", "?"), |a| (a.kind.as_str(), a.phase.as_str()));
-                checks.problems.push(format!("job {id} ({kind}, {phase}) lost: {}", if job.is_some() { "never ended" } else { "not found" }));
+                checks.problems.push(format!(
+                    "job {id} ({kind}, {phase}) lost: {}",
+                    if job.is_some() { "never ended" } else { "not found" }
+                ));
             }
         }
     }
@@ -99,7 +107,9 @@ pub async fn run(client: &reqwest::Client, within: Duration) -> (Checks, HashMap
             };
             match got {
                 Ok(b) if b.len() as u64 == bytes && format!("{:x}", Sha256::digest(&b)) == sha => None,
-                Ok(b) => Some(format!("job {id}: {name}: {} bytes not matching its sha256 ({bytes} advertised)", b.len())),
+                Ok(b) => {
+                    Some(format!("job {id}: {name}: {} bytes not matching its sha256 ({bytes} advertised)", b.len()))
+                }
                 Err(e) => Some(format!("job {id}: {name}: {e}")),
             }
         })

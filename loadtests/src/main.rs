@@ -112,7 +112,11 @@ async fn floor(deployment: &Deployment, client: &reqwest::Client, jobs: usize) -
             cpu_ms_per_job: 1000.0 * cpu / jobs as f64,
             wall_ms_per_job: 1000.0 * wall / jobs as f64,
         });
-        eprintln!("floor: {kind}: {:.1} ms CPU, {:.1} ms wall per job", 1000.0 * cpu / jobs as f64, 1000.0 * wall / jobs as f64);
+        eprintln!(
+            "floor: {kind}: {:.1} ms CPU, {:.1} ms wall per job",
+            1000.0 * cpu / jobs as f64,
+            1000.0 * wall / jobs as f64
+        );
     }
     let mean_cpu_ms = kinds.iter().map(|k| k.cpu_ms_per_job).sum::<f64>() / kinds.len() as f64;
     Ok(Floor { cores, kinds, mean_cpu_ms, jobs_per_s: cores as f64 * 1000.0 / mean_cpu_ms })
@@ -273,13 +277,17 @@ async fn main() -> Result<()> {
     let mut verdicts = BTreeMap::new();
     let need = if args.setup == Setup::Embedded { 0.50 } else { 0.35 };
     if let Some(steady) = phases.iter().find(|p| p.name == "steady") {
-        verdicts.insert(format!("steady: at least {:.0} % of the floor", 100.0 * need), steady.fraction_of_floor >= need);
+        verdicts
+            .insert(format!("steady: at least {:.0} % of the floor", 100.0 * need), steady.fraction_of_floor >= need);
     }
     let submit_p99 = phases.iter().filter_map(|p| p.requests.get("submit").map(|r| r.p99_ms)).fold(0.0, f64::max);
     verdicts.insert("submit p99 ≤ 50 ms in every phase".into(), submit_p99 <= 50.0);
     // The burst's 503s are marked as successes when they come, so every failure counts.
     let unexpected: usize = phases.iter().flat_map(|p| p.requests.values()).map(|r| r.failed).sum();
-    verdicts.insert("no error but the burst's counted 503s".into(), unexpected == 0 && checks.problems.is_empty() && checks.failed == 0);
+    verdicts.insert(
+        "no error but the burst's counted 503s".into(),
+        unexpected == 0 && checks.problems.is_empty() && checks.failed == 0,
+    );
     verdicts.insert("no job lost".into(), checks.lost == 0);
     verdicts.insert("every artifact matches its sha256".into(), checks.artifact_mismatches == 0);
 

@@ -119,14 +119,17 @@ pub struct Report {
 
 impl Report {
     pub fn markdown(&self) -> String {
-        let mut s = format!(
-            "## Load test: {} — {}\n\n`{}` ({})\n\n",
-            self.setup, self.deployment, self.command, self.started
-        );
+        let mut s =
+            format!("## Load test: {} — {}\n\n`{}` ({})\n\n", self.setup, self.deployment, self.command, self.started);
         s += &format!(
             "Floor ({} cores): {}; mean {:.1} ms CPU per small job → **{:.1} jobs/s**.\n\n",
             self.floor.cores,
-            self.floor.kinds.iter().map(|k| format!("{} {:.1} ms", k.kind, k.cpu_ms_per_job)).collect::<Vec<_>>().join(", "),
+            self.floor
+                .kinds
+                .iter()
+                .map(|k| format!("{} {:.1} ms", k.kind, k.cpu_ms_per_job))
+                .collect::<Vec<_>>()
+                .join(", "),
             self.floor.mean_cpu_ms,
             self.floor.jobs_per_s
         );

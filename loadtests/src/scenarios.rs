@@ -123,8 +123,12 @@ async fn submit(user: &mut GooseUser, api: &str, kind: &str, body: &Value, burst
 async fn follow_events(user: &mut GooseUser, api: &str, id: &str) -> Step<Option<Value>> {
     let url = format!("{api}/v1/jobs/{id}/events");
     let builder = user.client.get(&url).header("accept", "text/event-stream").timeout(Duration::from_secs(600));
-    let request =
-        GooseRequest::builder().method(GooseMethod::Get).path(url.as_str()).name("events").set_request_builder(builder).build();
+    let request = GooseRequest::builder()
+        .method(GooseMethod::Get)
+        .path(url.as_str())
+        .name("events")
+        .set_request_builder(builder)
+        .build();
     let goose = user.request(request).await?;
     let Ok(mut response) = goose.response else { return Ok(None) };
     if !response.status().is_success() {
@@ -143,8 +147,12 @@ async fn follow_events(user: &mut GooseUser, api: &str, id: &str) -> Step<Option
         while let Some(end) = buffer.find("\n\n") {
             let event: String = buffer.drain(..end + 2).collect();
             if event.lines().any(|l| l == "event: done") {
-                let data: String =
-                    event.lines().filter_map(|l| l.strip_prefix("data:")).map(str::trim_start).collect::<Vec<_>>().join("\n");
+                let data: String = event
+                    .lines()
+                    .filter_map(|l| l.strip_prefix("data:"))
+                    .map(str::trim_start)
+                    .collect::<Vec<_>>()
+                    .join("\n");
                 return Ok(serde_json::from_str(&data).ok());
             }
         }

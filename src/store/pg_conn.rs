@@ -82,6 +82,10 @@ impl Conn {
         Self { client, prepared: HashMap::new() }
     }
 
+    pub fn batch_execute(&mut self, sql: &str) -> Result<(), postgres::Error> {
+        self.client.batch_execute(sql)
+    }
+
     pub fn transaction(&mut self) -> Result<Tx<'_>, postgres::Error> {
         Ok(Tx { tx: self.client.transaction()?, prepared: &mut self.prepared })
     }
