@@ -6,9 +6,15 @@ COPY src ./src
 COPY benches ./benches
 # Embedded in the binary at compile time (refinery's PostgreSQL migrations).
 COPY migrations ./migrations
+# The load generator is a workspace member: its manifest and sources must be there for Cargo to
+# read the workspace, though only the service is built.
+COPY loadtests/Cargo.toml ./loadtests/Cargo.toml
+COPY loadtests/src ./loadtests/src
 RUN cargo build --locked --release --bin landform
 
 FROM debian:bookworm-slim
+# CA certificates: an S3 artifact store (--artifact-store s3://…) is reached over TLS.
+RUN apt-get update && apt-get install -y --no-install-recommends ca-certificates && rm -rf /var/lib/apt/lists/*
 RUN useradd --system --uid 10001 --home /data landform && mkdir -p /data && chown landform /data
 COPY --from=build /src/target/release/landform /usr/local/bin/landform
 USER landform

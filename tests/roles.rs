@@ -1,7 +1,7 @@
 //! The service split across processes: API replicas (`serve --role api`) and workers
 //! (`landform worker`) on one database — the embedded SQLite file, and PostgreSQL when
 //! `LANDFORM_TEST_DATABASE_URL` names one. A job submitted to one replica is followed on
-//! another and makes the same bytes as in a single process.
+//! another, downloaded from a third, and makes the same bytes as in a single process.
 
 mod common;
 
@@ -11,10 +11,10 @@ use common::server::{artifact_hashes, TestServer};
 use common::sse::read_events;
 use serde_json::json;
 
-/// Two API replicas and two workers on `database`: jobs cross between them.
+/// Three API replicas and two workers on `database`: jobs cross between them.
 async fn jobs_cross_replicas_and_workers(database: &str) {
     let _workers = [WorkerProcess::start(database, 3), WorkerProcess::start(database, 3)];
-    let (one, two) = (api_replica(database).await, api_replica(database).await);
+    let (one, two, three) = (api_replica(database).await, api_replica(database).await, api_replica(database).await);
 
     // Submitted to one replica, followed to the end on the other, from its first event.
     let job = one.submit("bulldoze", &small_bulldoze()).await;
@@ -25,18 +25,25 @@ async fn jobs_cross_replicas_and_workers(database: &str) {
     let ids: Vec<u64> = events.iter().filter_map(|e| e.id).collect();
     assert!(ids.windows(2).all(|w| w[0] < w[1]), "event ids grow: {ids:?}");
 
-    // Every replica lists and serves it the same, with the bytes one process makes.
+    // Every replica lists and serves it the same, with the bytes one process makes; it is
+    // downloaded from the third.
     let (_, from_one) = one.get_json(&format!("/v1/jobs/{id}")).await;
     let (_, from_two) = two.get_json(&format!("/v1/jobs/{id}")).await;
+    let (_, from_three) = three.get_json(&format!("/v1/jobs/{id}")).await;
     assert_eq!(from_one, from_two);
+    assert_eq!(from_one, from_three);
     let single = TestServer::start().await;
     let alone = single.run("bulldoze", &small_bulldoze()).await;
     assert_eq!(artifact_hashes(&from_two), artifact_hashes(&alone));
-    let glb = one.artifact(&id, "mesh.glb").await;
-    assert_eq!(glb, single.artifact(alone["id"].as_str().unwrap(), "mesh.glb").await);
+    for (name, _) in artifact_hashes(&alone) {
+        let here = three.artifact(&id, &name).await;
+        assert_eq!(here, single.artifact(alone["id"].as_str().unwrap(), &name).await, "{name}");
+    }
     let (_, page_one) = one.get_json("/v1/jobs?limit=10").await;
     let (_, page_two) = two.get_json("/v1/jobs?limit=10").await;
+    let (_, page_three) = three.get_json("/v1/jobs?limit=10").await;
     assert_eq!(page_one["items"], page_two["items"]);
+    assert_eq!(page_one["items"], page_three["items"]);
 
     // A long job: progress from its worker reaches a stream on either replica, a client
     // resuming with Last-Event-ID on the other replica misses nothing after it, and a cancel
@@ -69,14 +76,14 @@ async fn jobs_cross_replicas_and_workers(database: &str) {
 }
 
 #[tokio::test]
-async fn two_api_replicas_and_two_workers_share_one_sqlite_file() {
+async fn three_api_replicas_and_two_workers_share_one_sqlite_file() {
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("shared.db");
     jobs_cross_replicas_and_workers(db.to_str().unwrap()).await;
 }
 
 #[tokio::test]
-async fn two_api_replicas_and_two_workers_share_one_postgres_database() {
+async fn three_api_replicas_and_two_workers_share_one_postgres_database() {
     let Some(schema) = with_schema() else { return };
     jobs_cross_replicas_and_workers(&schema.url).await;
 }

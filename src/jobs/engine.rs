@@ -472,6 +472,10 @@ impl Engine {
 
     /// A key's jobs at once: how many are queued or running, and the memory they reserve.
     async fn check_quota(&self, who: &Submitter, cost: &super::Cost) -> Result<(), EngineError> {
+        if who.max_active_jobs.is_none() && who.max_memory_bytes.is_none() {
+            // No limits to hold this submitter to: nothing to count.
+            return Ok(());
+        }
         let (jobs, memory) = self.usage(who.owner.as_deref()).await?;
         if let Some(max) = who.max_active_jobs {
             if jobs >= max {
@@ -632,19 +636,27 @@ impl Engine {
         let capacity = self.inner.config.queue_capacity;
         // Where the job will wait: a place in this process's queue, or (`Some(None)`) the
         // store's queue, which workers elsewhere claim from; `None` when it is full.
-        let slot = if self.inner.config.runs_jobs {
-            self.reserve_slot().map(Some)
-        } else {
-            self.store_has_room().await?.then_some(None)
-        };
+        // Without a queue here, the store's is counted and the job stored in one trip to a
+        // blocking thread: each trip is a wake-up that waits its turn for a core under load.
+        let in_store = !self.inner.config.runs_jobs;
+        let slot = if in_store { Some(None) } else { self.reserve_slot().map(Some) };
         // An idempotent retry must still find its job when the queue is full.
         if slot.is_none() && idempotency.is_none() {
             return Err(EngineError::QueueFull(capacity));
         }
         let stored = job.clone();
-        let outcome = self
-            .blocking(move |s| s.insert(&stored, idempotency.as_ref().map(|(k, h)| (k.as_str(), h.as_str()))))
+        let (full, outcome) = self
+            .blocking(move |s| {
+                let full = in_store && s.queued()? >= capacity as u64;
+                if full && idempotency.is_none() {
+                    return Ok((true, None));
+                }
+                let key = idempotency.as_ref().map(|(k, h)| (k.as_str(), h.as_str()));
+                s.insert(&stored, key).map(|o| (full, Some(o)))
+            })
             .await?;
+        let Some(outcome) = outcome else { return Err(EngineError::QueueFull(capacity)) };
+        let slot = if full { None } else { slot };
         match outcome {
             IdempotentInsert::Existing { job, same_body: true } => Ok(Submitted::Existing(*job)),
             IdempotentInsert::Existing { job, same_body: false } => Err(EngineError::Conflict(format!(

@@ -39,12 +39,6 @@ pub async fn until_changed(id: &str, notices: &mut Option<broadcast::Receiver<No
 const CANCEL_WAIT: Duration = Duration::from_secs(5);
 
 impl Engine {
-    /// Whether the store's queue has room for one more job.
-    pub(super) async fn store_has_room(&self) -> Result<bool, EngineError> {
-        let queued = self.blocking(|s| s.queued()).await?;
-        Ok(queued < self.config().queue_capacity as u64)
-    }
-
     /// A running job's progress: its latest progress event.
     pub(super) async fn stored_progress(&self, job: &mut Job) {
         let id = job.id.clone();
