@@ -259,9 +259,12 @@ async fn errors_outside_the_job_routes_are_problems_too() {
     let res = server.client.get(server.url("/nowhere")).send().await.unwrap();
     assert_eq!(res.status(), 404);
     assert_eq!(res.headers()["content-type"], "application/problem+json");
-    let (status, p) = server.get_json("/v1/jobs?limit=lots").await;
-    assert_eq!(status, 422);
-    assert_eq!(p["errors"][0]["field"], "limit");
+    // Not a number, or no number at all (`limit=`: the schema says integer).
+    for bad in ["lots", ""] {
+        let (status, p) = server.get_json(&format!("/v1/jobs?limit={bad}")).await;
+        assert_eq!(status, 422, "limit={bad}");
+        assert_eq!(p["errors"][0]["field"], "limit");
+    }
     // The largest event id the schema allows (19 digits) reaches the job lookup; 20 digits
     // (u64::MAX among them) are not an event id, as the schema's pattern says.
     let events = |last: String| {

@@ -61,7 +61,8 @@ pub async fn list_jobs(
         }
     }
     let limit = match q.limit.as_deref() {
-        None | Some("") => DEFAULT_LIMIT,
+        // An empty `limit=` is not a number: the schema says integer, so it is refused too.
+        None => DEFAULT_LIMIT,
         Some(s) => s
             .parse()
             .ok()
