@@ -72,21 +72,14 @@ impl ServiceArgs {
         let objects =
             self.artifact_store.as_deref().filter(|s| !s.is_empty()).map(ObjectArtifacts::open).transpose()?;
         if location.starts_with("postgres://") || location.starts_with("postgresql://") {
-            let mut store = PostgresStore::open(&location)?;
+            let mut store = PostgresStore::open(&location)?.with_objects(objects);
             if for_worker {
                 store = store.with_relaxed_commits()?;
             }
-            return Ok(Arc::new(match objects {
-                Some(o) => store.with_objects(o),
-                None => store,
-            }));
+            return Ok(Arc::new(store));
         }
         let path = location.strip_prefix("sqlite://").unwrap_or(&location);
-        let store = SqliteStore::open(path)?;
-        Ok(Arc::new(match objects {
-            Some(o) => store.with_objects(o),
-            None => store,
-        }))
+        Ok(Arc::new(SqliteStore::open(path)?.with_objects(objects)))
     }
 
     pub fn engine_config(&self) -> EngineConfig {

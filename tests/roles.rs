@@ -61,16 +61,8 @@ async fn jobs_cross_replicas_and_workers(database: &str) {
     assert_eq!((end.event.as_str(), end.data["status"].as_str()), ("done", Some("cancelled")));
 
     // Prefer: wait holds the answer on a replica that runs no job itself.
-    let res = two
-        .client
-        .post(two.url("/v1/jobs/bulldoze"))
-        .header("prefer", "wait=60")
-        .json(&small_bulldoze())
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(res.status(), 200);
-    let waited: serde_json::Value = res.json().await.unwrap();
+    let (status, waited) = two.submit_waiting("bulldoze", &small_bulldoze(), 60).await;
+    assert_eq!(status, 200);
     assert_eq!(waited["status"], "succeeded", "{waited}");
     assert_eq!(artifact_hashes(&waited), artifact_hashes(&alone));
 }

@@ -27,16 +27,8 @@ async fn prefer_wait_holds_the_answer_until_the_job_ends() {
     assert_eq!(location, format!("/v1/jobs/{}", job["id"].as_str().unwrap()));
 
     // A job that can't end in a second comes back 202 after the wait.
-    let res = server
-        .client
-        .post(server.url("/v1/jobs/bulldoze"))
-        .header("prefer", "wait=1")
-        .json(&slow_bulldoze())
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(res.status(), 202);
-    let job: serde_json::Value = res.json().await.unwrap();
+    let (status, job) = server.submit_waiting("bulldoze", &slow_bulldoze(), 1).await;
+    assert_eq!(status, 202);
     assert!(matches!(job["status"].as_str(), Some("queued" | "running")), "{job}");
 }
 

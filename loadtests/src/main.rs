@@ -193,7 +193,6 @@ async fn main() -> Result<()> {
         phase: Mutex::new("floor".into()),
         poll_every: Duration::from_millis(args.poll_ms),
         accepted: Mutex::new(Vec::new()),
-        seen_succeeded: Default::default(),
         burst_503: Default::default(),
         problems: Mutex::new(Vec::new()),
     });

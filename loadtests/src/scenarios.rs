@@ -37,8 +37,6 @@ pub struct Shared {
     /// How often polling clients ask for a job's status.
     pub poll_every: Duration,
     pub accepted: Mutex<Vec<Accepted>>,
-    /// Jobs a client saw end, and how (per phase, as it ran).
-    pub seen_succeeded: AtomicU64,
     pub burst_503: AtomicU64,
     /// What went wrong that is not an HTTP status: a job that failed, a wrong sha256, an event
     /// stream that ended without `done`.
@@ -186,7 +184,6 @@ async fn download(user: &mut GooseUser, api: &str, job: &Value, pick: usize) -> 
         problem(format!("job {id} ({}) ended {}: {}", job["kind"], job["status"], job["error"]));
         return Ok(());
     }
-    shared().seen_succeeded.fetch_add(1, Ordering::Relaxed);
     let Some(artifacts) = job["artifacts"].as_array().filter(|a| !a.is_empty()) else {
         problem(format!("job {id} succeeded with no artifacts"));
         return Ok(());

@@ -19,6 +19,19 @@ pub trait ArtifactStore: Send + Sync + 'static {
     fn artifact(&self, id: &str, name: &str) -> Result<Option<(String, Vec<u8>)>, StoreError>;
 }
 
+/// An artifact's row: what a read needs to know before it reads any bytes.
+pub(super) struct StoredArtifact {
+    pub media_type: String,
+    pub total: i64,
+    /// The size of its chunks in the database (when it has no object key).
+    pub chunk: i64,
+    /// Where its bytes are in the object store, if they are there.
+    pub object_key: Option<String>,
+}
+
+/// The columns `StoredArtifact` is read from, in its order.
+pub(super) const STORED_ARTIFACT: &str = "SELECT media_type, bytes, chunk_bytes, object_key FROM artifacts";
+
 /// The chunks an artifact is stored as, numbered from 0. An empty artifact has none.
 pub(super) fn chunks(bytes: &[u8]) -> impl Iterator<Item = (i64, &[u8])> {
     bytes.chunks(CHUNK_BYTES).enumerate().map(|(i, c)| (i as i64, c))

@@ -90,13 +90,10 @@ impl Conn {
         Ok(Tx { tx: self.client.transaction()?, prepared: &mut self.prepared })
     }
 
-    /// A read-only transaction: one snapshot for all its reads when `repeatable`.
-    pub fn read_only(&mut self, repeatable: bool) -> Result<Tx<'_>, postgres::Error> {
-        let mut b = self.client.build_transaction().read_only(true);
-        if repeatable {
-            b = b.isolation_level(IsolationLevel::RepeatableRead);
-        }
-        Ok(Tx { tx: b.start()?, prepared: &mut self.prepared })
+    /// A read-only transaction whose reads all see one snapshot.
+    pub fn snapshot(&mut self) -> Result<Tx<'_>, postgres::Error> {
+        let tx = self.client.build_transaction().read_only(true).isolation_level(IsolationLevel::RepeatableRead);
+        Ok(Tx { tx: tx.start()?, prepared: &mut self.prepared })
     }
 }
 

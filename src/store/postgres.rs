@@ -12,7 +12,7 @@ use postgres::types::ToSql;
 use postgres::{Client, NoTls, Row};
 use tokio::sync::broadcast;
 
-use super::artifacts::{assemble, chunks, span};
+use super::artifacts::{assemble, chunks, span, StoredArtifact, STORED_ARTIFACT};
 use super::events::{event_id, EventLog, Notice, StoredEvent};
 use super::listener::{self, EVENTS_CHANNEL, JOBS_CHANNEL};
 use super::objects::{object_range, ObjectArtifacts};
@@ -90,9 +90,10 @@ impl PostgresStore {
         Ok(self)
     }
 
-    /// Keep the bytes of artifacts finished from now on in `objects` (the rows stay here).
-    pub fn with_objects(mut self, objects: ObjectArtifacts) -> Self {
-        self.objects = Some(objects);
+    /// Keep the bytes of artifacts finished from now on in `objects`, when given (the rows
+    /// stay here).
+    pub fn with_objects(mut self, objects: Option<ObjectArtifacts>) -> Self {
+        self.objects = objects;
         self
     }
 
@@ -315,22 +316,28 @@ fn object_keys(c: &mut impl Sql, job_id: &str) -> Result<Vec<String>, StoreError
 /// One read-only snapshot for an artifact's row and chunks: a job finished again meanwhile
 /// can't mix its old and new chunks.
 fn chunk_snapshot(client: &mut Conn) -> Result<Tx<'_>, StoreError> {
-    client.read_only(true).map_err(db)
+    client.snapshot().map_err(db)
+}
+
+fn artifact_row(tx: &mut Tx<'_>, id: &str, name: &str) -> Result<Option<StoredArtifact>, StoreError> {
+    let sql = format!("{STORED_ARTIFACT} WHERE job_id = $1 AND name = $2");
+    let Some(r) = tx.query_opt(&sql, &[&id, &name]).map_err(db)? else { return Ok(None) };
+    Ok(Some(StoredArtifact {
+        media_type: r.try_get(0).map_err(db)?,
+        total: r.try_get(1).map_err(db)?,
+        chunk: r.try_get(2).map_err(db)?,
+        object_key: r.try_get(3).map_err(db)?,
+    }))
 }
 
 impl ArtifactStore for PostgresStore {
     fn read_artifact(&self, id: &str, name: &str, offset: u64, len: usize) -> Result<Option<Vec<u8>>, StoreError> {
         let mut client = self.client();
         let mut tx = chunk_snapshot(&mut client)?;
-        let found = tx
-            .query_opt(
-                "SELECT bytes, chunk_bytes, object_key FROM artifacts WHERE job_id = $1 AND name = $2",
-                &[&id, &name],
-            )
-            .map_err(db)?;
-        let Some(row) = found else { return Ok(None) };
-        let (total, chunk): (i64, i64) = (row.try_get(0).map_err(db)?, row.try_get(1).map_err(db)?);
-        if let Some(key) = row.try_get::<_, Option<String>>(2).map_err(db)? {
+        let Some(StoredArtifact { total, chunk, object_key, .. }) = artifact_row(&mut tx, id, name)? else {
+            return Ok(None);
+        };
+        if let Some(key) = object_key {
             tx.commit().map_err(db)?;
             drop(client);
             return object_range(self.objects.as_ref(), &key, total, offset, len);
@@ -353,15 +360,10 @@ impl ArtifactStore for PostgresStore {
     fn artifact(&self, id: &str, name: &str) -> Result<Option<(String, Vec<u8>)>, StoreError> {
         let mut client = self.client();
         let mut tx = chunk_snapshot(&mut client)?;
-        let found = tx
-            .query_opt(
-                "SELECT media_type, bytes, object_key FROM artifacts WHERE job_id = $1 AND name = $2",
-                &[&id, &name],
-            )
-            .map_err(db)?;
-        let Some(row) = found else { return Ok(None) };
-        let (media_type, total): (String, i64) = (row.try_get(0).map_err(db)?, row.try_get(1).map_err(db)?);
-        if let Some(key) = row.try_get::<_, Option<String>>(2).map_err(db)? {
+        let Some(StoredArtifact { media_type, total, object_key, .. }) = artifact_row(&mut tx, id, name)? else {
+            return Ok(None);
+        };
+        if let Some(key) = object_key {
             tx.commit().map_err(db)?;
             drop(client);
             let whole = object_range(self.objects.as_ref(), &key, total, 0, usize::MAX)?;
@@ -790,7 +792,7 @@ mod tests {
         fn open(dir: &std::path::Path) -> Option<(DropSchema, PostgresStore)> {
             let (guard, scoped) = scoped_schema()?;
             let objects = ObjectArtifacts::open(&format!("file://{}", dir.join("objects").display())).unwrap();
-            Some((guard, PostgresStore::open(&scoped).unwrap().with_objects(objects)))
+            Some((guard, PostgresStore::open(&scoped).unwrap().with_objects(Some(objects))))
         }
 
         fn fixture() -> Option<Fixture> {

@@ -14,7 +14,7 @@ use parking_lot::{Mutex, MutexGuard};
 use rusqlite::types::Value as SqlValue;
 use rusqlite::{params, Connection, OpenFlags, OptionalExtension, Row, TransactionBehavior};
 
-use super::artifacts::{assemble, chunks, span};
+use super::artifacts::{assemble, chunks, span, StoredArtifact, STORED_ARTIFACT};
 use super::events::{event_id, EventLog, StoredEvent};
 use super::objects::{object_range, ObjectArtifacts};
 use super::queue::{count, lease_ms, Claim, JobQueue, Renewal};
@@ -200,9 +200,10 @@ impl SqliteStore {
         Ok(Self { writer: Mutex::new(writer), readers, next_reader: AtomicUsize::new(0), objects: None })
     }
 
-    /// Keep the bytes of artifacts finished from now on in `objects` (the rows stay here).
-    pub fn with_objects(mut self, objects: ObjectArtifacts) -> Self {
-        self.objects = Some(objects);
+    /// Keep the bytes of artifacts finished from now on in `objects`, when given (the rows
+    /// stay here).
+    pub fn with_objects(mut self, objects: Option<ObjectArtifacts>) -> Self {
+        self.objects = objects;
         self
     }
 
@@ -517,17 +518,23 @@ fn read_snapshot<T>(
     Ok(out)
 }
 
+fn artifact_row(c: &Connection, id: &str, name: &str) -> Result<Option<StoredArtifact>, StoreError> {
+    c.prepare_cached(&format!("{STORED_ARTIFACT} WHERE job_id = ?1 AND name = ?2"))
+        .map_err(db)?
+        .query_row([id, name], |r| {
+            Ok(StoredArtifact { media_type: r.get(0)?, total: r.get(1)?, chunk: r.get(2)?, object_key: r.get(3)? })
+        })
+        .optional()
+        .map_err(db)
+}
+
 impl ArtifactStore for SqliteStore {
     fn read_artifact(&self, id: &str, name: &str, offset: u64, len: usize) -> Result<Option<Vec<u8>>, StoreError> {
         read_snapshot(&mut self.reader(), |c| {
-            let found: Option<(i64, i64, Option<String>)> = c
-                .prepare_cached("SELECT bytes, chunk_bytes, object_key FROM artifacts WHERE job_id = ?1 AND name = ?2")
-                .map_err(db)?
-                .query_row([id, name], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))
-                .optional()
-                .map_err(db)?;
-            let Some((total, chunk, key)) = found else { return Ok(None) };
-            if let Some(key) = key {
+            let Some(StoredArtifact { total, chunk, object_key, .. }) = artifact_row(c, id, name)? else {
+                return Ok(None);
+            };
+            if let Some(key) = object_key {
                 return object_range(self.objects.as_ref(), &key, total, offset, len);
             }
             let Some(s) = span(total.max(0) as u64, chunk.max(0) as u64, offset, len)? else {
@@ -550,14 +557,10 @@ impl ArtifactStore for SqliteStore {
 
     fn artifact(&self, id: &str, name: &str) -> Result<Option<(String, Vec<u8>)>, StoreError> {
         read_snapshot(&mut self.reader(), |c| {
-            let found: Option<(String, i64, Option<String>)> = c
-                .prepare_cached("SELECT media_type, bytes, object_key FROM artifacts WHERE job_id = ?1 AND name = ?2")
-                .map_err(db)?
-                .query_row([id, name], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))
-                .optional()
-                .map_err(db)?;
-            let Some((media_type, total, key)) = found else { return Ok(None) };
-            if let Some(key) = key {
+            let Some(StoredArtifact { media_type, total, object_key, .. }) = artifact_row(c, id, name)? else {
+                return Ok(None);
+            };
+            if let Some(key) = object_key {
                 let whole = object_range(self.objects.as_ref(), &key, total, 0, usize::MAX)?;
                 return Ok(whole.map(|data| (media_type, data)));
             }
@@ -943,7 +946,7 @@ mod tests {
 
         fn open(dir: &std::path::Path) -> SqliteStore {
             let objects = ObjectArtifacts::open(&format!("file://{}", dir.join("objects").display())).unwrap();
-            SqliteStore::open(dir.join("landform.db").to_str().unwrap()).unwrap().with_objects(objects)
+            SqliteStore::open(dir.join("landform.db").to_str().unwrap()).unwrap().with_objects(Some(objects))
         }
 
         fn fixture() -> Option<Fixture> {

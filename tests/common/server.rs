@@ -163,6 +163,20 @@ impl TestServer {
         done
     }
 
+    /// Submit with `Prefer: wait=SECONDS`; returns (status, json).
+    pub async fn submit_waiting(&self, kind: &str, body: &Value, seconds: u64) -> (u16, Value) {
+        let res = self
+            .client
+            .post(self.url(&format!("/v1/jobs/{kind}")))
+            .header("prefer", format!("wait={seconds}"))
+            .json(body)
+            .send()
+            .await
+            .expect("POST");
+        let status = res.status().as_u16();
+        (status, res.json().await.expect("json"))
+    }
+
     pub async fn artifact(&self, id: &str, name: &str) -> Vec<u8> {
         let res = self.client.get(self.url(&format!("/v1/jobs/{id}/artifacts/{name}"))).send().await.expect("GET");
         assert_eq!(res.status(), 200, "artifact {name}");
