@@ -43,7 +43,7 @@ fn grow_and_write(c: &mut Criterion) {
     c.bench_function("grow 500 speleothems × 64 rings × 24 segments and write the glb", |b| {
         b.iter(|| {
             let sequence = landform::sims::grow_cave::grow(&p, 1, &mut |_, _| Ok(())).expect("grows");
-            write_glb(&landform::sims::grow_cave::scene(&p, &sequence))
+            write_glb(&landform::sims::grow_cave::scene(&p, &sequence), landform::export::GlbForm::Quantize)
         })
     });
 }

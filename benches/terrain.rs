@@ -19,7 +19,9 @@ fn bench(c: &mut Criterion) {
     }
     for size in [1025u32, 4097] {
         let hf = generate_fractal(&fractal(size));
-        g.bench_function(format!("artifacts_{size}x{size}"), |b| b.iter(|| heightfield_artifacts(&hf)));
+        g.bench_function(format!("artifacts_{size}x{size}"), |b| {
+            b.iter(|| heightfield_artifacts(&hf, &Default::default()))
+        });
     }
     g.finish();
 }

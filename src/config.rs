@@ -166,7 +166,9 @@ pub struct WorkerArgs {
     pub worker_name: Option<String>,
     /// Lower this worker's CPU priority by N (0–19; `nice`): an API process on the same machine
     /// (`serve`'s own, or replicas beside workers) then answers promptly however busy the jobs
-    /// keep the cores. A worker with a machine to itself loses nothing by it.
+    /// keep the cores. A worker with a machine to itself loses nothing by it. Where the kernel
+    /// groups processes by session (autogroup), the worker moves into a session of its own and
+    /// lowers that session's group by N as well, or a niceness would count within its session only.
     #[arg(long, env = "LANDFORM_WORKER_NICE", default_value_t = DEFAULT_WORKER_NICE, value_parser = clap::value_parser!(i32).range(0..=19))]
     pub nice: i32,
     /// Give the jobs back and exit when standard input closes: `serve` holds it open for the

@@ -53,7 +53,7 @@ async fn a_job_streams_to_done_and_its_artifacts_are_valid_and_replayable() {
         assert!(names.contains(&want), "{want} in {names:?}");
     }
     let glb = server.artifact(&id, "mesh.glb").await;
-    let gltf = gltf::Gltf::from_slice(&glb).expect("glb parses");
+    let gltf = gltf::Gltf::from_slice_without_validation(&glb).expect("glb parses");
     let mesh = gltf.meshes().next().expect("a mesh");
     let prim = mesh.primitives().next().expect("a primitive");
     let pos = prim.get(&gltf::Semantic::Positions).expect("POSITION");
@@ -70,6 +70,44 @@ async fn a_job_streams_to_done_and_its_artifacts_are_valid_and_replayable() {
     assert!((text_chunk(&info, "z_min").expect("z_min chunk") - z_min).abs() < 1e-3);
     assert!((text_chunk(&info, "z_max").expect("z_max chunk") - z_max).abs() < 1e-3);
     assert!(values.contains(&0) && values.contains(&65535), "the range spans the full 16 bits");
+
+    // heightmap.r16: raw little-endian steps of the range the result states, agreeing with the
+    // float heights of heightfield.npy to within one step; normalmap.png at the grid's size.
+    let r16 = &job["result"]["heightmap_r16"];
+    assert_eq!((r16["width"].as_u64(), r16["height"].as_u64()), (Some(129), Some(129)), "{r16}");
+    let (lo, range) = (r16["z_min"].as_f64().unwrap(), r16["height_range_m"].as_f64().unwrap());
+    assert!((lo - z_min).abs() < 1e-3 && (lo + range - z_max).abs() < 1e-3, "{r16}");
+    let raw = server.artifact(&id, "heightmap.r16").await;
+    let floats = npy_heights(&server.artifact(&id, "heightfield.npy").await);
+    assert_eq!(raw.len(), 2 * floats.len());
+    let step = range / 65535.0;
+    for (pair, &h) in raw.chunks_exact(2).zip(&floats) {
+        let read = lo + f64::from(u16::from_le_bytes([pair[0], pair[1]])) * step;
+        assert!((read - f64::from(h)).abs() <= step * 1.001, "{read} for {h}");
+    }
+    // A second reader in plain Python agrees: both maps within a step of the .npy, r16 = PNG.
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["heightmap.r16", "heightmap.png", "heightfield.npy"] {
+        std::fs::write(dir.path().join(name), server.artifact(&id, name).await).unwrap();
+    }
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/python/read_maps.py");
+    let out = std::process::Command::new("python3")
+        .arg(script)
+        .arg(dir.path())
+        .args(["129", "129", &lo.to_string(), &(lo + range).to_string()])
+        .output()
+        .expect("python3 runs (scripts/test installs it)");
+    let report = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{report} {}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_str(&report).unwrap();
+    assert_eq!(report["samples"], 129 * 129, "{report}");
+    let normals = image::load_from_memory(&server.artifact(&id, "normalmap.png").await).expect("normal map decodes");
+    assert_eq!((normals.width(), normals.height(), normals.color()), (129, 129, image::ColorType::Rgb8));
+    let splat = image::load_from_memory(&server.artifact(&id, "splatmap.png").await).expect("splat map decodes");
+    assert_eq!((splat.width(), splat.height(), splat.color()), (129, 129, image::ColorType::Rgba8));
+    let splat = splat.to_rgba8();
+    assert!(splat.pixels().all(|p| p.0.iter().map(|&v| u32::from(v)).sum::<u32>() == 255), "weights sum to 255");
+    assert!(splat.pixels().all(|p| p.0[3] == 0), "bulldoze names no material");
 
     // The sequence endpoint serves the artifact.
     let (status, seq) = server.get_json(&format!("/v1/jobs/{id}/sequence")).await;
@@ -124,6 +162,40 @@ async fn every_bulldoze_example_runs_and_its_mesh_passes_the_validator() {
         let report = common::gltf_validator::validate_glb(&glb);
         assert_eq!(report.errors, 0, "{name}: {:?}", report.messages);
     }
+}
+
+/// `compression` picks the glb form: quantized by default (the request says so), f32 with
+/// `none`, the same triangles either way, both valid; anything else is a 422 naming the field.
+#[tokio::test]
+async fn compression_picks_the_glb_form_and_the_request_states_it() {
+    let server = TestServer::start().await;
+    let mut body = example("bulldoze", "ziggurat");
+    let quantized = server.run("bulldoze", &body).await;
+    assert_eq!(quantized["request"]["compression"], "quantize");
+    body["compression"] = serde_json::json!("none");
+    let plain = server.run("bulldoze", &body).await;
+    assert_eq!(plain["request"]["compression"], "none");
+    let mut counts = Vec::new();
+    for (job, required) in [(&quantized, vec!["KHR_mesh_quantization"]), (&plain, vec![])] {
+        let glb = server.artifact(job["id"].as_str().unwrap(), "mesh.glb").await;
+        let gltf = gltf::Gltf::from_slice_without_validation(&glb).unwrap();
+        assert_eq!(gltf.document.as_json().extensions_required, required);
+        let prim = gltf.meshes().next().unwrap().primitives().next().unwrap();
+        counts.push((
+            prim.get(&gltf::Semantic::Positions).unwrap().count(),
+            prim.indices().unwrap().count(),
+            glb.len(),
+        ));
+        let report = common::gltf_validator::validate_glb(&glb);
+        assert_eq!((report.errors, report.warnings), (0, 0), "{:?}", report.messages);
+    }
+    assert_eq!((counts[0].0, counts[0].1), (counts[1].0, counts[1].1), "the same mesh");
+    assert!(counts[0].2 < counts[1].2, "quantized is smaller: {counts:?}");
+
+    body["compression"] = serde_json::json!("zip");
+    let (status, problem) = server.post("/v1/jobs/bulldoze", &body).await;
+    assert_eq!(status, 422, "{problem}");
+    assert_eq!(problem["errors"][0]["field"], "compression", "{problem}");
 }
 
 #[tokio::test]

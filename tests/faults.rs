@@ -172,3 +172,45 @@ async fn sqlite_a_killed_process_group_restarted_finishes_the_job() {
     assert_eq!(done["status"], "succeeded", "{done}");
     assert_eq!(artifact_hashes(&done), undisturbed(&body).await);
 }
+
+/// Fields of /proc/PID/stat from the third (state) on.
+fn stat_fields(pid: u32) -> Vec<String> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap();
+    stat.rsplit_once(')').unwrap().1.split_whitespace().map(str::to_string).collect()
+}
+
+/// The supervised worker leaves the cores to the API: nice 10 (the default), and where the
+/// kernel shares the cores between sessions first (autogroup), in a session of its own whose
+/// group is at nice 10 too, while the API's session stays at 0.
+#[tokio::test]
+async fn sqlite_the_supervised_worker_yields_the_cores_in_a_session_of_its_own() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = supervised(&dir.path().join("s.db")).await;
+    let worker = worker_child(&server).await;
+    let started = Instant::now();
+    while stat_fields(worker)[16] != "10" {
+        assert!(started.elapsed() < Duration::from_secs(10), "the worker's niceness: {:?}", stat_fields(worker));
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let autogroup = std::fs::read_to_string("/proc/sys/kernel/sched_autogroup_enabled").unwrap_or_default();
+    if autogroup.trim() != "1" {
+        eprintln!("autogroup scheduling is off here: the session part is not observable");
+        return;
+    }
+    // Niceness is set after the move to a new session, so both have happened by now.
+    assert_eq!(stat_fields(worker)[3], worker.to_string(), "the worker leads a session of its own");
+    // A process of the first session (started from init without a session of its own, as a CI
+    // runner's may be) is in the kernel's default group, at nice 0, and its file is empty.
+    let group = |pid: u32| {
+        let shown = std::fs::read_to_string(format!("/proc/{pid}/autogroup")).unwrap();
+        if shown.trim().is_empty() {
+            "the default group, nice 0".to_string()
+        } else {
+            shown.trim().to_string()
+        }
+    };
+    let (ours, api) = (group(worker), group(server.pid()));
+    assert!(ours.starts_with("/autogroup-") && ours.ends_with("nice 10"), "the worker's group: {ours:?}");
+    assert!(api.ends_with("nice 0"), "the API's group: {api:?}");
+    assert_ne!(ours.split_whitespace().next(), api.split_whitespace().next());
+}

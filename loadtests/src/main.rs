@@ -55,6 +55,10 @@ struct Args {
     /// Milliseconds between a polling client's status requests.
     #[arg(long, default_value_t = 100)]
     poll_ms: u64,
+    /// Keep artifacts' bytes in this object store (`file:///dir` or `s3://bucket/prefix`)
+    /// instead of the database; passed to every process as `--artifact-store`.
+    #[arg(long)]
+    artifact_store: Option<String>,
     /// Skip the burst phase.
     #[arg(long)]
     no_burst: bool,
@@ -184,7 +188,7 @@ async fn phase(
 async fn main() -> Result<()> {
     let args = Args::parse();
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let deployment = Deployment::start(args.setup, &args.landform, &args.database_url)?;
+    let deployment = Deployment::start(args.setup, &args.landform, &args.database_url, args.artifact_store.as_deref())?;
     eprintln!("started: {} at {:?}", deployment.description, deployment.apis);
     scenarios::init(Shared {
         apis: deployment.apis.clone(),

@@ -52,14 +52,18 @@ fn spawn(binary: &str, args: &[&str], first_line: &str, log: &std::path::Path) -
 }
 
 impl Deployment {
-    pub fn start(setup: Setup, binary: &str, database_url: &str) -> Result<Self> {
+    pub fn start(setup: Setup, binary: &str, database_url: &str, artifact_store: Option<&str>) -> Result<Self> {
         let dir = tempfile::tempdir()?;
+        let mut common = COMMON.to_vec();
+        if let Some(store) = artifact_store {
+            common.extend(["--artifact-store", store]);
+        }
         match setup {
             Setup::Embedded => {
                 let db = dir.path().join("landform.db");
                 let db = db.to_str().context("temp path")?;
                 let mut args = vec!["serve", "--addr", "127.0.0.1:0", "--database", db];
-                args.extend(COMMON);
+                args.extend(&common);
                 let (child, line) = spawn(binary, &args, "listening on ", &dir.path().join("serve.log"))?;
                 let base = line.trim_start_matches("listening on ").trim().to_string();
                 Ok(Self {
@@ -89,7 +93,7 @@ impl Deployment {
                 };
                 for n in 0..2 {
                     let mut args = vec!["serve", "--role", "api", "--addr", "127.0.0.1:0", "--database", &url];
-                    args.extend(COMMON);
+                    args.extend(&common);
                     let log = d._dir.path().join(format!("api-{n}.log"));
                     let (child, line) = spawn(binary, &args, "listening on ", &log)?;
                     d.apis.push(line.trim_start_matches("listening on ").trim().to_string());
@@ -98,7 +102,9 @@ impl Deployment {
                 }
                 for n in 0..2 {
                     let log = d._dir.path().join(format!("worker-{n}.log"));
-                    let (child, _) = spawn(binary, &["worker", "--database", &url], "worker ", &log)?;
+                    let mut args = vec!["worker", "--database", &url];
+                    args.extend(&common[2..]);
+                    let (child, _) = spawn(binary, &args, "worker ", &log)?;
                     d.worker_pids.push(child.id());
                     d.children.push(child);
                 }

@@ -1,10 +1,19 @@
 //! Binary glTF 2.0 (`.glb`) from a [`Scene`]: the mesh format every kind delivers.
 //!
-//! glTF is Y-up, right-handed, in metres, counter-clockwise front faces: our conventions, so
-//! positions go out as they are. One buffer holds, per node, separate (non-interleaved)
-//! position, normal, texcoord, optional colour and index views, each starting on a 4-byte
-//! boundary. Indices are u16 while every index fits below the primitive-restart value 65535,
-//! else u32. Output bytes depend only on the scene.
+//! glTF is Y-up, right-handed, in metres, counter-clockwise front faces: our conventions. One
+//! buffer holds, per node, separate (non-interleaved) position, normal, texcoord, optional colour
+//! and index views, each starting on a 4-byte boundary. Indices are u16 while every index fits
+//! below the primitive-restart value 65535, else u32. Output bytes depend only on the scene and
+//! the form:
+//!
+//! - [`GlbForm::None`]: f32 positions (as they are), normals and texcoords.
+//! - [`GlbForm::Quantize`] (`KHR_mesh_quantization`, declared used and required): positions as
+//!   unsigned 16-bit steps from the mesh's lowest corner, one step (the longest side of its
+//!   bounding box ÷ 65535) on every axis, which the node's `translation` and uniform `scale`
+//!   turn back into metres (the same step on every axis keeps normals right under the node's
+//!   transform; the error is at most half a step); normals as normalised signed bytes;
+//!   texcoords as normalised unsigned 16-bit when they lie in [0, 1], else f32. Every importer
+//!   that reads glTF 2.0 meshes in engines and Blender reads it.
 
 use std::borrow::Cow;
 
@@ -13,10 +22,64 @@ use json::validation::{Checked::Valid, USize64};
 use rayon::prelude::*;
 
 use super::srgb::{srgb_to_linear, srgb_to_linear_u8};
-use crate::mesh::{MaterialKind, Mesh, Scene};
+use crate::mesh::{GpuOrder, MaterialKind, Mesh, Scene};
 
 /// Most vertices a mesh may have and still use u16 indices (65535 itself means "restart").
 pub const MAX_U16_INDEXED_VERTICES: usize = 65_535;
+
+/// How a glb's vertex data is stored (see the module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GlbForm {
+    /// f32 positions, normals and texcoords.
+    None,
+    /// `KHR_mesh_quantization`: 16-bit positions, 8-bit normals, 16-bit texcoords.
+    #[default]
+    Quantize,
+}
+
+impl GlbForm {
+    pub const NAMES: [&'static str; 2] = ["none", "quantize"];
+
+    pub fn parse(name: &str) -> Option<Self> {
+        match name {
+            "none" => Some(Self::None),
+            "quantize" => Some(Self::Quantize),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Quantize => "quantize",
+        }
+    }
+}
+
+const QUANTIZATION: &str = "KHR_mesh_quantization";
+
+/// A mesh's quantisation: positions are `origin + q × step` for q in 0..=65535.
+struct Quantized {
+    origin: [f32; 3],
+    step: f32,
+    /// Texcoords all in [0, 1], so normalised u16 holds them.
+    unit_uvs: bool,
+}
+
+impl Quantized {
+    fn of(mesh: &Mesh, (lo, hi): ([f32; 3], [f32; 3])) -> Self {
+        let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max);
+        let step = if extent > 0.0 && extent.is_finite() { extent / 65535.0 } else { 1.0 };
+        let unit_uvs = mesh.uvs.iter().flatten().all(|v| (0.0..=1.0).contains(v));
+        Self { origin: lo, step, unit_uvs }
+    }
+
+    fn position(&self, p: [f32; 3]) -> [u16; 3] {
+        std::array::from_fn(|k| {
+            ((f64::from(p[k]) - f64::from(self.origin[k])) / f64::from(self.step)).round().clamp(0.0, 65535.0) as u16
+        })
+    }
+}
 
 /// Encode a scene as a glb. Nodes keep their order and names; a node whose mesh has no
 /// triangles is written as an empty node. Normals are renormalised on the way out (the format
@@ -25,7 +88,7 @@ pub const MAX_U16_INDEXED_VERTICES: usize = 65_535;
 /// # Panics
 /// If a mesh fails [`Mesh::check`] (mismatched arrays or out-of-range indices) or the file
 /// would exceed glb's 4 GiB limit: both are bugs in the caller.
-pub fn write_glb(scene: &Scene) -> Vec<u8> {
+pub fn write_glb(scene: &Scene, form: GlbForm) -> Vec<u8> {
     let mut root = json::Root {
         asset: json::Asset { generator: Some("Landform".into()), ..Default::default() },
         ..Default::default()
@@ -43,7 +106,17 @@ pub fn write_glb(scene: &Scene) -> Vec<u8> {
         let mut gltf_node = json::Node { name: Some(node.name.clone()), ..Default::default() };
         // glTF forbids empty accessors, so a node without triangles carries no mesh.
         if mesh.triangle_count() > 0 {
-            let layout = Layout::new(mesh, &mut offset);
+            let bounds = mesh.bounds().expect("a mesh with triangles has vertices");
+            let quantized = (form == GlbForm::Quantize).then(|| Quantized::of(mesh, bounds));
+            if let Some(q) = &quantized {
+                gltf_node.translation = Some(q.origin);
+                gltf_node.scale = Some([q.step; 3]);
+                if root.extensions_used.is_empty() {
+                    root.extensions_used.push(QUANTIZATION.into());
+                    root.extensions_required.push(QUANTIZATION.into());
+                }
+            }
+            let layout = Layout::new(mesh, bounds, quantized, &mut offset);
             let key = (node.material, mesh.colors.is_some());
             let material = match materials.iter().position(|m| *m == key) {
                 Some(i) => json::Index::new(i as u32),
@@ -118,8 +191,19 @@ fn pbr_material(kind: MaterialKind, has_colors: bool) -> json::Material {
     }
 }
 
+/// Bytes per vertex of positions, normals and texcoords in a form.
+fn strides(quantized: Option<&Quantized>) -> (usize, usize, usize) {
+    match quantized {
+        None => (12, 12, 8),
+        Some(q) => (8, 4, if q.unit_uvs { 4 } else { 8 }),
+    }
+}
+
 /// Where one mesh's arrays sit in the buffer (byte offsets, each a multiple of 4).
 struct Layout {
+    /// The mesh's bounding box (lowest and highest corner).
+    bounds: ([f32; 3], [f32; 3]),
+    quantized: Option<Quantized>,
     positions: usize,
     normals: usize,
     uvs: usize,
@@ -130,7 +214,7 @@ struct Layout {
 }
 
 impl Layout {
-    fn new(mesh: &Mesh, offset: &mut usize) -> Self {
+    fn new(mesh: &Mesh, bounds: ([f32; 3], [f32; 3]), quantized: Option<Quantized>, offset: &mut usize) -> Self {
         let n = mesh.vertex_count();
         let wide_indices = n > MAX_U16_INDEXED_VERTICES;
         let mut take = |bytes: usize| {
@@ -138,12 +222,17 @@ impl Layout {
             *offset += bytes.next_multiple_of(4);
             at
         };
-        let positions = take(n * 12);
-        let normals = take(n * 12);
-        let uvs = take(n * 8);
+        let (position_bytes, normal_bytes, uv_bytes) = strides(quantized.as_ref());
+        let positions = take(n * position_bytes);
+        let normals = take(n * normal_bytes);
+        let uvs = take(n * uv_bytes);
         let colors = mesh.colors.as_ref().map(|_| take(n * 4));
         let indices = take(mesh.indices.len() * if wide_indices { 4 } else { 2 });
-        Self { positions, normals, uvs, colors, indices, wide_indices, end: *offset }
+        Self { bounds, quantized, positions, normals, uvs, colors, indices, wide_indices, end: *offset }
+    }
+
+    fn strides(&self) -> (usize, usize, usize) {
+        strides(self.quantized.as_ref())
     }
 
     /// Views, accessors and the primitive for this mesh.
@@ -158,24 +247,39 @@ impl Layout {
         use json::mesh::Semantic;
 
         let n = mesh.vertex_count();
-        let (min, max) = mesh.bounds().expect("a mesh with triangles has vertices");
+        let (min, max) = self.bounds;
         let mut attributes = std::collections::BTreeMap::new();
-        let mut attribute = |root: &mut json::Root, semantic, at, bytes, component, ty, normalized, bounds| {
-            let view = push_view(root, at, bytes, Target::ArrayBuffer);
+        let mut attribute = |root: &mut json::Root, semantic, at, stride, component, ty, normalized, bounds| {
+            // Elements shorter than their 4-byte-aligned stride need the stride stated.
+            let padded = matches!((component, ty), (ComponentType::U16, Type::Vec3) | (ComponentType::I8, Type::Vec3));
+            let view = push_view(root, at, n * stride, Target::ArrayBuffer, padded.then_some(stride));
             let accessor = push_accessor(root, view, n, component, ty, normalized, bounds);
             attributes.insert(Valid(semantic), accessor);
         };
-        let bounds = Some((json::Value::from(min.to_vec()), json::Value::from(max.to_vec())));
-        attribute(root, Semantic::Positions, self.positions, n * 12, ComponentType::F32, Type::Vec3, false, bounds);
-        attribute(root, Semantic::Normals, self.normals, n * 12, ComponentType::F32, Type::Vec3, false, None);
-        attribute(root, Semantic::TexCoords(0), self.uvs, n * 8, ComponentType::F32, Type::Vec2, false, None);
+        let (ps, ns, us) = self.strides();
+        match &self.quantized {
+            None => {
+                let bounds = Some((json::Value::from(min.to_vec()), json::Value::from(max.to_vec())));
+                attribute(root, Semantic::Positions, self.positions, ps, ComponentType::F32, Type::Vec3, false, bounds);
+                attribute(root, Semantic::Normals, self.normals, ns, ComponentType::F32, Type::Vec3, false, None);
+            }
+            Some(q) => {
+                // Rounding keeps order, so the corners' steps are the data's bounds.
+                let steps = |p: [f32; 3]| json::Value::from(q.position(p).map(u32::from).to_vec());
+                let bounds = Some((steps(min), steps(max)));
+                attribute(root, Semantic::Positions, self.positions, ps, ComponentType::U16, Type::Vec3, false, bounds);
+                attribute(root, Semantic::Normals, self.normals, ns, ComponentType::I8, Type::Vec3, true, None);
+            }
+        }
+        let (uv_type, uv_normalized) = if us == 4 { (ComponentType::U16, true) } else { (ComponentType::F32, false) };
+        attribute(root, Semantic::TexCoords(0), self.uvs, us, uv_type, Type::Vec2, uv_normalized, None);
         if let Some(at) = self.colors {
-            attribute(root, Semantic::Colors(0), at, n * 4, ComponentType::U8, Type::Vec4, true, None);
+            attribute(root, Semantic::Colors(0), at, 4, ComponentType::U8, Type::Vec4, true, None);
         }
 
         let (index_type, index_bytes) =
             if self.wide_indices { (ComponentType::U32, 4) } else { (ComponentType::U16, 2) };
-        let view = push_view(root, self.indices, mesh.indices.len() * index_bytes, Target::ElementArrayBuffer);
+        let view = push_view(root, self.indices, mesh.indices.len() * index_bytes, Target::ElementArrayBuffer, None);
         let indices = push_accessor(root, view, mesh.indices.len(), index_type, Type::Scalar, false, None);
 
         json::mesh::Primitive {
@@ -195,12 +299,13 @@ fn push_view(
     offset: usize,
     bytes: usize,
     target: json::buffer::Target,
+    stride: Option<usize>,
 ) -> json::Index<json::buffer::View> {
     root.push(json::buffer::View {
         buffer: json::Index::new(0),
         byte_length: USize64::from(bytes),
         byte_offset: Some(USize64::from(offset)),
-        byte_stride: None,
+        byte_stride: stride.map(json::buffer::Stride),
         name: None,
         target: Some(Valid(target)),
         extensions: None,
@@ -235,7 +340,8 @@ fn push_accessor(
     })
 }
 
-/// The binary chunk: every mesh's arrays, little-endian, at their layout offsets (gaps zero).
+/// The binary chunk: every mesh's arrays, little-endian, at their layout offsets (gaps zero),
+/// vertices and triangles in the mesh's GPU order.
 fn fill_buffer(len: usize, layouts: &[(Layout, &Mesh)]) -> Vec<u8> {
     let mut bin = vec![0u8; len];
     let mut rest = bin.as_mut_slice();
@@ -243,23 +349,42 @@ fn fill_buffer(len: usize, layouts: &[(Layout, &Mesh)]) -> Vec<u8> {
     for (layout, mesh) in layouts {
         let (region, tail) = rest.split_at_mut(layout.end - base);
         let local = |at: usize| at - base;
+        let order = GpuOrder::of(mesh);
         let n = mesh.vertex_count();
-        put_floats(&mut region[local(layout.positions)..][..n * 12], &mesh.positions);
-        put_unit_normals(&mut region[local(layout.normals)..][..n * 12], &mesh.normals);
-        put_floats(&mut region[local(layout.uvs)..][..n * 8], &mesh.uvs);
+        let (ps, ns, us) = layout.strides();
+        let positions = &mut region[local(layout.positions)..][..n * ps];
+        match &layout.quantized {
+            None => put(positions, ps, &order, &mesh.positions, f32s::<3, 12>),
+            Some(q) => put(positions, ps, &order, &mesh.positions, |p| u16s::<3, 6>(q.position(p))),
+        }
+        let normals = &mut region[local(layout.normals)..][..n * ns];
+        match &layout.quantized {
+            None => put(normals, ns, &order, &mesh.normals, |v| f32s::<3, 12>(unit(v))),
+            Some(_) => put(normals, ns, &order, &mesh.normals, |v| {
+                unit(v).map(|c| ((f64::from(c) * 127.0).round() as i8) as u8)
+            }),
+        }
+        let uvs = &mut region[local(layout.uvs)..][..n * us];
+        if us == 4 {
+            put(uvs, us, &order, &mesh.uvs, |uv| {
+                u16s::<2, 4>(uv.map(|c| (f64::from(c) * 65535.0).round().clamp(0.0, 65535.0) as u16))
+            });
+        } else {
+            put(uvs, us, &order, &mesh.uvs, f32s::<2, 8>);
+        }
         if let (Some(at), Some(colors)) = (layout.colors, &mesh.colors) {
-            put_linear_colors(&mut region[local(at)..][..n * 4], colors);
+            put(&mut region[local(at)..][..n * 4], 4, &order, colors, linear_color);
         }
         let indices = &mut region[local(layout.indices)..];
         if layout.wide_indices {
-            indices[..mesh.indices.len() * 4]
+            indices[..order.indices.len() * 4]
                 .par_chunks_mut(4)
-                .zip(mesh.indices.par_iter())
+                .zip(order.indices.par_iter())
                 .for_each(|(out, &i)| out.copy_from_slice(&i.to_le_bytes()));
         } else {
-            indices[..mesh.indices.len() * 2]
+            indices[..order.indices.len() * 2]
                 .par_chunks_mut(2)
-                .zip(mesh.indices.par_iter())
+                .zip(order.indices.par_iter())
                 .for_each(|(out, &i)| out.copy_from_slice(&(i as u16).to_le_bytes()));
         }
         base = layout.end;
@@ -268,34 +393,41 @@ fn fill_buffer(len: usize, layouts: &[(Layout, &Mesh)]) -> Vec<u8> {
     bin
 }
 
-fn put_floats<const N: usize>(out: &mut [u8], values: &[[f32; N]]) {
-    out.par_chunks_mut(4 * N).zip(values.par_iter()).for_each(|(out, v)| {
-        for (bytes, x) in out.chunks_exact_mut(4).zip(v) {
-            bytes.copy_from_slice(&x.to_le_bytes());
-        }
+/// Write each vertex's `values` in the new order, `encode`d, at the start of its `stride`.
+fn put<T: Copy + Sync, const W: usize>(
+    out: &mut [u8],
+    stride: usize,
+    order: &GpuOrder,
+    values: &[T],
+    encode: impl Fn(T) -> [u8; W] + Sync,
+) {
+    out.par_chunks_mut(stride).enumerate().for_each(|(k, out)| {
+        out[..W].copy_from_slice(&encode(order.at(values, k)));
     });
 }
 
-fn put_unit_normals(out: &mut [u8], normals: &[[f32; 3]]) {
-    out.par_chunks_mut(12).zip(normals.par_iter()).for_each(|(out, &[x, y, z])| {
-        // Scale in f64 so the stored f32s are as close to unit length as f32 allows.
-        let len = ((x as f64).powi(2) + (y as f64).powi(2) + (z as f64).powi(2)).sqrt();
-        let unit = if len > 1e-12 && len.is_finite() {
-            [x as f64 / len, y as f64 / len, z as f64 / len].map(|v| v as f32)
-        } else {
-            [0.0, 1.0, 0.0]
-        };
-        for (bytes, v) in out.chunks_exact_mut(4).zip(unit) {
-            bytes.copy_from_slice(&v.to_le_bytes());
-        }
-    });
+fn f32s<const N: usize, const W: usize>(v: [f32; N]) -> [u8; W] {
+    std::array::from_fn(|b| v[b / 4].to_le_bytes()[b % 4])
+}
+
+fn u16s<const N: usize, const W: usize>(v: [u16; N]) -> [u8; W] {
+    std::array::from_fn(|b| v[b / 2].to_le_bytes()[b % 2])
+}
+
+/// A normal at unit length, +Y standing in for a zero one. Scaled in f64 so the f32s are as
+/// close to unit length as f32 allows.
+fn unit([x, y, z]: [f32; 3]) -> [f32; 3] {
+    let len = ((x as f64).powi(2) + (y as f64).powi(2) + (z as f64).powi(2)).sqrt();
+    if len > 1e-12 && len.is_finite() {
+        [x as f64 / len, y as f64 / len, z as f64 / len].map(|v| v as f32)
+    } else {
+        [0.0, 1.0, 0.0]
+    }
 }
 
 /// glTF vertex colours are linear; [`Mesh::colors`] are sRGB as people pick them.
-fn put_linear_colors(out: &mut [u8], colors: &[[u8; 4]]) {
-    out.par_chunks_mut(4).zip(colors.par_iter()).for_each(|(out, &[r, g, b, a])| {
-        out.copy_from_slice(&[srgb_to_linear_u8(r), srgb_to_linear_u8(g), srgb_to_linear_u8(b), a]);
-    });
+fn linear_color([r, g, b, a]: [u8; 4]) -> [u8; 4] {
+    [srgb_to_linear_u8(r), srgb_to_linear_u8(g), srgb_to_linear_u8(b), a]
 }
 
 #[cfg(test)]
@@ -333,7 +465,7 @@ mod tests {
     #[test]
     fn accessors_match_the_mesh() {
         let mesh = terrain_mesh(21, 13, true);
-        let p = parse(&write_glb(&Scene::single("terrain", mesh.clone())));
+        let p = parse(&write_glb(&Scene::single("terrain", mesh.clone()), GlbForm::None));
         assert_eq!(p.document.as_json().asset.generator.as_deref(), Some("Landform"));
         let node = p.document.nodes().next().unwrap();
         assert_eq!(node.name(), Some("terrain"));
@@ -348,14 +480,22 @@ mod tests {
         };
         assert_eq!(bound(pos.min()), lo.to_vec());
         assert_eq!(bound(pos.max()), hi.to_vec());
-        assert_eq!(read_floats::<3>(&p, &pos), mesh.positions);
+        // The same vertices, in the GPU order (tested in mesh::gpu_order).
+        let sorted = |mut v: Vec<[f32; 3]>| {
+            v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+            v
+        };
+        assert_eq!(sorted(read_floats::<3>(&p, &pos)), sorted(mesh.positions.clone()));
 
         let normals = prim.get(&gltf::Semantic::Normals).unwrap();
         for v in read_floats::<3>(&p, &normals) {
             let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
             assert!((len - 1.0).abs() < 1e-6);
         }
-        assert_eq!(read_floats::<2>(&p, &prim.get(&gltf::Semantic::TexCoords(0)).unwrap()), mesh.uvs);
+        let order = GpuOrder::of(&mesh);
+        let uvs: Vec<[f32; 2]> = (0..n).map(|k| order.at(&mesh.uvs, k)).collect();
+        assert_eq!(read_floats::<2>(&p, &prim.get(&gltf::Semantic::TexCoords(0)).unwrap()), uvs);
+        assert_eq!(read_floats::<3>(&p, &pos), (0..n).map(|k| order.at(&mesh.positions, k)).collect::<Vec<_>>());
 
         let colors = prim.get(&gltf::Semantic::Colors(0)).unwrap();
         assert_eq!(colors.data_type(), gltf::accessor::DataType::U8);
@@ -383,7 +523,7 @@ mod tests {
         // 65535 = 257 * 255 vertices still fit u16; one more row of 257 does not.
         for (rows, expected) in [(255, gltf::accessor::DataType::U16), (256, gltf::accessor::DataType::U32)] {
             let mesh = terrain_mesh(257, rows, false);
-            let p = parse(&write_glb(&Scene::single("t", mesh.clone())));
+            let p = parse(&write_glb(&Scene::single("t", mesh.clone()), GlbForm::None));
             let prim = p.document.meshes().next().unwrap().primitives().next().unwrap();
             let indices = prim.indices().unwrap();
             assert_eq!(indices.data_type(), expected, "{} vertices", mesh.vertex_count());
@@ -395,7 +535,7 @@ mod tests {
             } else {
                 u32::from_le_bytes(last.try_into().unwrap())
             };
-            assert_eq!(last, *mesh.indices.last().unwrap());
+            assert_eq!(last, *GpuOrder::of(&mesh).indices.last().unwrap());
         }
     }
 
@@ -409,7 +549,7 @@ mod tests {
                 SceneNode::new("empty", Mesh::default(), MaterialKind::Water),
             ],
         };
-        let p = parse(&write_glb(&scene));
+        let p = parse(&write_glb(&scene, GlbForm::None));
         let names: Vec<_> = p.document.nodes().map(|n| n.name().unwrap().to_string()).collect();
         assert_eq!(names, ["ground", "sea", "rock", "empty"]);
         assert_eq!(p.document.materials().count(), 2);
@@ -418,16 +558,75 @@ mod tests {
     }
 
     #[test]
+    fn quantized_positions_come_back_within_half_a_step_and_normals_within_half_a_degree() {
+        // 21 × 13 samples 0.5 m apart: 10 m along x is the longest side (heights span < 4 m,
+        // z 6 m), so one step is 10 m / 65535 on every axis.
+        let mesh = terrain_mesh(21, 13, true);
+        let plain = write_glb(&Scene::single("terrain", mesh.clone()), GlbForm::None);
+        let glb = write_glb(&Scene::single("terrain", mesh.clone()), GlbForm::Quantize);
+        let gltf = gltf::Gltf::from_slice_without_validation(&glb).unwrap();
+        let json = gltf.document.as_json();
+        assert_eq!(json.extensions_required, ["KHR_mesh_quantization"]);
+        assert_eq!(json.extensions_used, ["KHR_mesh_quantization"]);
+        let blob = gltf.blob.as_deref().unwrap();
+        let node = gltf.document.nodes().next().unwrap();
+        let gltf::scene::Transform::Decomposed { translation, scale, .. } = node.transform() else { panic!() };
+        let step = 10.0f32 / 65535.0;
+        assert_eq!(scale, [step; 3]);
+        assert_eq!(translation, mesh.bounds().unwrap().0);
+
+        let prim = node.mesh().unwrap().primitives().next().unwrap();
+        // Vertex k of the file is vertex `source[k]` of the mesh (the GPU order).
+        let order = GpuOrder::of(&mesh);
+        let in_order = |k: usize| order.source[k] as usize;
+        let read = |semantic: gltf::Semantic, width: usize| -> Vec<Vec<u8>> {
+            let a = prim.get(&semantic).unwrap();
+            let view = a.view().unwrap();
+            let stride = view.stride().unwrap_or(width);
+            (0..a.count()).map(|i| blob[view.offset() + i * stride..][..width].to_vec()).collect()
+        };
+        for (k, bytes) in read(gltf::Semantic::Positions, 6).iter().enumerate() {
+            let p = mesh.positions[in_order(k)];
+            for k in 0..3 {
+                let q = u16::from_le_bytes([bytes[2 * k], bytes[2 * k + 1]]);
+                let back = translation[k] + f32::from(q) * scale[k];
+                assert!((back - p[k]).abs() <= 0.5 * step + 1e-5, "{back} for {}", p[k]);
+            }
+        }
+        for (k, bytes) in read(gltf::Semantic::Normals, 3).iter().enumerate() {
+            let n = &mesh.normals[in_order(k)];
+            let q = [0, 1, 2].map(|k| f64::from(bytes[k] as i8) / 127.0);
+            let len = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+            let u = unit(*n).map(f64::from);
+            let cos = (q[0] * u[0] + q[1] * u[1] + q[2] * u[2]) / len;
+            assert!(cos >= 0.5f64.to_radians().cos(), "{q:?} for {u:?}");
+        }
+        for (k, bytes) in read(gltf::Semantic::TexCoords(0), 4).iter().enumerate() {
+            let uv = mesh.uvs[in_order(k)];
+            for k in 0..2 {
+                let back = f32::from(u16::from_le_bytes([bytes[2 * k], bytes[2 * k + 1]])) / 65535.0;
+                assert!((back - uv[k]).abs() <= 0.5 / 65535.0 + 1e-7);
+            }
+        }
+        // Per vertex: positions 12 → 8 bytes, normals 12 → 4, texcoords 8 → 4; the JSON grows a
+        // little (the extension, the transform, strides).
+        let saved = plain.len() as i64 - glb.len() as i64;
+        let expected = 16 * mesh.vertex_count() as i64;
+        assert!((saved - expected).abs() < 400, "saved {saved} bytes, expected about {expected}");
+    }
+
+    #[test]
     fn colors_are_stored_linear() {
-        let mut out = [0u8; 8];
-        put_linear_colors(&mut out, &[[255, 188, 0, 200], [128, 64, 32, 255]]);
-        assert_eq!(out, [255, 128, 0, 200, 55, 13, 4, 255]);
+        assert_eq!(linear_color([255, 188, 0, 200]), [255, 128, 0, 200]);
+        assert_eq!(linear_color([128, 64, 32, 255]), [55, 13, 4, 255]);
     }
 
     #[test]
     fn bytes_are_deterministic_across_thread_counts() {
         let scene = Scene::single("t", terrain_mesh(300, 250, true));
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        assert_eq!(write_glb(&scene), pool.install(|| write_glb(&scene)));
+        for form in [GlbForm::None, GlbForm::Quantize] {
+            assert_eq!(write_glb(&scene, form), pool.install(|| write_glb(&scene, form)));
+        }
     }
 }

@@ -15,6 +15,23 @@ pub(crate) fn decimal(value: f32) -> String {
     format!("{value}")
 }
 
+/// The heightfield's samples as 16-bit steps from `z_min` (0) to `z_max` (65535), row after
+/// row from grid row 0, each written with `bytes` (the byte order); a flat field is all zeros.
+/// `heightmap.png` and `heightmap.r16` share it, so the two agree sample for sample.
+pub(crate) fn samples_u16(hf: &Heightfield, bytes: fn(u16) -> [u8; 2]) -> Vec<u8> {
+    let (z_min, z_max) = hf.min_max();
+    let span = (z_max - z_min) as f64;
+    let scale = if span > 0.0 { 65535.0 / span } else { 0.0 };
+    let mut samples = vec![0u8; hf.heights_m.len() * 2];
+    samples.par_chunks_mut(hf.cols.max(1) * 2).zip(hf.heights_m.par_chunks(hf.cols.max(1))).for_each(|(out, row)| {
+        for (pair, &h) in out.chunks_exact_mut(2).zip(row) {
+            let v = ((h as f64 - z_min as f64) * scale).round().clamp(0.0, 65535.0) as u16;
+            pair.copy_from_slice(&bytes(v));
+        }
+    });
+    samples
+}
+
 /// Encode the heightfield as a 16-bit grayscale PNG (see the module docs for the mapping). A
 /// flat field is all zeros.
 ///
@@ -23,35 +40,39 @@ pub(crate) fn decimal(value: f32) -> String {
 pub fn heightmap_png16(hf: &Heightfield) -> Vec<u8> {
     assert!(hf.cols > 0 && hf.rows > 0, "heightmap of an empty {}x{} grid", hf.cols, hf.rows);
     let (z_min, z_max) = hf.min_max();
-    let span = (z_max - z_min) as f64;
-    let scale = if span > 0.0 { 65535.0 / span } else { 0.0 };
-
     // PNG stores 16-bit samples big-endian.
-    let mut samples = vec![0u8; hf.heights_m.len() * 2];
-    samples.par_chunks_mut(hf.cols * 2).zip(hf.heights_m.par_chunks(hf.cols)).for_each(|(out, row)| {
-        for (bytes, &h) in out.chunks_exact_mut(2).zip(row) {
-            let v = ((h as f64 - z_min as f64) * scale).round().clamp(0.0, 65535.0) as u16;
-            bytes.copy_from_slice(&v.to_be_bytes());
-        }
-    });
+    let samples = samples_u16(hf, u16::to_be_bytes);
 
-    let mut png_bytes = Vec::new();
-    let mut encoder = png::Encoder::new(&mut png_bytes, hf.cols as u32, hf.rows as u32);
-    encoder.set_color(png::ColorType::Grayscale);
-    encoder.set_depth(png::BitDepth::Sixteen);
-    // Heights are smooth, so predicting from the row above and the left neighbour pays off.
-    encoder.set_filter(png::FilterType::Paeth);
-    encoder.set_compression(png::Compression::Fast);
-    for (key, text) in [
+    let texts = [
         ("z_min", decimal(z_min)),
         ("z_max", decimal(z_max)),
         ("cell_size_m", decimal(hf.cell_size_m)),
         ("Software", "Landform".to_string()),
-    ] {
-        encoder.add_text_chunk(key.to_string(), text).expect("tEXt keywords are valid Latin-1");
+    ];
+    grid_png(hf.cols, hf.rows, png::ColorType::Grayscale, png::BitDepth::Sixteen, &texts, &samples)
+}
+
+/// A PNG of one pixel per grid sample: `data` row by row, the `texts` as tEXt chunks. The
+/// Paeth filter, since neighbouring samples of a terrain are alike, and fast deflate.
+pub(crate) fn grid_png(
+    cols: usize,
+    rows: usize,
+    color: png::ColorType,
+    depth: png::BitDepth,
+    texts: &[(&str, String)],
+    data: &[u8],
+) -> Vec<u8> {
+    let mut png_bytes = Vec::new();
+    let mut encoder = png::Encoder::new(&mut png_bytes, cols as u32, rows as u32);
+    encoder.set_color(color);
+    encoder.set_depth(depth);
+    encoder.set_filter(png::FilterType::Paeth);
+    encoder.set_compression(png::Compression::Fast);
+    for (key, text) in texts {
+        encoder.add_text_chunk(key.to_string(), text.clone()).expect("tEXt keywords are valid Latin-1");
     }
     let mut writer = encoder.write_header().expect("PNG header for a non-empty grid");
-    writer.write_image_data(&samples).expect("PNG encoding into memory");
+    writer.write_image_data(data).expect("PNG encoding into memory");
     writer.finish().expect("PNG encoding into memory");
     png_bytes
 }

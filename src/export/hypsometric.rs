@@ -1,9 +1,10 @@
 //! Hypsometric tint: a colour for each height, shared by the preview picture and the mesh's
 //! vertex colours so both read the same way.
 //!
-//! Heights below 0 m are water (light blue at the shore to deep blue at the lowest sample)
-//! when any sample lies below 0 m; land runs greens → browns → greys → white from its lowest
-//! to its highest sample, relative to the field's own relief so any scale reads well.
+//! Heights below the sea level (0 m unless a kind knows another, such as deform-terrain's mask
+//! water level) are water — light blue at the shore to deep blue at the lowest sample — when
+//! any sample lies below it; land runs greens → browns → greys → white from its lowest (or the
+//! shore) to its highest sample, relative to the field's own relief so any scale reads well.
 
 /// Land colours (sRGB) at fractions of the land's relief.
 const LAND: [(f32, [f32; 3]); 8] = [
@@ -26,30 +27,38 @@ const WATER: [(f32, [f32; 3]); 3] =
 pub struct Tint {
     /// Deepest height (m) when the field has water, else `None`.
     sea_floor_m: Option<f32>,
+    sea_level_m: f32,
     land_lo_m: f32,
     land_hi_m: f32,
 }
 
 impl Tint {
-    /// A tint spanning `z_min..=z_max` metres.
+    /// A tint spanning `z_min..=z_max` metres, the sea at 0 m.
     pub fn new(z_min: f32, z_max: f32) -> Self {
-        if z_min < 0.0 {
-            Self { sea_floor_m: Some(z_min), land_lo_m: 0.0, land_hi_m: z_max.max(0.0) }
+        Self::with_sea_level(z_min, z_max, 0.0)
+    }
+
+    /// A tint spanning `z_min..=z_max` metres, the sea at `sea_level_m`.
+    pub fn with_sea_level(z_min: f32, z_max: f32, sea_level_m: f32) -> Self {
+        if z_min < sea_level_m {
+            Self { sea_floor_m: Some(z_min), sea_level_m, land_lo_m: sea_level_m, land_hi_m: z_max.max(sea_level_m) }
         } else {
-            Self { sea_floor_m: None, land_lo_m: z_min, land_hi_m: z_max }
+            Self { sea_floor_m: None, sea_level_m, land_lo_m: z_min, land_hi_m: z_max }
         }
     }
 
     /// Whether a height is drawn as water.
     pub fn is_water(&self, height_m: f32) -> bool {
-        self.sea_floor_m.is_some() && height_m < 0.0
+        self.sea_floor_m.is_some() && height_m < self.sea_level_m
     }
 
     /// The sRGB colour of a height, each channel in 0..=255 (unrounded, so shading can scale it
     /// before quantising).
     pub fn srgb(&self, height_m: f32) -> [f32; 3] {
         match self.sea_floor_m {
-            Some(floor) if height_m < 0.0 => ramp(&WATER, height_m / floor),
+            Some(floor) if height_m < self.sea_level_m => {
+                ramp(&WATER, (self.sea_level_m - height_m) / (self.sea_level_m - floor))
+            }
             _ => {
                 let span = self.land_hi_m - self.land_lo_m;
                 let t = if span > 0.0 { (height_m - self.land_lo_m) / span } else { 0.0 };
@@ -96,6 +105,17 @@ mod tests {
         assert_eq!(deep, WATER[2].1);
         assert_eq!(tint.srgb(0.0), LAND[0].1);
         assert_eq!(tint.srgb(60.0), LAND[7].1);
+    }
+
+    #[test]
+    fn a_sea_level_of_the_kinds_moves_the_shore() {
+        let tint = Tint::with_sea_level(0.0, 100.0, 50.0);
+        assert!(tint.is_water(49.9) && !tint.is_water(50.0));
+        assert_eq!(tint.srgb(0.0), WATER[2].1);
+        assert_eq!(tint.srgb(30.0), ramp(&WATER, 0.4));
+        assert_eq!(tint.srgb(50.0), LAND[0].1);
+        assert_eq!(tint.srgb(100.0), LAND[7].1);
+        assert!(!Tint::new(0.0, 100.0).is_water(30.0));
     }
 
     #[test]

@@ -4,10 +4,14 @@
 mod artifact;
 mod glb;
 mod heightmap_png;
+mod heightmap_r16;
 mod hypsometric;
+mod normalmap_png;
 mod npy;
 mod preview_png;
 mod render;
+mod scale_bar;
+mod splatmap_png;
 mod srgb;
 
 #[cfg(test)]
@@ -23,12 +27,15 @@ pub(crate) mod test_png {
 }
 
 pub use artifact::Artifact;
-pub use glb::{write_glb, MAX_U16_INDEXED_VERTICES};
+pub use glb::{write_glb, GlbForm, MAX_U16_INDEXED_VERTICES};
 pub use heightmap_png::heightmap_png16;
+pub use heightmap_r16::{heightmap_r16, r16_summary};
 pub use hypsometric::Tint;
+pub use normalmap_png::normalmap_png;
 pub use npy::{heightfield_npy, read_heightfield_npy};
 pub use preview_png::preview_png;
-pub use render::{render_png, View};
+pub use render::{render_png, render_png_framed, View};
+pub use splatmap_png::splatmap_png;
 
 use serde_json::{json, Value};
 
@@ -43,23 +50,48 @@ pub const SNAPSHOT_MAX_SIDE_PX: u32 = 256;
 /// The standard outputs of a heightfield kind and the figures for its job `result`.
 #[derive(Debug)]
 pub struct HeightfieldArtifacts {
-    /// `heightmap.png`, `preview.png`, `mesh.glb`, `heightfield.npy`, in that order.
+    /// `heightmap.png`, `preview.png`, `mesh.glb`, `heightfield.npy`, `heightmap.r16`,
+    /// `normalmap.png`, `splatmap.png`, in that order.
     pub artifacts: Vec<Artifact>,
     /// `{"z_min", "z_max", "grid": {"cols", "rows", "cell_size_m"}, "mesh": {"vertices",
-    /// "triangles", "stride"}}`, metres; z_min/z_max are the same decimals as the PNG's text.
+    /// "triangles", "stride"}, "heightmap_r16": {…}}`, metres; z_min/z_max are the same decimals
+    /// as the PNG's text.
     pub summary: Value,
 }
 
+/// What a heightfield kind tells the export besides the heights.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct HeightfieldExport<'a> {
+    /// The kind's own material weight per sample (0–255; `splatmap.png`'s alpha), where it
+    /// knows one.
+    pub material: Option<&'a [u8]>,
+    /// How `mesh.glb` stores its vertices.
+    pub glb: GlbForm,
+    /// Below it the preview and the vertex colours show water (0 m unless the kind knows one).
+    pub sea_level_m: f32,
+}
+
 /// Everything a heightfield kind delivers for its final terrain, built in parallel; the bytes
-/// depend only on the heightfield.
-pub fn heightfield_artifacts(hf: &Heightfield) -> HeightfieldArtifacts {
+/// depend only on the heightfield and `options`.
+pub fn heightfield_artifacts(hf: &Heightfield, options: &HeightfieldExport) -> HeightfieldArtifacts {
+    let HeightfieldExport { material, glb: form, sea_level_m } = *options;
     let (z_min, z_max) = hf.min_max();
-    let ((heightmap, preview), ((glb, mesh_summary), npy)) = rayon::join(
-        || rayon::join(|| heightmap_png16(hf), || preview_png(hf, PREVIEW_MAX_SIDE_PX)),
+    let (((heightmap, preview), (r16, (normals, splat))), ((glb, mesh_summary), npy)) = rayon::join(
+        || {
+            rayon::join(
+                || rayon::join(|| heightmap_png16(hf), || preview_png(hf, PREVIEW_MAX_SIDE_PX, sea_level_m)),
+                || {
+                    rayon::join(
+                        || heightmap_r16(hf),
+                        || rayon::join(|| normalmap_png(hf), || splatmap_png(hf, material)),
+                    )
+                },
+            )
+        },
         || {
             rayon::join(
                 || {
-                    let tint = Tint::new(z_min, z_max);
+                    let tint = Tint::with_sea_level(z_min, z_max, sea_level_m);
                     let color = |height_m: f32, _slope_deg: f32| tint.srgba8(height_m);
                     let meshed = heightfield_mesh(hf, DEFAULT_MAX_SIDE_SAMPLES, Some(&color));
                     let summary = json!({
@@ -67,7 +99,7 @@ pub fn heightfield_artifacts(hf: &Heightfield) -> HeightfieldArtifacts {
                         "triangles": meshed.mesh.triangle_count(),
                         "stride": meshed.stride,
                     });
-                    (write_glb(&Scene::single("terrain", meshed.mesh)), summary)
+                    (write_glb(&Scene::single("terrain", meshed.mesh), form), summary)
                 },
                 || heightfield_npy(hf),
             )
@@ -78,6 +110,7 @@ pub fn heightfield_artifacts(hf: &Heightfield) -> HeightfieldArtifacts {
         "z_max": short_decimal(z_max),
         "grid": { "cols": hf.cols, "rows": hf.rows, "cell_size_m": short_decimal(hf.cell_size_m) },
         "mesh": mesh_summary,
+        "heightmap_r16": r16_summary(hf),
     });
     HeightfieldArtifacts {
         artifacts: vec![
@@ -85,6 +118,9 @@ pub fn heightfield_artifacts(hf: &Heightfield) -> HeightfieldArtifacts {
             Artifact::new("preview.png", "image/png", preview),
             Artifact::new("mesh.glb", "model/gltf-binary", glb),
             Artifact::new("heightfield.npy", "application/octet-stream", npy),
+            Artifact::new("heightmap.r16", "application/octet-stream", r16),
+            Artifact::new("normalmap.png", "image/png", normals),
+            Artifact::new("splatmap.png", "image/png", splat),
         ],
         summary,
     }
@@ -93,7 +129,8 @@ pub fn heightfield_artifacts(hf: &Heightfield) -> HeightfieldArtifacts {
 /// Peak bytes [`heightfield_artifacts`] allocates for a `cols × rows` grid, with every writer
 /// running at once: the 16-bit samples and their deflated PNG, the preview (a copy of the grid
 /// when it is small enough, its slopes, RGB and PNG), the decimated mesh three times over
-/// (mesh, glb buffer, glb file) and the `.npy`.
+/// (mesh, glb buffer, glb file), the `.npy`, the `.r16`, the normal map (RGB and its PNG) and
+/// the splat map (RGBA and its PNG).
 pub fn heightfield_artifacts_peak_bytes(cols: u64, rows: u64) -> u64 {
     let cells = cols.saturating_mul(rows);
     let longest = cols.max(rows).max(1);
@@ -108,12 +145,12 @@ pub fn heightfield_artifacts_peak_bytes(cols: u64, rows: u64) -> u64 {
     let stride = longest.saturating_sub(1).div_ceil(DEFAULT_MAX_SIDE_SAMPLES as u64 - 1).max(1);
     let (nx, nz) = (cols.saturating_sub(1).div_ceil(stride) + 1, rows.saturating_sub(1).div_ceil(stride) + 1);
     let mesh = 36 * nx * nz + 24 * (nx - 1) * (nz - 1);
-    cells.saturating_mul(10) + preview + 3 * mesh
+    cells.saturating_mul(10 + 2 + 6 + 8) + preview + 3 * mesh
 }
 
 /// A small preview for live progress snapshots.
 pub fn snapshot_png(hf: &Heightfield) -> Vec<u8> {
-    preview_png(hf, SNAPSHOT_MAX_SIDE_PX)
+    preview_png(hf, SNAPSHOT_MAX_SIDE_PX, 0.0)
 }
 
 /// An f32 as the JSON number with its shortest decimal (`0.1`, not `0.10000000149011612`), so
@@ -129,7 +166,7 @@ mod tests {
     #[test]
     fn artifacts_come_in_order_with_a_summary() {
         let hf = Heightfield::from_fn(65, 33, 0.1, |x, z| x * 2.0 - z + 0.3);
-        let out = heightfield_artifacts(&hf);
+        let out = heightfield_artifacts(&hf, &HeightfieldExport::default());
         let names: Vec<_> = out.artifacts.iter().map(|a| (a.name.as_str(), a.media_type.as_str())).collect();
         assert_eq!(
             names,
@@ -138,6 +175,9 @@ mod tests {
                 ("preview.png", "image/png"),
                 ("mesh.glb", "model/gltf-binary"),
                 ("heightfield.npy", "application/octet-stream"),
+                ("heightmap.r16", "application/octet-stream"),
+                ("normalmap.png", "image/png"),
+                ("splatmap.png", "image/png"),
             ]
         );
         let (z_min, z_max) = hf.min_max();
@@ -147,14 +187,27 @@ mod tests {
         assert_eq!(out.summary["mesh"], json!({"vertices": 65 * 33, "triangles": 64 * 32 * 2, "stride": 1}));
         let back = read_heightfield_npy(&out.artifacts[3].bytes, hf.cell_size_m).unwrap();
         assert_eq!(back, hf);
+
+        // The raw heights read back from the summary's sizes and range agree with the .npy's to
+        // within one 16-bit step.
+        let r16 = &out.summary["heightmap_r16"];
+        let (w, h) = (r16["width"].as_u64().unwrap() as usize, r16["height"].as_u64().unwrap() as usize);
+        let (lo, range) = (r16["z_min"].as_f64().unwrap(), r16["height_range_m"].as_f64().unwrap());
+        let raw = &out.artifacts[4].bytes;
+        assert_eq!(raw.len(), 2 * w * h);
+        let step = range / 65535.0;
+        for (pair, &height) in raw.chunks_exact(2).zip(&back.heights_m) {
+            let read = lo + f64::from(u16::from_le_bytes([pair[0], pair[1]])) * step;
+            assert!((read - f64::from(height)).abs() <= step, "{read} for {height}");
+        }
     }
 
     #[test]
     fn artifacts_are_byte_identical_across_runs_and_thread_counts() {
         let hf = Heightfield::from_fn(200, 120, 1.0, |x, z| (x * 0.05).sin() * 30.0 + (z * 0.07).cos() * 20.0 - 5.0);
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        let one = pool.install(|| heightfield_artifacts(&hf));
-        let many = heightfield_artifacts(&hf);
+        let one = pool.install(|| heightfield_artifacts(&hf, &HeightfieldExport::default()));
+        let many = heightfield_artifacts(&hf, &HeightfieldExport::default());
         assert_eq!(one.artifacts, many.artifacts);
         assert_eq!(one.summary, many.summary);
     }

@@ -2,11 +2,13 @@
 //!
 //! Seen from above with north up: image row 0 is grid row 0 (z = 0) and image column 0 is grid
 //! column 0 (x = 0), the same layout as `heightmap.png`, so "north" is −Z and "east" is +X.
-//! The sun stands at azimuth 315° (north-west), altitude 45°, as in GDAL's `hillshade`.
+//! The sun stands at azimuth 315° (north-west), altitude 45°, as in GDAL's `hillshade`. A scale
+//! bar sits in the bottom-left corner (see `scale_bar.rs`).
 
 use rayon::prelude::*;
 
 use super::hypsometric::Tint;
+use super::scale_bar::draw_scale_bar;
 use crate::terrain::Heightfield;
 
 const SUN_AZIMUTH_DEG: f32 = 315.0;
@@ -19,15 +21,15 @@ const MAX_EXAGGERATION: f32 = 10.0;
 const AMBIENT: f32 = 0.3;
 
 /// Render the shaded relief at most `max_side_px` pixels on the longer side (area-averaged
-/// when the grid is larger; one pixel per sample otherwise). Identical whatever the thread
+/// when the grid is larger; one pixel per sample otherwise), water below `sea_level_m`. Identical whatever the thread
 /// count.
 ///
 /// # Panics
 /// On an empty grid (no rows or columns), which no terrain source produces.
-pub fn preview_png(hf: &Heightfield, max_side_px: u32) -> Vec<u8> {
+pub fn preview_png(hf: &Heightfield, max_side_px: u32, sea_level_m: f32) -> Vec<u8> {
     assert!(hf.cols > 0 && hf.rows > 0, "preview of an empty {}x{} grid", hf.cols, hf.rows);
     let (z_min, z_max) = hf.min_max();
-    let tint = Tint::new(z_min, z_max);
+    let tint = Tint::with_sea_level(z_min, z_max, sea_level_m);
     let picture = area_average(hf, max_side_px.max(1) as usize);
     let exaggeration = exaggeration_for(&picture);
     let light = sun_direction();
@@ -53,6 +55,9 @@ pub fn preview_png(hf: &Heightfield, max_side_px: u32) -> Vec<u8> {
             }
         }
     });
+
+    // The picture's cell size is the grid's stretched to the picture (see `area_average`).
+    draw_scale_bar(&mut rgb, w, h, f64::from(picture.cell_size_m));
 
     let mut png_bytes = Vec::new();
     let mut encoder = png::Encoder::new(&mut png_bytes, w as u32, h as u32);
@@ -134,7 +139,7 @@ mod tests {
 
     #[test]
     fn large_grid_is_downsampled_to_the_side_limit_as_rgb8() {
-        let (info, rgb) = decode(&preview_png(&hills(1000, 500), 256));
+        let (info, rgb) = decode(&preview_png(&hills(1000, 500), 256, 0.0));
         assert_eq!((info.width, info.height), (256, 128));
         assert_eq!((info.color_type, info.bit_depth), (png::ColorType::Rgb, png::BitDepth::Eight));
         assert_eq!(rgb.len(), 256 * 128 * 3);
@@ -142,7 +147,7 @@ mod tests {
 
     #[test]
     fn small_grid_keeps_one_pixel_per_sample() {
-        let (info, _) = decode(&preview_png(&hills(40, 30), 1024));
+        let (info, _) = decode(&preview_png(&hills(40, 30), 1024, 0.0));
         assert_eq!((info.width, info.height), (40, 30));
     }
 
@@ -151,7 +156,7 @@ mod tests {
         // A ridge from the north-east corner to the south-west one: its north-west face (top
         // left in the picture) looks at the sun, its south-east face away.
         let hf = Heightfield::from_fn(64, 64, 1.0, |x, z| 20.0 - (x + z - 63.0).abs() * 0.5);
-        let (_, rgb) = decode(&preview_png(&hf, 64));
+        let (_, rgb) = decode(&preview_png(&hf, 64, 0.0));
         let luma = |c: usize, r: usize| rgb[(r * 64 + c) * 3..][..3].iter().map(|&v| v as u32).sum::<u32>();
         let (sunny, shaded) = (luma(20, 20), luma(43, 43));
         assert!(sunny > shaded + 100, "sunny {sunny} vs shaded {shaded}");
@@ -160,15 +165,25 @@ mod tests {
     #[test]
     fn water_is_blue() {
         let hf = Heightfield::from_fn(32, 32, 1.0, |x, _| x - 16.0);
-        let (_, rgb) = decode(&preview_png(&hf, 32));
+        let (_, rgb) = decode(&preview_png(&hf, 32, 0.0));
         let px = &rgb[(16 * 32 + 2) * 3..][..3];
         assert!(px[2] > px[0] && px[2] > px[1], "water pixel {px:?}");
+    }
+
+    #[test]
+    fn water_begins_at_the_sea_level_given() {
+        // Heights 0–127 m west to east; pixel (25, 20) is at 25 m.
+        let hf = Heightfield::from_fn(128, 128, 1.0, |x, _| x);
+        let px = |png: &[u8]| decode(png).1[(20 * 128 + 25) * 3..][..3].to_vec();
+        let (sea, land) = (px(&preview_png(&hf, 128, 50.0)), px(&preview_png(&hf, 128, 0.0)));
+        assert!(sea[2] > sea[0] && sea[2] > sea[1], "below a 50 m sea: {sea:?}");
+        assert!(land[1] > land[2], "with the sea at 0 m: {land:?}");
     }
 
     #[test]
     fn same_bytes_on_one_thread_or_many() {
         let hf = hills(700, 300);
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        assert_eq!(preview_png(&hf, 200), pool.install(|| preview_png(&hf, 200)));
+        assert_eq!(preview_png(&hf, 200, 0.0), pool.install(|| preview_png(&hf, 200, 0.0)));
     }
 }

@@ -10,6 +10,7 @@ use std::sync::OnceLock;
 
 use rayon::prelude::*;
 
+use super::scale_bar::{draw_corner_label, metres_text};
 use super::srgb::srgb_to_linear;
 use crate::mesh::{MaterialKind, Scene};
 use crate::stop::{Stop, Stopped};
@@ -59,21 +60,42 @@ const SHADOW_STRENGTH: f32 = 0.75;
 ///
 /// Looks at `stop` before each band of rows and answers `Err(Stopped)` once it is raised.
 pub fn render_png(scene: &Scene, view: &View, stop: Stop) -> Result<Vec<u8>, Stopped> {
+    render_png_framed(scene, view, None, stop)
+}
+
+/// As [`render_png`], framing `focus` (world bounds, min and max corner) when given rather than
+/// the whole scene — the part a person should see, such as a coastline in a wide sea; what lies
+/// outside is cut off by the picture's edges. The corner label gives the framed extent.
+pub fn render_png_framed(
+    scene: &Scene,
+    view: &View,
+    focus: Option<([f32; 3], [f32; 3])>,
+    stop: Stop,
+) -> Result<Vec<u8>, Stopped> {
     let (w, h) = (view.width_px.max(1) as usize, view.height_px.max(1) as usize);
     let camera = Camera::new(view);
     let geometry = Geometry::gather(scene);
     let background = sky_rows(h);
     let mut rgb = vec![0u8; w * h * 3];
-    match geometry.bounds() {
+    // The extent in metres (x × z × height) for the corner label, where there is anything.
+    let extent = match geometry.bounds() {
         None => {
             rgb.par_chunks_mut(w * 3).zip(&background).for_each(|(row, sky)| {
                 for px in row.chunks_exact_mut(3) {
                     px.copy_from_slice(sky);
                 }
             });
+            None
         }
         Some(bounds) => {
-            let frame = Frame::new(&camera, bounds, w, h);
+            let (lo, hi) = focus.unwrap_or(bounds);
+            let extent = format!(
+                "{} x {} x {} m",
+                metres_text(hi[0] - lo[0]),
+                metres_text(hi[2] - lo[2]),
+                metres_text(hi[1] - lo[1])
+            );
+            let frame = Frame::new(&camera, (lo, hi), w, h);
             let screen: Vec<[f32; 3]> = geometry.positions.par_iter().map(|&p| frame.project(&camera, p)).collect();
             stop.check()?;
             let bands = bin_triangles(&geometry.indices, &screen, w, h);
@@ -109,9 +131,13 @@ pub fn render_png(scene: &Scene, view: &View, stop: Stop) -> Result<Vec<u8>, Sto
                     }
                 }
             });
+            Some(extent)
         }
-    }
+    };
     stop.check()?;
+    if let Some(extent) = extent {
+        draw_corner_label(&mut rgb, w, h, &extent);
+    }
     Ok(encode_png(&rgb, w as u32, h as u32))
 }
 
@@ -553,11 +579,13 @@ mod tests {
     }
 
     /// Pixels that differ from their row's background (the row's first pixel).
+    /// Pixels that differ from their row's first (the sky), outside the extent label's corner.
     fn foreground(rgb: &[u8], w: usize) -> Vec<(usize, usize, u32)> {
         let mut out = Vec::new();
+        let h = rgb.len() / (w * 3);
         for (y, row) in rgb.chunks_exact(w * 3).enumerate() {
             for (x, px) in row.chunks_exact(3).enumerate() {
-                if px != &row[..3] {
+                if px != &row[..3] && !(x < 160 && y + 24 >= h) {
                     out.push((x, y, px.iter().map(|&v| v as u32).sum()));
                 }
             }
@@ -572,6 +600,14 @@ mod tests {
         assert_eq!((info.width, info.height), (320, 200));
         assert_eq!((info.color_type, info.bit_depth), (png::ColorType::Rgb, png::BitDepth::Eight));
         assert_eq!(rgb.len(), 320 * 200 * 3);
+        // The corner label ("6 x 6 x 6 m", white on a dark outline) sits in the bottom left.
+        let white = |x0: usize, y0: usize| {
+            (y0..y0 + 24)
+                .flat_map(move |y| (x0..x0 + 100).map(move |x| (x, y)))
+                .filter(|&(x, y)| rgb[(y * 320 + x) * 3..][..3] == [255, 255, 255])
+        };
+        assert!(white(0, 176).count() > 40, "the extent label");
+        assert_eq!(white(220, 176).count(), 0, "nothing of it on the right");
     }
 
     #[test]

@@ -69,6 +69,15 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>], keys_required: bool) -> Open
         .description(Some("Free text kept with the job, at most 200 characters"))
         .into();
 
+    let compression: utoipa::openapi::schema::Schema = ObjectBuilder::new()
+        .schema_type(SchemaType::new(Type::String))
+        .enum_values(Some(crate::export::GlbForm::NAMES))
+        .default(Some(serde_json::Value::from(crate::export::GlbForm::default().name())))
+        .description(Some(
+            "How glb artifacts store their vertices: `quantize` (the default) with KHR_mesh_quantization — 16-bit positions (the node's translation and scale give metres; error at most half of the mesh's longest side ÷ 65535), 8-bit normals, 16-bit texcoords — or `none`: 32-bit floats.",
+        ))
+        .into();
+
     for kind in kinds {
         let (name, mut schema, refs) = kind.request_schema();
         super::openapi_bounds::close_objects(&mut schema);
@@ -83,6 +92,7 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>], keys_required: bool) -> Open
         if let RefOr::T(utoipa::openapi::schema::Schema::Object(o)) = &mut body {
             o.properties.insert("seed".into(), RefOr::T(seed.clone()));
             o.properties.insert("label".into(), RefOr::T(label.clone()));
+            o.properties.insert("compression".into(), RefOr::T(compression.clone()));
         }
         components.schemas.insert(name.clone(), schema);
         components.schemas.insert(body_name.clone(), body);

@@ -15,6 +15,7 @@ use super::live::{LiveJob, StopReason};
 use super::metrics::Metrics;
 use super::store_terrain::StoreTerrain;
 use super::{Job, JobEvent, JobKind, JobStatus, Progress, RequestError};
+use crate::export::GlbForm;
 use crate::store::{EventLog, IdempotentInsert, ListFilter, StoreError};
 use crate::validate::{FieldError, Limits};
 
@@ -446,7 +447,7 @@ impl Engine {
         let Value::Object(mut body) = body else {
             return Err(EngineError::field("", "the body must be a JSON object"));
         };
-        let (seed, label) = take_common_fields(&mut body)?;
+        let (seed, label, compression) = take_common_fields(&mut body)?;
         let limits = self.inner.config.limits.clone();
         let prepared = tokio::task::spawn_blocking(move || kind_impl.prepare(Value::Object(body), &limits))
             .await
@@ -461,6 +462,7 @@ impl Engine {
             _ => Map::new(),
         };
         request.insert("seed".into(), Value::from(seed));
+        request.insert("compression".into(), Value::from(compression.name()));
         if let Some(l) = &label {
             request.insert("label".into(), Value::String(l.clone()));
         }
@@ -847,7 +849,9 @@ impl Engine {
     }
 }
 
-fn take_common_fields(body: &mut Map<String, Value>) -> Result<(u64, Option<String>), EngineError> {
+/// The common fields of every body: `seed`, `label` and `compression` (checked here; the
+/// caller puts the seed and the compression, defaults filled in, back into the request).
+fn take_common_fields(body: &mut Map<String, Value>) -> Result<(u64, Option<String>, GlbForm), EngineError> {
     let seed = match body.remove("seed") {
         None | Some(Value::Null) => 0,
         Some(v) => v.as_u64().ok_or_else(|| EngineError::field("seed", "must be an unsigned 64-bit integer"))?,
@@ -860,7 +864,13 @@ fn take_common_fields(body: &mut Map<String, Value>) -> Result<(u64, Option<Stri
         }
         Some(_) => return Err(EngineError::field("label", "must be a string")),
     };
-    Ok((seed, label))
+    let compression = match body.remove("compression") {
+        None | Some(Value::Null) => GlbForm::default(),
+        Some(v) => v.as_str().and_then(GlbForm::parse).ok_or_else(|| {
+            EngineError::field("compression", format!("must be one of {}", GlbForm::NAMES.join(", ")))
+        })?,
+    };
+    Ok((seed, label, compression))
 }
 
 fn new_job(kind: &str, label: Option<String>, request: Value, replay_of: Option<(String, Option<u64>)>) -> Job {

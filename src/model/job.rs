@@ -110,6 +110,7 @@ impl Job {
         if let Some(obj) = p.as_object_mut() {
             obj.remove("seed");
             obj.remove("label");
+            obj.remove("compression");
         }
         p
     }

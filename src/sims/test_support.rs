@@ -1,6 +1,7 @@
 //! A run context for the kinds' unit tests: progress goes nowhere, and every `{"job": …}` terrain resolves
 //! to the one heightfield the test supplies.
 
+use crate::export::GlbForm;
 use std::sync::atomic::AtomicBool;
 
 use crate::jobs::{RunContext, SilentProgress};
@@ -32,7 +33,13 @@ impl TestContext {
     }
 
     pub fn ctx(&self) -> RunContext<'_> {
-        RunContext { cancel: &self.cancel, sink: &SilentProgress, terrain: &self.terrain, limits: &self.limits }
+        RunContext {
+            cancel: &self.cancel,
+            sink: &SilentProgress,
+            terrain: &self.terrain,
+            limits: &self.limits,
+            glb: GlbForm::Quantize,
+        }
     }
 }
 

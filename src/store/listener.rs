@@ -1,6 +1,6 @@
 //! PostgreSQL's LISTEN/NOTIFY on a connection of its own: a thread listens on the two
 //! channels the store notifies (`landform_jobs` when a job is queued, `landform_events` when a
-//! job has new events or ends; payloads are job ids only) and passes each notice on to every
+//! job has new events or ends; payloads are job ids only, several to a notice: see notifier.rs) and passes each notice on to every
 //! waiter in this process. When the connection drops it connects again and says
 //! `Reconnected`, since notices sent meanwhile are lost: waiters then read the tables afresh.
 
@@ -10,6 +10,7 @@ use postgres::fallible_iterator::FallibleIterator;
 use postgres::{Client, NoTls};
 use tokio::sync::broadcast;
 
+use super::notifier::SEPARATOR;
 use super::Notice;
 
 pub(super) const JOBS_CHANNEL: &str = "landform_jobs";
@@ -55,9 +56,10 @@ fn pass_on(client: &mut Client, tx: &broadcast::Sender<Notice>) -> Result<(), po
     let mut notifications = client.notifications();
     let mut pending = notifications.timeout_iter(Duration::from_secs(1));
     while let Some(n) = pending.next()? {
-        let id = n.payload().to_string();
-        let notice = if n.channel() == JOBS_CHANNEL { Notice::Queued(id) } else { Notice::Changed(id) };
-        let _ = tx.send(notice);
+        for id in n.payload().split(SEPARATOR).map(str::to_string) {
+            let notice = if n.channel() == JOBS_CHANNEL { Notice::Queued(id) } else { Notice::Changed(id) };
+            let _ = tx.send(notice);
+        }
     }
     Ok(())
 }

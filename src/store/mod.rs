@@ -5,6 +5,7 @@ mod artifacts;
 pub(crate) mod contract;
 mod events;
 mod listener;
+mod notifier;
 mod objects;
 mod pg_conn;
 mod postgres;

@@ -15,6 +15,7 @@ use tokio::sync::broadcast;
 use super::artifacts::{assemble, chunks, span, StoredArtifact, STORED_ARTIFACT};
 use super::events::{event_id, EventLog, Notice, StoredEvent};
 use super::listener::{self, EVENTS_CHANNEL, JOBS_CHANNEL};
+use super::notifier::Notifier;
 use super::objects::{object_range, ObjectArtifacts};
 use super::pg_conn::{Conn, Sql, Tx};
 use super::queue::{count, lease_ms, Claim, JobQueue, Renewal};
@@ -38,6 +39,8 @@ pub struct PostgresStore {
     url: String,
     /// The listener's fan-out, once anyone in this process has asked for notices.
     notices: Mutex<Option<broadcast::Sender<Notice>>>,
+    /// Sends this process's notices, after the commits they announce.
+    notifier: Notifier,
     /// Where new artifacts' bytes go when not into the database.
     objects: Option<ObjectArtifacts>,
 }
@@ -75,7 +78,14 @@ impl PostgresStore {
         for _ in 1..CONNECTIONS {
             clients.push(Mutex::new(Conn::new(connect()?)));
         }
-        Ok(Self { clients, next: AtomicUsize::new(0), url: url.to_string(), notices: Mutex::new(None), objects: None })
+        Ok(Self {
+            clients,
+            next: AtomicUsize::new(0),
+            url: url.to_string(),
+            notices: Mutex::new(None),
+            notifier: Notifier::new(url),
+            objects: None,
+        })
     }
 
     /// Commit without waiting for the disk (`synchronous_commit = off`), for a worker: all it
@@ -95,6 +105,23 @@ impl PostgresStore {
     pub fn with_objects(mut self, objects: Option<ObjectArtifacts>) -> Self {
         self.objects = objects;
         self
+    }
+
+    /// Tell listeners that `job` ended, when it has.
+    fn ended(&self, job: &Job) {
+        if job.status.is_terminal() {
+            self.notifier.send(EVENTS_CHANNEL, &job.id);
+        }
+    }
+
+    /// Save the mutable columns and tell listeners when the job ended; false if nothing was
+    /// written.
+    fn update_announced(&self, row: &JobRow) -> Result<bool, StoreError> {
+        let written = update_row(&mut *self.client(), row)?;
+        if written {
+            self.ended(row.job);
+        }
+        Ok(written)
     }
 
     fn remove_objects(&self, keys: &[String]) {
@@ -136,6 +163,7 @@ impl PostgresStore {
         }
         tx.commit().map_err(db)?;
         drop(client);
+        self.ended(job);
         if let Some(p) = placed {
             p.keep();
         }
@@ -232,17 +260,14 @@ fn load_job(c: &mut impl Sql, id: &str) -> Result<Option<Job>, StoreError> {
     Ok(load_jobs(c, &format!("SELECT {JOB_COLUMNS}, {ARTIFACT_ARRAYS} WHERE id = $1"), &[&id])?.pop())
 }
 
-/// Insert a job's row, announcing it on the jobs channel when it is queued — in the same
-/// statement, so that a submission without an idempotency key is one round trip and one commit.
+/// Insert a job's row (announced by the caller after the commit).
 fn insert_row(c: &mut impl Sql, row: &JobRow) -> Result<(), StoreError> {
     let j = row.job;
     let running = i32::from(j.status == JobStatus::Running);
-    let announce = (j.status == JobStatus::Queued).then_some(JOBS_CHANNEL);
     c.execute(
-        "WITH i AS (INSERT INTO jobs (id, kind, status, label, created_at, started_at, finished_at, progress, request, \
+        "INSERT INTO jobs (id, kind, status, label, created_at, started_at, finished_at, progress, request, \
          result, error, replay_of, replay_until_step, attempts, cost, owner, memory_bytes) \
-         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15, $16, $17) RETURNING id) \
-         SELECT pg_notify($18, id) FROM i WHERE $18::text IS NOT NULL",
+         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15, $16, $17)",
         &[
             &j.id,
             &j.kind,
@@ -261,17 +286,9 @@ fn insert_row(c: &mut impl Sql, row: &JobRow) -> Result<(), StoreError> {
             &row.cost,
             &j.owner,
             &row.memory_bytes,
-            &announce,
         ],
     )
     .map_err(db)?;
-    Ok(())
-}
-
-/// Tell listeners in every process (delivered when the transaction commits); the payload is
-/// the job's id only.
-fn notify(c: &mut impl Sql, channel: &str, job_id: &str) -> Result<(), StoreError> {
-    c.execute("SELECT pg_notify($1, $2)", &[&channel, &job_id]).map_err(db)?;
     Ok(())
 }
 
@@ -299,9 +316,6 @@ fn update_row(c: &mut impl Sql, row: &JobRow) -> Result<bool, StoreError> {
             ],
         )
         .map_err(db)?;
-    if n > 0 && j.status.is_terminal() {
-        notify(c, EVENTS_CHANNEL, &j.id)?;
-    }
     Ok(n > 0)
 }
 
@@ -454,8 +468,9 @@ impl JobQueue for PostgresStore {
                 &[&id, &i64::from(attempt)],
             )
             .map_err(db)?;
+        drop(client);
         if n > 0 {
-            notify(&mut *client, JOBS_CHANNEL, id)?;
+            self.notifier.send(JOBS_CHANNEL, id);
         }
         Ok(n > 0)
     }
@@ -490,7 +505,7 @@ impl JobQueue for PostgresStore {
     }
 
     fn update_claimed(&self, job: &Job, attempt: u32) -> Result<bool, StoreError> {
-        update_row(&mut *self.client(), &JobRow::encode(job)?.fenced(attempt))
+        self.update_announced(&JobRow::encode(job)?.fenced(attempt))
     }
 
     fn finish_claimed(&self, job: &Job, attempt: u32, artifacts: &[Artifact]) -> Result<bool, StoreError> {
@@ -515,17 +530,13 @@ impl EventLog for PostgresStore {
     }
 
     fn append_event(&self, job_id: &str, attempt: u32, event: &str, data: &str) -> Result<Option<u64>, StoreError> {
-        // The notice in the same statement: one commit, not two (a commit that notifies holds a
-        // database-wide lock until it is flushed, so each one counts under load).
-        let sql = format!(
-            "WITH e AS (INSERT INTO job_events (job_id, event, data) SELECT $1, $2, $3 WHERE {HELD} RETURNING id) \
-             SELECT id, pg_notify($5, $1) FROM e"
-        );
-        let found = self
-            .client()
-            .query_opt(&sql, &[&job_id, &event, &data, &i64::from(attempt), &EVENTS_CHANNEL])
-            .map_err(db)?;
-        found.map(|r| event_id(r.try_get(0).map_err(db)?)).transpose()
+        let sql = format!("INSERT INTO job_events (job_id, event, data) SELECT $1, $2, $3 WHERE {HELD} RETURNING id");
+        let found = self.client().query_opt(&sql, &[&job_id, &event, &data, &i64::from(attempt)]).map_err(db)?;
+        let id = found.map(|r| event_id(r.try_get(0).map_err(db)?)).transpose()?;
+        if id.is_some() {
+            self.notifier.send(EVENTS_CHANNEL, job_id);
+        }
+        Ok(id)
     }
 
     fn events_after(&self, job_id: &str, after: u64, limit: u32) -> Result<Vec<StoredEvent>, StoreError> {
@@ -604,8 +615,15 @@ impl JobStore for PostgresStore {
     fn insert(&self, job: &Job, idempotency: Option<(&str, &str)>) -> Result<IdempotentInsert, StoreError> {
         let row = JobRow::encode(job)?;
         let mut client = self.client();
+        let announce = || {
+            if job.status == JobStatus::Queued {
+                self.notifier.send(JOBS_CHANNEL, &job.id);
+            }
+        };
         let Some((key, body_sha256)) = idempotency else {
             insert_row(&mut *client, &row)?;
+            drop(client);
+            announce();
             return Ok(IdempotentInsert::Inserted);
         };
         let mut tx = client.transaction().map_err(db)?;
@@ -639,6 +657,8 @@ impl JobStore for PostgresStore {
             }
         }
         tx.commit().map_err(db)?;
+        drop(client);
+        announce();
         Ok(IdempotentInsert::Inserted)
     }
 
@@ -663,7 +683,7 @@ impl JobStore for PostgresStore {
 
     /// A job that no longer exists (deleted while it ran) is left deleted.
     fn update(&self, job: &Job) -> Result<(), StoreError> {
-        update_row(&mut *self.client(), &JobRow::encode(job)?).map(|_| ())
+        self.update_announced(&JobRow::encode(job)?).map(|_| ())
     }
 
     /// Replaces any artifacts the job had. A job deleted meanwhile is left deleted.

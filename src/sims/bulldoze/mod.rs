@@ -18,6 +18,7 @@ mod sequence;
 #[cfg(test)]
 mod tests;
 
+use crate::export::HeightfieldExport;
 use std::convert::Infallible;
 
 use rayon::prelude::*;
@@ -57,7 +58,7 @@ impl Simulation for Bulldoze {
 
     fn run(params: &BulldozeParams, _seed: u64, ctx: &RunContext) -> Result<Outcome<BulldozeSequence>, SimError> {
         let edit = run_edit(params, ctx)?;
-        Ok(edit.finish())
+        Ok(edit.finish(ctx.glb))
     }
 
     fn replay(
@@ -66,7 +67,7 @@ impl Simulation for Bulldoze {
         until_step: Option<u64>,
         ctx: &RunContext,
     ) -> Result<Outcome<BulldozeSequence>, SimError> {
-        Ok(replay_edit(sequence, until_step, ctx)?.finish())
+        Ok(replay_edit(sequence, until_step, ctx)?.finish(ctx.glb))
     }
 }
 
@@ -289,9 +290,9 @@ impl Edit {
     }
 
     /// The job's outcome: the export summary merged with the bulldozer's figures.
-    fn finish(self) -> Outcome<BulldozeSequence> {
+    fn finish(self, glb: crate::export::GlbForm) -> Outcome<BulldozeSequence> {
         let figures = self.figures();
-        let exported = crate::export::heightfield_artifacts(&self.hf);
+        let exported = crate::export::heightfield_artifacts(&self.hf, &HeightfieldExport { glb, ..Default::default() });
         let mut result = match exported.summary {
             Value::Object(map) => map,
             other => [("export".to_string(), other)].into_iter().collect(),

@@ -141,7 +141,8 @@ fn finish(
         ctx.report("meshing", params.passes as u64, total, format!("sampled chunk {done} of {of}"));
         Ok(())
     };
-    let (result, artifacts) = outputs::build(&implicit, params, &sequence.spheres, voxel_m, &mut on_chunk, ctx.stop())?;
+    let (result, artifacts) =
+        outputs::build(&implicit, params, &sequence.spheres, voxel_m, &mut on_chunk, ctx.stop(), ctx.glb)?;
     Ok(Outcome { result, sequence, artifacts })
 }
 

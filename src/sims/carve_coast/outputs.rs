@@ -8,7 +8,9 @@ use serde_json::{json, Value};
 use super::field::{bands, columns, grid_for, remove_fragments, sample_planes, Grid};
 use super::implicit::{Implicit, Sphere};
 use super::params::CarveCoastParams;
-use crate::export::{heightfield_npy, heightmap_png16, render_png, write_glb, Artifact, View};
+use crate::export::{
+    heightfield_npy, heightmap_png16, render_png, render_png_framed, write_glb, Artifact, GlbForm, View,
+};
 use crate::jobs::{SimError, HEIGHTFIELD_ARTIFACT};
 use crate::mesh::{extract_isosurface, MaterialKind, Mesh, ScalarField, Scene, SceneNode};
 use crate::stop::{Stop, Stopped};
@@ -93,6 +95,26 @@ fn colour(mesh: &mut Mesh, implicit: &Implicit, sea_level: f32, voxel_m: f32) {
 }
 
 /// A flat quad at sea level over the terrain's footprint, facing up.
+/// What the preview frames: the land the waves carve, i.e. the mesh's vertices above the sea
+/// (the sea floor, however near the surface, is left out), widened by a tenth of their
+/// footprint (at least 3 voxels) on each side so the shore's water shows; `None` when nothing
+/// stands above the sea.
+fn coastline_bounds(mesh: &Mesh, sea_level: f32, voxel_m: f32) -> Option<([f32; 3], [f32; 3])> {
+    let floor = sea_level + 0.5 * voxel_m;
+    let mut above = mesh.positions.iter().filter(|p| p[1] >= floor);
+    let first = *above.next()?;
+    let (mut lo, mut hi) = above.fold((first, first), |(lo, hi), p| {
+        (std::array::from_fn(|k| lo[k].min(p[k])), std::array::from_fn(|k| hi[k].max(p[k])))
+    });
+    let pad = ((hi[0] - lo[0]).max(hi[2] - lo[2]) / 10.0).max(3.0 * voxel_m);
+    for k in [0, 2] {
+        lo[k] -= pad;
+        hi[k] += pad;
+    }
+    lo[1] = lo[1].min(sea_level);
+    Some((lo, hi))
+}
+
 fn sea_plane(hf: &Heightfield, sea_level: f32) -> Mesh {
     let (w, d) = (hf.width_m(), hf.depth_m());
     Mesh {
@@ -160,6 +182,7 @@ pub fn build(
     voxel_m: f32,
     on_chunk: &mut dyn FnMut(usize, usize) -> Result<(), SimError>,
     stop: Stop,
+    glb: GlbForm,
 ) -> Result<(Value, Vec<Artifact>), SimError> {
     let sampled = sample(implicit, params, voxel_m, false, on_chunk)?;
     stop.check()?;
@@ -190,6 +213,7 @@ pub fn build(
             *n += 1;
         }
     }
+    let focus = coastline_bounds(&mesh, params.sea_level, voxel_m);
     let scene = Scene {
         nodes: vec![
             SceneNode::new("terrain", mesh, MaterialKind::VertexColors),
@@ -197,7 +221,7 @@ pub fn build(
         ],
     };
     let ((glb, preview), (heightmap, npy)) = rayon::join(
-        || rayon::join(|| write_glb(&scene), || render_png(&scene, &PREVIEW, stop)),
+        || rayon::join(|| write_glb(&scene, glb), || render_png_framed(&scene, &PREVIEW, focus, stop)),
         || rayon::join(|| heightmap_png16(&top), || heightfield_npy(&top)),
     );
     let preview = preview?;
@@ -225,4 +249,19 @@ pub fn build(
             Artifact::new(HEIGHTFIELD_ARTIFACT, "application/octet-stream", npy),
         ],
     ))
+}
+
+#[cfg(test)]
+mod framing_tests {
+    use super::*;
+
+    #[test]
+    fn the_preview_frames_what_stands_above_the_sea() {
+        // Sea at 2 m, voxels 1 m: the floor at 1.9 m is left out; land from x 10–30, z 20–25.
+        let positions = vec![[0.0, 1.9, 0.0], [64.0, 1.0, 64.0], [10.0, 5.0, 20.0], [30.0, 2.6, 25.0]];
+        let mesh = Mesh { normals: vec![[0.0, 1.0, 0.0]; 4], uvs: vec![[0.0; 2]; 4], positions, ..Mesh::default() };
+        // Footprint 20 m: a tenth is 2 m, under 3 voxels, so 3 m each side; down to the sea.
+        assert_eq!(coastline_bounds(&mesh, 2.0, 1.0), Some(([7.0, 2.0, 17.0], [33.0, 5.0, 28.0])));
+        assert_eq!(coastline_bounds(&mesh, 6.0, 1.0), None);
+    }
 }

@@ -1,6 +1,7 @@
 //! Measured on the sampled field and the mesh: no overhang without carving, overhangs only near
 //! sea level with it, no floating fragment, closed meshes, replay, thread-count determinism.
 
+use crate::export::GlbForm;
 use serde_json::{json, Value};
 
 use super::field::{bands, columns, grid_for, sample_planes};
@@ -77,7 +78,7 @@ fn carving_makes_overhangs_only_around_sea_level() {
     assert!(spheres.len() > 20, "{} spheres", spheres.len());
     assert!(spheres.iter().any(|s| s.pass() == 2), "the second pass seeds on the carved surface");
     let implicit = Implicit::new(&hf, &spheres, None, 2);
-    let (result, _) = build(&implicit, &p, &spheres, 1.0, &mut no_progress, Stop::NEVER).unwrap();
+    let (result, _) = build(&implicit, &p, &spheres, 1.0, &mut no_progress, Stop::NEVER, GlbForm::Quantize).unwrap();
     assert!(result["overhangs"]["with_overhang"].as_u64().unwrap() > 0, "{result}");
     assert_eq!(result["mesh"]["closed"], true);
     // Compare carved and uncarved fields sample by sample.
@@ -122,10 +123,11 @@ fn floating_fragments_are_removed() {
         1.0,
         &mut no_progress,
         Stop::NEVER,
+        GlbForm::Quantize,
     )
     .unwrap();
     assert!(kept["pieces"].as_u64().unwrap() >= 2, "{kept}");
-    let (result, _) = build(&implicit, &p, &spheres, 1.0, &mut no_progress, Stop::NEVER).unwrap();
+    let (result, _) = build(&implicit, &p, &spheres, 1.0, &mut no_progress, Stop::NEVER, GlbForm::Quantize).unwrap();
     assert_eq!(result["pieces"], 1, "{result}");
     assert!(result["fragments_removed"].as_u64().unwrap() >= 1);
     assert_eq!(result["mesh"]["closed"], true);
@@ -137,7 +139,7 @@ fn warp_makes_strata_on_cliffs() {
     p.warp = Some(params::Warp { amplitude_m: 2.5, frequency_per_m: 0.3 });
     let hf = terrain(&p);
     let implicit = Implicit::new(&hf, &[], p.warp.as_ref(), 4);
-    let (result, _) = build(&implicit, &p, &[], 1.0, &mut no_progress, Stop::NEVER).unwrap();
+    let (result, _) = build(&implicit, &p, &[], 1.0, &mut no_progress, Stop::NEVER, GlbForm::Quantize).unwrap();
     assert_eq!(result["mesh"]["closed"], true, "{result}");
     assert_eq!(result["pieces"], 1, "{result}");
     assert!(result["overhangs"]["with_overhang"].as_u64().unwrap() > 0, "{result}");
@@ -168,7 +170,8 @@ fn replay_until_k_carves_only_the_first_k_spheres() {
     let hf = terrain(&p);
     let first = &full.sequence.spheres[..k as usize];
     let implicit = Implicit::new(&hf, first, None, 5);
-    let (result, artifacts) = build(&implicit, &p, first, 1.0, &mut no_progress, Stop::NEVER).unwrap();
+    let (result, artifacts) =
+        build(&implicit, &p, first, 1.0, &mut no_progress, Stop::NEVER, GlbForm::Quantize).unwrap();
     assert_eq!(part.result, result);
     assert_eq!(part.artifacts, artifacts);
     assert_ne!(hashes(&part), hashes(&full));

@@ -108,7 +108,7 @@ impl Simulation for DeformTerrain {
         let history = std::mem::take(&mut tracker.history);
         let sequence = DeformSequence { terrain: params.terrain.clone(), operations: searched.operations.clone() };
         let run = RunFigures { searched: Some(&searched), candidates: vertices.len(), prediction: params.prediction };
-        finish(&problem, &fields, &h, &history, &interest, &settings, sequence, run)
+        finish(&problem, &fields, &h, &history, &interest, &settings, sequence, run, ctx.glb)
     }
 
     fn replay(
@@ -146,7 +146,7 @@ impl Simulation for DeformTerrain {
         let history = std::mem::take(&mut tracker.history);
         let sequence = DeformSequence { terrain: sequence.terrain.clone(), operations: ops.to_vec() };
         let run = RunFigures { searched: None, candidates: 0, prediction: params.prediction };
-        finish(&problem, &fields, &h, &history, &interest, &settings, sequence, run)
+        finish(&problem, &fields, &h, &history, &interest, &settings, sequence, run, ctx.glb)
     }
 }
 
@@ -338,6 +338,7 @@ fn finish(
     settings: &Settings,
     sequence: DeformSequence,
     run: RunFigures,
+    glb: crate::export::GlbForm,
 ) -> Result<Outcome<DeformSequence>, SimError> {
     let grid = problem.grid();
     if let Some(i) = h.iter().position(|v| !v.is_finite()) {
@@ -351,7 +352,10 @@ fn finish(
     };
     let fitness_json = serde_json::to_vec(&log).map_err(|e| SimError::Failed(e.to_string()))?;
     let sequence_bytes = serde_json::to_vec_pretty(&sequence).map_err(|e| SimError::Failed(e.to_string()))?.len();
-    let exported = crate::export::heightfield_artifacts(&hf);
+    let roads = constraints::road_material(fields, grid.cells());
+    let sea_level_m = constraints::water_level(fields).unwrap_or(0.0) as f32;
+    let options = crate::export::HeightfieldExport { material: roads.as_deref(), glb, sea_level_m };
+    let exported = crate::export::heightfield_artifacts(&hf, &options);
     let heightmap_png_bytes =
         exported.artifacts.iter().find(|a| a.name == "heightmap.png").map_or(0, |a| a.bytes.len());
     let mut result = match exported.summary {

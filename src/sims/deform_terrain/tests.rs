@@ -83,6 +83,16 @@ fn a_star_mask_ends_with_nearly_every_cell_on_the_correct_side() {
     let out = run_with(&params(star_request()), 1);
     let share = figure(&out, "shape_mask", "correct_side_share");
     assert!(share >= 0.99, "{share}");
+    // The preview shows the mask's water level as sea: the star's centre is land, a corner of
+    // the picture (outside every point of the star) water.
+    let preview = out.artifacts.iter().find(|a| a.name == "preview.png").expect("preview.png");
+    let img = image::load_from_memory(&preview.bytes).unwrap().to_rgb8();
+    let blue = |x: u32, y: u32| {
+        let [r, g, b] = img.get_pixel(x, y).0;
+        b > r && b > g
+    };
+    assert!(blue(4, 4) && blue(img.width() - 5, 4), "the sea round the star");
+    assert!(!blue(64, 66), "the star's centre is land");
 }
 
 #[test]
@@ -96,6 +106,13 @@ fn an_s_road_ends_at_its_height_and_the_far_terrain_keeps_its_heights() {
     let far = &out.result["far_cells"];
     assert!(far["cells"].as_u64().unwrap() > 0, "{far}");
     assert!(far["max_change_of_relief"].as_f64().unwrap() <= 0.001, "{far}");
+
+    // splatmap.png's alpha is the road: as many cells as the road's figure counts, and nothing else.
+    let splat = out.artifacts.iter().find(|a| a.name == "splatmap.png").expect("splatmap.png");
+    let img = image::load_from_memory(&splat.bytes).unwrap().to_rgba8();
+    let road = img.pixels().filter(|p| p.0[3] == 255).count() as f64;
+    assert_eq!(road, figure(&out, "road", "road_cells"));
+    assert!(img.pixels().all(|p| p.0[3] == 0 || p.0[3] == 255));
 }
 
 #[test]

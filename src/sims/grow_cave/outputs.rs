@@ -8,7 +8,7 @@ use super::chamber::ChamberShape;
 use super::params::{GrowCaveParams, Mineral};
 use super::sequence::{CaveSequence, RecordedSite};
 use super::speleothem_mesh::{column_mesh, speleothem_mesh};
-use crate::export::{render_png, write_glb, Artifact, View};
+use crate::export::{render_png, write_glb, Artifact, GlbForm, View};
 use crate::mesh::{heightfield_mesh, MaterialKind, Mesh, Scene, SceneNode, DEFAULT_MAX_SIDE_SAMPLES};
 use crate::stop::{Stop, Stopped};
 
@@ -104,10 +104,15 @@ impl Stats {
 }
 
 /// `mesh.glb` and `preview.png` of the cave the sequence describes, and the figures.
-pub fn build(params: &GrowCaveParams, sequence: &CaveSequence, stop: Stop) -> Result<(Value, Vec<Artifact>), Stopped> {
+pub fn build(
+    params: &GrowCaveParams,
+    sequence: &CaveSequence,
+    stop: Stop,
+    glb: GlbForm,
+) -> Result<(Value, Vec<Artifact>), Stopped> {
     let scene = scene(params, sequence);
     stop.check()?;
-    let (glb, preview) = rayon::join(|| write_glb(&scene), || render_png(&cut_away(&scene), &PREVIEW, stop));
+    let (glb, preview) = rayon::join(|| write_glb(&scene, glb), || render_png(&cut_away(&scene), &PREVIEW, stop));
     let preview = preview?;
     let (mut stalactites, mut stalagmites, mut columns) = (Stats::default(), Stats::default(), Stats::default());
     for s in &sequence.sites {

@@ -9,7 +9,7 @@ use super::grid::{Grid, NEVER_ROCK};
 use super::params::WeatherColumnParams;
 use super::resistance::ResistanceField;
 use super::weathering::History;
-use crate::export::{render_png, write_glb, Artifact, View};
+use crate::export::{render_png, write_glb, Artifact, GlbForm, View};
 use crate::mesh::{extract_isosurface, smooth, MaterialKind, Mesh, ScalarField, Scene, SceneNode, Smoothing};
 use crate::stop::{Stop, Stopped};
 
@@ -152,6 +152,7 @@ pub fn build(
     state: &[u16],
     history: &History,
     stop: Stop,
+    glb: GlbForm,
 ) -> Result<(Value, Vec<Artifact>), Stopped> {
     let rock = |i: usize| state[i] == super::grid::ROCK;
     let mut mesh = rock_mesh(grid, &rock, params.mesh.smoothing_iterations, stop)?;
@@ -161,7 +162,7 @@ pub fn build(
     let (vertices, triangles) = (mesh.vertex_count(), mesh.triangle_count());
     let scene = scene(mesh);
     stop.check()?;
-    let (glb, preview) = rayon::join(|| write_glb(&scene), || render_png(&scene, &PREVIEW, stop));
+    let (glb, preview) = rayon::join(|| write_glb(&scene, glb), || render_png(&scene, &PREVIEW, stop));
     let preview = preview?;
 
     let initial = state.par_iter().filter(|&&s| s != NEVER_ROCK).count() as u64;

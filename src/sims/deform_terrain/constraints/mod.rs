@@ -455,6 +455,26 @@ impl Fitness {
     }
 }
 
+/// The sea level the pictures show: the first shape mask's water level, if there is a mask.
+pub fn water_level(fields: &[Field]) -> Option<f64> {
+    fields.iter().find_map(|f| match f.detail {
+        Detail::ShapeMask { water_level, .. } => Some(water_level),
+        _ => None,
+    })
+}
+
+/// The splat map's material (`splatmap.png`'s alpha): 255 on the cells of every road, when
+/// there is a road.
+pub fn road_material(fields: &[Field], cells: usize) -> Option<Vec<u8>> {
+    let mut out: Option<Vec<u8>> = None;
+    for f in fields {
+        if let Detail::Road(d) = &f.detail {
+            road::mark(d, out.get_or_insert_with(|| vec![0; cells]));
+        }
+    }
+    out
+}
+
 /// The cells to refine candidates around: the union of every constraint's interest.
 pub fn interest(fields: &[Field], cells: usize) -> Vec<bool> {
     let mut out = vec![false; cells];

@@ -126,6 +126,13 @@ pub fn build(road: &Road, grid: &Grid, combined: bool) -> Field {
     }
 }
 
+/// Mark the road's cells in a per-cell material weight.
+pub fn mark(d: &RoadDetail, material: &mut [u8]) {
+    for &(i, _) in &d.cells {
+        material[i] = 255;
+    }
+}
+
 /// The point at arc length `s` (cells) along the polyline.
 fn at_arc(pts: &[(f64, f64)], arc: &[f64], s: f64) -> (f64, f64) {
     // The first segment whose end reaches s: a binary search, as the arc lengths only grow.
