@@ -27,7 +27,7 @@ fn index_type(glb: &[u8]) -> gltf::accessor::DataType {
 fn small_heightfield_mesh_with_u16_indices_is_valid() {
     let color = |h: f32, _slope: f32| [(h.abs() * 5.0) as u8, 160, 90, 255];
     let mesh = heightfield_mesh(&hills(33, 21), DEFAULT_MAX_SIDE_SAMPLES, Some(&color)).mesh;
-    for form in [GlbForm::None, GlbForm::Quantize] {
+    for form in [GlbForm::None, GlbForm::Quantize, GlbForm::Meshopt] {
         let glb = write_glb(&Scene::single("terrain", mesh.clone()), form);
         assert_eq!(index_type(&glb), gltf::accessor::DataType::U16);
         assert_clean(&format!("33x21 heightfield, {form:?}"), &validate_glb(&glb));
@@ -38,7 +38,7 @@ fn small_heightfield_mesh_with_u16_indices_is_valid() {
 fn heightfield_mesh_over_65535_vertices_with_u32_indices_is_valid() {
     let mesh = heightfield_mesh(&hills(300, 250), DEFAULT_MAX_SIDE_SAMPLES, None).mesh;
     assert!(mesh.vertex_count() > 65_535);
-    for form in [GlbForm::None, GlbForm::Quantize] {
+    for form in [GlbForm::None, GlbForm::Quantize, GlbForm::Meshopt] {
         let glb = write_glb(&Scene::single("terrain", mesh.clone()), form);
         assert_eq!(index_type(&glb), gltf::accessor::DataType::U32);
         assert_clean(&format!("300x250 heightfield, {form:?}"), &validate_glb(&glb));
@@ -55,7 +55,7 @@ fn two_node_scene_with_ground_and_sea_is_valid() {
             SceneNode::new("sea", sea, MaterialKind::Water),
         ],
     };
-    for form in [GlbForm::None, GlbForm::Quantize] {
+    for form in [GlbForm::None, GlbForm::Quantize, GlbForm::Meshopt] {
         let glb = write_glb(&scene, form);
         let gltf = gltf::Gltf::from_slice_without_validation(&glb).expect("glb parses");
         let names: Vec<_> = gltf.nodes().map(|n| n.name().unwrap_or_default().to_string()).collect();

@@ -14,6 +14,12 @@
 //!   transform; the error is at most half a step); normals as normalised signed bytes;
 //!   texcoords as normalised unsigned 16-bit when they lie in [0, 1], else f32. Every importer
 //!   that reads glTF 2.0 meshes in engines and Blender reads it.
+//! - [`GlbForm::Meshopt`]: the quantised arrays above, each buffer view compressed with
+//!   meshoptimizer's codecs (`EXT_meshopt_compression`: vertex codec version 0, index codec
+//!   version 1, the versions the extension defines). No fallback buffer is written (it would
+//!   hold the uncompressed data again), so the extension is declared required beside
+//!   `KHR_mesh_quantization`, as `gltfpack -c` does: buffer 0 is the BIN chunk with the
+//!   compressed views, buffer 1 the fallback buffer with no data, which the views name.
 
 use std::borrow::Cow;
 
@@ -35,15 +41,18 @@ pub enum GlbForm {
     /// `KHR_mesh_quantization`: 16-bit positions, 8-bit normals, 16-bit texcoords.
     #[default]
     Quantize,
+    /// The quantised arrays compressed by `EXT_meshopt_compression`.
+    Meshopt,
 }
 
 impl GlbForm {
-    pub const NAMES: [&'static str; 2] = ["none", "quantize"];
+    pub const NAMES: [&'static str; 3] = ["none", "quantize", "meshopt"];
 
     pub fn parse(name: &str) -> Option<Self> {
         match name {
             "none" => Some(Self::None),
             "quantize" => Some(Self::Quantize),
+            "meshopt" => Some(Self::Meshopt),
             _ => None,
         }
     }
@@ -52,31 +61,46 @@ impl GlbForm {
         match self {
             Self::None => "none",
             Self::Quantize => "quantize",
+            Self::Meshopt => "meshopt",
         }
+    }
+
+    fn quantizes(self) -> bool {
+        self != Self::None
     }
 }
 
 const QUANTIZATION: &str = "KHR_mesh_quantization";
+const MESHOPT: &str = "EXT_meshopt_compression";
+/// Bits per position coordinate in the meshopt form (gltfpack's default): an error of at most
+/// half of the mesh's longest side ÷ 16383.
+const MESHOPT_POSITION_BITS: u32 = 14;
 
-/// A mesh's quantisation: positions are `origin + q × step` for q in 0..=65535.
+/// A mesh's quantisation: positions are `origin + q × step` for q in 0..=`top`.
 struct Quantized {
     origin: [f32; 3],
     step: f32,
-    /// Texcoords all in [0, 1], so normalised u16 holds them.
-    unit_uvs: bool,
+    /// The largest step number: 2^bits − 1.
+    top: f64,
+    /// Texcoords written (not in the meshopt form), all in [0, 1] so normalised u16 holds them.
+    uvs: Option<bool>,
+    /// Normals through meshoptimizer's octahedral filter (the meshopt form).
+    oct_normals: bool,
 }
 
 impl Quantized {
-    fn of(mesh: &Mesh, (lo, hi): ([f32; 3], [f32; 3])) -> Self {
+    fn of(mesh: &Mesh, (lo, hi): ([f32; 3], [f32; 3]), form: GlbForm) -> Self {
+        let meshopt = form == GlbForm::Meshopt;
+        let top = if meshopt { f64::from((1u32 << MESHOPT_POSITION_BITS) - 1) } else { 65535.0 };
         let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max);
-        let step = if extent > 0.0 && extent.is_finite() { extent / 65535.0 } else { 1.0 };
+        let step = if extent > 0.0 && extent.is_finite() { (f64::from(extent) / top) as f32 } else { 1.0 };
         let unit_uvs = mesh.uvs.iter().flatten().all(|v| (0.0..=1.0).contains(v));
-        Self { origin: lo, step, unit_uvs }
+        Self { origin: lo, step, top, uvs: (!meshopt).then_some(unit_uvs), oct_normals: meshopt }
     }
 
     fn position(&self, p: [f32; 3]) -> [u16; 3] {
         std::array::from_fn(|k| {
-            ((f64::from(p[k]) - f64::from(self.origin[k])) / f64::from(self.step)).round().clamp(0.0, 65535.0) as u16
+            ((f64::from(p[k]) - f64::from(self.origin[k])) / f64::from(self.step)).round().clamp(0.0, self.top) as u16
         })
     }
 }
@@ -95,6 +119,7 @@ pub fn write_glb(scene: &Scene, form: GlbForm) -> Vec<u8> {
     };
     let mut materials: Vec<(MaterialKind, bool)> = Vec::new();
     let mut layouts = Vec::new();
+    let mut views = Vec::new();
     let mut offset = 0usize;
 
     let mut node_indices = Vec::with_capacity(scene.nodes.len());
@@ -107,7 +132,7 @@ pub fn write_glb(scene: &Scene, form: GlbForm) -> Vec<u8> {
         // glTF forbids empty accessors, so a node without triangles carries no mesh.
         if mesh.triangle_count() > 0 {
             let bounds = mesh.bounds().expect("a mesh with triangles has vertices");
-            let quantized = (form == GlbForm::Quantize).then(|| Quantized::of(mesh, bounds));
+            let quantized = form.quantizes().then(|| Quantized::of(mesh, bounds, form));
             if let Some(q) = &quantized {
                 gltf_node.translation = Some(q.origin);
                 gltf_node.scale = Some([q.step; 3]);
@@ -125,7 +150,7 @@ pub fn write_glb(scene: &Scene, form: GlbForm) -> Vec<u8> {
                     root.push(pbr_material(key.0, key.1))
                 }
             };
-            let primitive = layout.push_json(&mut root, mesh, material);
+            let primitive = layout.push_json(&mut root, &mut views, mesh, material);
             gltf_node.mesh = Some(root.push(json::Mesh {
                 extensions: None,
                 extras: Default::default(),
@@ -142,7 +167,7 @@ pub fn write_glb(scene: &Scene, form: GlbForm) -> Vec<u8> {
         root.push(json::Scene { extensions: None, extras: Default::default(), name: None, nodes: node_indices });
     root.scene = Some(scene_index);
 
-    let bin = fill_buffer(offset, &layouts);
+    let mut bin = fill_buffer(offset, &layouts);
     if !bin.is_empty() {
         let buffer = root.push(json::Buffer {
             byte_length: USize64::from(bin.len()),
@@ -154,7 +179,13 @@ pub fn write_glb(scene: &Scene, form: GlbForm) -> Vec<u8> {
         debug_assert_eq!(buffer.value(), 0, "views refer to buffer 0");
     }
 
-    let json_text = json::serialize::to_vec(&root).expect("glTF JSON serialises");
+    let json_text = if form == GlbForm::Meshopt && !bin.is_empty() {
+        let (compressed, json_text) = meshopt_compressed(&root, &views, &bin);
+        bin = compressed;
+        json_text
+    } else {
+        json::serialize::to_vec(&root).expect("glTF JSON serialises")
+    };
     let length = 12 + 8 + json_text.len().next_multiple_of(4) + if bin.is_empty() { 0 } else { 8 + bin.len() };
     let glb = gltf::binary::Glb {
         header: gltf::binary::Header {
@@ -191,11 +222,11 @@ fn pbr_material(kind: MaterialKind, has_colors: bool) -> json::Material {
     }
 }
 
-/// Bytes per vertex of positions, normals and texcoords in a form.
+/// Bytes per vertex of positions, normals and texcoords (0: none written) in a form.
 fn strides(quantized: Option<&Quantized>) -> (usize, usize, usize) {
     match quantized {
         None => (12, 12, 8),
-        Some(q) => (8, 4, if q.unit_uvs { 4 } else { 8 }),
+        Some(q) => (8, 4, q.uvs.map_or(0, |unit| if unit { 4 } else { 8 })),
     }
 }
 
@@ -239,6 +270,7 @@ impl Layout {
     fn push_json(
         &self,
         root: &mut json::Root,
+        views: &mut Vec<ViewData>,
         mesh: &Mesh,
         material: json::Index<json::Material>,
     ) -> json::mesh::Primitive {
@@ -249,9 +281,12 @@ impl Layout {
         let n = mesh.vertex_count();
         let (min, max) = self.bounds;
         let mut attributes = std::collections::BTreeMap::new();
+        let oct_normals = self.quantized.as_ref().is_some_and(|q| q.oct_normals);
         let mut attribute = |root: &mut json::Root, semantic, at, stride, component, ty, normalized, bounds| {
             // Elements shorter than their 4-byte-aligned stride need the stride stated.
             let padded = matches!((component, ty), (ComponentType::U16, Type::Vec3) | (ComponentType::I8, Type::Vec3));
+            let filter = (oct_normals && semantic == Semantic::Normals).then_some("OCTAHEDRAL");
+            views.push(ViewData { offset: at, stride, count: n, indices: false, filter });
             let view = push_view(root, at, n * stride, Target::ArrayBuffer, padded.then_some(stride));
             let accessor = push_accessor(root, view, n, component, ty, normalized, bounds);
             attributes.insert(Valid(semantic), accessor);
@@ -271,14 +306,24 @@ impl Layout {
                 attribute(root, Semantic::Normals, self.normals, ns, ComponentType::I8, Type::Vec3, true, None);
             }
         }
-        let (uv_type, uv_normalized) = if us == 4 { (ComponentType::U16, true) } else { (ComponentType::F32, false) };
-        attribute(root, Semantic::TexCoords(0), self.uvs, us, uv_type, Type::Vec2, uv_normalized, None);
+        if us > 0 {
+            let (uv_type, uv_normalized) =
+                if us == 4 { (ComponentType::U16, true) } else { (ComponentType::F32, false) };
+            attribute(root, Semantic::TexCoords(0), self.uvs, us, uv_type, Type::Vec2, uv_normalized, None);
+        }
         if let Some(at) = self.colors {
             attribute(root, Semantic::Colors(0), at, 4, ComponentType::U8, Type::Vec4, true, None);
         }
 
         let (index_type, index_bytes) =
             if self.wide_indices { (ComponentType::U32, 4) } else { (ComponentType::U16, 2) };
+        views.push(ViewData {
+            offset: self.indices,
+            stride: index_bytes,
+            count: mesh.indices.len(),
+            indices: true,
+            filter: None,
+        });
         let view = push_view(root, self.indices, mesh.indices.len() * index_bytes, Target::ElementArrayBuffer, None);
         let indices = push_accessor(root, view, mesh.indices.len(), index_type, Type::Scalar, false, None);
 
@@ -292,6 +337,98 @@ impl Layout {
             targets: None,
         }
     }
+}
+
+/// One buffer view's data in the uncompressed buffer: `count` elements of `stride` bytes from
+/// `offset`, vertex attributes or triangle indices.
+struct ViewData {
+    offset: usize,
+    stride: usize,
+    count: usize,
+    indices: bool,
+    /// The meshopt filter the data went through, as the extension names it.
+    filter: Option<&'static str>,
+}
+
+impl ViewData {
+    /// This view's data through meshoptimizer's codec for its kind.
+    fn compress(&self, bin: &[u8]) -> Vec<u8> {
+        let data = &bin[self.offset..][..self.count * self.stride];
+        if self.indices {
+            let indices: Vec<u32> = if self.stride == 2 {
+                data.chunks_exact(2).map(|b| u32::from(u16::from_le_bytes([b[0], b[1]]))).collect()
+            } else {
+                data.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
+            };
+            let vertex_count = indices.iter().max().map_or(0, |&m| m as usize + 1);
+            meshopt::encode_index_buffer(&indices, vertex_count).expect("index buffer encodes")
+        } else {
+            encode_vertices(data, self.count, self.stride)
+        }
+    }
+}
+
+/// meshoptimizer's vertex codec, format version 0 (the one `EXT_meshopt_compression` defines)
+/// whatever the library's default.
+fn encode_vertices(data: &[u8], count: usize, stride: usize) -> Vec<u8> {
+    // SAFETY: the bound has no preconditions; the encoder reads count × stride bytes of `data`
+    // (checked) and writes at most `out.len()` bytes.
+    unsafe {
+        assert_eq!(data.len(), count * stride);
+        let mut out = vec![0u8; meshopt::ffi::meshopt_encodeVertexBufferBound(count, stride)];
+        let len = meshopt::ffi::meshopt_encodeVertexBufferLevel(
+            out.as_mut_ptr(),
+            out.len(),
+            data.as_ptr().cast(),
+            count,
+            stride,
+            2,
+            0,
+        );
+        assert!(len > 0, "the vertex encoder had room");
+        out.truncate(len);
+        out
+    }
+}
+
+/// The `EXT_meshopt_compression` form of a glb whose JSON is `root` and whose uncompressed
+/// buffer is `bin` (views in `views`' order): the compressed BIN chunk (buffer 0, each view's
+/// data from a 4-byte boundary) and the JSON text, in which buffer 1 is the fallback buffer
+/// with no data and every view names it, its data in buffer 0 through the extension.
+fn meshopt_compressed(root: &json::Root, views: &[ViewData], bin: &[u8]) -> (Vec<u8>, Vec<u8>) {
+    let parts: Vec<Vec<u8>> = views.par_iter().map(|v| v.compress(bin)).collect();
+    // Through the text, so numbers keep the short form the glTF serialiser gives f32s.
+    let text = json::serialize::to_vec(root).expect("glTF JSON serialises");
+    let mut value: serde_json::Value = serde_json::from_slice(&text).expect("glTF JSON parses");
+    let mut compressed = Vec::with_capacity(parts.iter().map(|p| p.len() + 3).sum());
+    let json_views = value["bufferViews"].as_array_mut().expect("the views");
+    assert_eq!(json_views.len(), views.len(), "one view per array");
+    for ((json_view, view), part) in json_views.iter_mut().zip(views).zip(&parts) {
+        let at = compressed.len();
+        compressed.extend_from_slice(part);
+        compressed.resize(compressed.len().next_multiple_of(4), 0);
+        json_view["buffer"] = 1.into();
+        let mut ext = serde_json::json!({
+            "buffer": 0,
+            "byteOffset": at,
+            "byteLength": part.len(),
+            "byteStride": view.stride,
+            "count": view.count,
+            "mode": if view.indices { "TRIANGLES" } else { "ATTRIBUTES" },
+        });
+        if let Some(filter) = view.filter {
+            ext["filter"] = filter.into();
+        }
+        json_view["extensions"] = serde_json::json!({ MESHOPT: ext });
+    }
+    value["buffers"] = serde_json::json!([
+        { "byteLength": compressed.len() },
+        { "byteLength": bin.len(), "extensions": { MESHOPT: { "fallback": true } } },
+    ]);
+    for list in ["extensionsUsed", "extensionsRequired"] {
+        value[list].as_array_mut().expect("quantisation is declared").push(MESHOPT.into());
+    }
+    (compressed, serde_json::to_vec(&value).expect("glTF JSON serialises"))
 }
 
 fn push_view(
@@ -349,7 +486,10 @@ fn fill_buffer(len: usize, layouts: &[(Layout, &Mesh)]) -> Vec<u8> {
     for (layout, mesh) in layouts {
         let (region, tail) = rest.split_at_mut(layout.end - base);
         let local = |at: usize| at - base;
-        let order = GpuOrder::of(mesh);
+        let order = match &layout.quantized {
+            Some(q) if q.oct_normals => GpuOrder::for_compression(mesh),
+            _ => GpuOrder::of(mesh),
+        };
         let n = mesh.vertex_count();
         let (ps, ns, us) = layout.strides();
         let positions = &mut region[local(layout.positions)..][..n * ps];
@@ -360,12 +500,15 @@ fn fill_buffer(len: usize, layouts: &[(Layout, &Mesh)]) -> Vec<u8> {
         let normals = &mut region[local(layout.normals)..][..n * ns];
         match &layout.quantized {
             None => put(normals, ns, &order, &mesh.normals, |v| f32s::<3, 12>(unit(v))),
+            Some(q) if q.oct_normals => oct_normals(normals, &order, &mesh.normals),
             Some(_) => put(normals, ns, &order, &mesh.normals, |v| {
                 unit(v).map(|c| ((f64::from(c) * 127.0).round() as i8) as u8)
             }),
         }
         let uvs = &mut region[local(layout.uvs)..][..n * us];
-        if us == 4 {
+        if us == 0 {
+            // Not written in this form.
+        } else if us == 4 {
             put(uvs, us, &order, &mesh.uvs, |uv| {
                 u16s::<2, 4>(uv.map(|c| (f64::from(c) * 65535.0).round().clamp(0.0, 65535.0) as u16))
             });
@@ -404,6 +547,19 @@ fn put<T: Copy + Sync, const W: usize>(
     out.par_chunks_mut(stride).enumerate().for_each(|(k, out)| {
         out[..W].copy_from_slice(&encode(order.at(values, k)));
     });
+}
+
+/// Unit normals in the new order through meshoptimizer's octahedral filter at 8 bits: four
+/// signed bytes per vertex that `meshopt_decodeFilterOct` turns back into a normalised vector.
+fn oct_normals(out: &mut [u8], order: &GpuOrder, normals: &[[f32; 3]]) {
+    let floats: Vec<f32> = (0..out.len() / 4)
+        .flat_map(|k| {
+            let [x, y, z] = unit(order.at(normals, k));
+            [x, y, z, 0.0]
+        })
+        .collect();
+    // SAFETY: `floats` holds four floats per vertex and `out` four bytes per vertex.
+    unsafe { meshopt::ffi::meshopt_encodeFilterOct(out.as_mut_ptr().cast(), out.len() / 4, 4, 8, floats.as_ptr()) }
 }
 
 fn f32s<const N: usize, const W: usize>(v: [f32; N]) -> [u8; W] {
@@ -616,6 +772,129 @@ mod tests {
     }
 
     #[test]
+    fn meshopt_views_decode_to_the_mesh() {
+        let scene = Scene {
+            nodes: vec![
+                SceneNode::new("big", terrain_mesh(300, 250, true), MaterialKind::VertexColors),
+                SceneNode::new("small", terrain_mesh(30, 20, false), MaterialKind::Water),
+            ],
+        };
+        let quantized_bytes = write_glb(&scene, GlbForm::Quantize);
+        let packed_bytes = write_glb(&scene, GlbForm::Meshopt);
+        let packed = gltf::binary::Glb::from_slice(&packed_bytes).unwrap();
+        let m: serde_json::Value = serde_json::from_slice(&packed.json).unwrap();
+        let required = [QUANTIZATION, MESHOPT];
+        assert_eq!(m["extensionsRequired"], serde_json::json!(required));
+        assert_eq!(m["extensionsUsed"], serde_json::json!(required));
+        let bin = packed.bin.unwrap();
+        assert_eq!(m["buffers"][0]["byteLength"], bin.len());
+        assert_eq!(m["buffers"][1]["extensions"][MESHOPT]["fallback"], true);
+        assert!(m["buffers"][1].get("uri").is_none(), "the fallback buffer holds no data");
+
+        // Decode every view as a loader does, and check each node's arrays against its mesh.
+        let decode = |view: usize| -> (Vec<u8>, usize) {
+            let view = &m["bufferViews"][view];
+            assert_eq!(view["buffer"], 1);
+            let ext = &view["extensions"][MESHOPT];
+            let get = |k: &str| ext[k].as_u64().unwrap() as usize;
+            let (at, len, stride, count) = (get("byteOffset"), get("byteLength"), get("byteStride"), get("count"));
+            assert_eq!(at % 4, 0);
+            let source = &bin[at..at + len];
+            let mut out = vec![0u8; count * stride];
+            // SAFETY: `out` holds count × stride bytes; the decoders only read `source`.
+            let status = unsafe {
+                if ext["mode"] == "TRIANGLES" {
+                    assert_eq!(source[0], 0xe1, "index codec version 1");
+                    meshopt::ffi::meshopt_decodeIndexBuffer(
+                        out.as_mut_ptr().cast(),
+                        count,
+                        stride,
+                        source.as_ptr(),
+                        len,
+                    )
+                } else {
+                    assert_eq!(source[0], 0xa0, "vertex codec version 0");
+                    let status = meshopt::ffi::meshopt_decodeVertexBuffer(
+                        out.as_mut_ptr().cast(),
+                        count,
+                        stride,
+                        source.as_ptr(),
+                        len,
+                    );
+                    if ext["filter"] == "OCTAHEDRAL" {
+                        meshopt::ffi::meshopt_decodeFilterOct(out.as_mut_ptr().cast(), count, stride);
+                    }
+                    status
+                }
+            };
+            assert_eq!(status, 0, "decodes");
+            (out, stride)
+        };
+        for (n, node) in scene.nodes.iter().enumerate() {
+            let mesh = &node.mesh;
+            let order = GpuOrder::for_compression(mesh);
+            let json_node = &m["nodes"][n];
+            let scale = json_node["scale"][0].as_f64().unwrap();
+            let translation: Vec<f64> = (0..3).map(|k| json_node["translation"][k].as_f64().unwrap()).collect();
+            let (lo, hi) = mesh.bounds().unwrap();
+            let longest = (0..3).map(|k| f64::from(hi[k] - lo[k])).fold(0.0, f64::max);
+            assert!((scale - longest / 16383.0).abs() < 1e-9, "14-bit steps");
+            let prim = &m["meshes"][n]["primitives"][0];
+            assert!(prim["attributes"].get("TEXCOORD_0").is_none(), "no texcoords in this form");
+            let view_of = |accessor: &serde_json::Value| {
+                m["accessors"][accessor.as_u64().unwrap() as usize]["bufferView"].as_u64().unwrap() as usize
+            };
+            let (positions, stride) = decode(view_of(&prim["attributes"]["POSITION"]));
+            for k in 0..mesh.vertex_count() {
+                let p = order.at(&mesh.positions, k);
+                for c in 0..3 {
+                    let q = u16::from_le_bytes([positions[k * stride + 2 * c], positions[k * stride + 2 * c + 1]]);
+                    let back = translation[c] + f64::from(q) * scale;
+                    assert!((back - f64::from(p[c])).abs() <= 0.5 * scale + 1e-5, "{back} for {}", p[c]);
+                }
+            }
+            let (normals, stride) = decode(view_of(&prim["attributes"]["NORMAL"]));
+            for k in 0..mesh.vertex_count() {
+                let q: Vec<f64> = (0..3).map(|c| f64::from(normals[k * stride + c] as i8) / 127.0).collect();
+                let len = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+                let u = unit(order.at(&mesh.normals, k)).map(f64::from);
+                let cos = (q[0] * u[0] + q[1] * u[1] + q[2] * u[2]) / len;
+                assert!(cos >= 2f64.to_radians().cos(), "{q:?} for {u:?}");
+            }
+            if let Some(colors) = &mesh.colors {
+                let (decoded, _) = decode(view_of(&prim["attributes"]["COLOR_0"]));
+                let expected: Vec<u8> =
+                    (0..mesh.vertex_count()).flat_map(|k| linear_color(order.at(colors, k))).collect();
+                assert!(decoded == expected, "colours");
+            }
+            let (indices, stride) = decode(view_of(&prim["indices"]));
+            // The index codec may rotate a triangle's corners (winding kept): compare each
+            // triangle from its smallest index.
+            let canonical = |indices: Vec<u32>| -> Vec<[u32; 3]> {
+                indices
+                    .chunks_exact(3)
+                    .map(|t| {
+                        let first = (0..3).min_by_key(|&k| t[k]).unwrap();
+                        [t[first], t[(first + 1) % 3], t[(first + 2) % 3]]
+                    })
+                    .collect()
+            };
+            let read: Vec<u32> = indices
+                .chunks_exact(stride)
+                .map(|b| {
+                    if stride == 2 {
+                        u32::from(u16::from_le_bytes([b[0], b[1]]))
+                    } else {
+                        u32::from_le_bytes(b.try_into().unwrap())
+                    }
+                })
+                .collect();
+            assert!(canonical(read) == canonical(order.indices.clone()), "the same triangles, wound the same");
+        }
+        assert!(packed_bytes.len() * 3 < quantized_bytes.len(), "{} of {}", packed_bytes.len(), quantized_bytes.len());
+    }
+
+    #[test]
     fn colors_are_stored_linear() {
         assert_eq!(linear_color([255, 188, 0, 200]), [255, 128, 0, 200]);
         assert_eq!(linear_color([128, 64, 32, 255]), [55, 13, 4, 255]);
@@ -625,7 +904,7 @@ mod tests {
     fn bytes_are_deterministic_across_thread_counts() {
         let scene = Scene::single("t", terrain_mesh(300, 250, true));
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        for form in [GlbForm::None, GlbForm::Quantize] {
+        for form in [GlbForm::None, GlbForm::Quantize, GlbForm::Meshopt] {
             assert_eq!(write_glb(&scene, form), pool.install(|| write_glb(&scene, form)));
         }
     }

@@ -2,16 +2,20 @@
 //!
 //! Units are metres with Y up; front faces wind counter-clockwise (see [`Mesh`]).
 
+mod deviation;
 mod gpu_order;
 mod heightfield_mesh;
 mod isosurface;
+mod lod;
 mod normals;
 mod smooth;
 mod types;
 
+pub use deviation::max_deviation;
 pub use gpu_order::GpuOrder;
 pub use heightfield_mesh::{heightfield_mesh, mesh_stride, HeightfieldMesh, VertexColorFn, DEFAULT_MAX_SIDE_SAMPLES};
 pub use isosurface::{extract_isosurface, ScalarField};
+pub use lod::{sample_spacing, simplify_within, Lod};
 pub use normals::recompute_normals;
 pub use smooth::{smooth, Smoothing};
 pub use types::{MaterialKind, Mesh, Scene, SceneNode};

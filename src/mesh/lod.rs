@@ -1,0 +1,171 @@
+//! Levels of detail: a mesh simplified by meshoptimizer's edge collapser (`meshopt_simplify`,
+//! quadric error, topology kept) within an error bound in metres, then measured against the
+//! full mesh ([`max_deviation`], two-sided and sampled). meshoptimizer bounds its own error
+//! measure, not the distance between the surfaces, so a level whose measured distance exceeds
+//! the bound is simplified again with half the target, until it holds (at worst the full mesh
+//! is the level). Vertices on the mesh's topological border (where it meets another mesh: a
+//! tile's or a heightfield's edge, an open rim) and on the faces of its bounding box (the box
+//! sides of a carved coast, a column's base on the ground) never move, so pieces that meet stay
+//! joined at every level.
+
+use super::deviation::max_deviation;
+use super::Mesh;
+
+/// Halvings of meshoptimizer's target before a level falls back to the full mesh.
+const RETRIES: usize = 6;
+
+/// One level of detail of a mesh.
+#[derive(Clone, Debug)]
+pub struct Lod {
+    /// Only the vertices the triangles use, in their original order; normals, texcoords and
+    /// colours are the full mesh's at those vertices.
+    pub mesh: Mesh,
+    /// The target given to meshoptimizer last (metres), at most the bound.
+    pub target_m: f32,
+    /// The error meshoptimizer reports for it (metres, its quadric measure).
+    pub simplifier_error_m: f32,
+    /// The sampled two-sided distance to the full mesh (metres), never above the bound.
+    pub deviation_m: f32,
+    /// The spacing of the samples that measured it (metres).
+    pub sample_spacing_m: f32,
+}
+
+/// `mesh` simplified so that no sampled point of either surface lies farther than `bound_m`
+/// from the other.
+pub fn simplify_within(mesh: &Mesh, bound_m: f32) -> Lod {
+    let spacing = sample_spacing(mesh, bound_m);
+    let locked = locked_vertices(mesh);
+    let positions = meshopt::VertexDataAdapter::new(bytemuck_positions(&mesh.positions), 12, 0)
+        .expect("positions are 12-byte vertices");
+    let mut target = bound_m;
+    for _ in 0..=RETRIES {
+        let mut error = 0.0f32;
+        let indices = meshopt::simplify_with_locks(
+            &mesh.indices,
+            &positions,
+            &locked,
+            0,
+            target,
+            meshopt::SimplifyOptions::ErrorAbsolute | meshopt::SimplifyOptions::LockBorder,
+            Some(&mut error),
+        );
+        let simple = compact(mesh, &indices);
+        let deviation = max_deviation(mesh, &simple, spacing);
+        if deviation <= bound_m {
+            return Lod {
+                mesh: simple,
+                target_m: target,
+                simplifier_error_m: error,
+                deviation_m: deviation,
+                sample_spacing_m: spacing,
+            };
+        }
+        target *= 0.5;
+    }
+    Lod { mesh: mesh.clone(), target_m: 0.0, simplifier_error_m: 0.0, deviation_m: 0.0, sample_spacing_m: spacing }
+}
+
+/// How far apart the deviation's samples lie: a quarter of the bound, but no closer than half
+/// the full mesh's typical triangle side (a square of its mean triangle area). The distance to
+/// a surface changes by at most the distance moved, so a farther point between samples exceeds
+/// the largest sampled distance by at most about half the spacing; the full mesh's vertices,
+/// where its surface bends, are always samples.
+pub fn sample_spacing(mesh: &Mesh, bound_m: f32) -> f32 {
+    let area: f64 = mesh
+        .indices
+        .chunks_exact(3)
+        .map(|t| {
+            let [p, q, r] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize].map(f64::from));
+            let (u, v) = ([0, 1, 2].map(|k| q[k] - p[k]), [0, 1, 2].map(|k| r[k] - p[k]));
+            let c = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+            0.5 * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt()
+        })
+        .sum();
+    let side = (2.0 * area / mesh.triangle_count().max(1) as f64).sqrt() as f32;
+    (0.25 * bound_m).max(0.5 * side)
+}
+
+/// Vertices on a face of the mesh's bounding box (within a millionth of its longest side).
+fn locked_vertices(mesh: &Mesh) -> Vec<bool> {
+    let Some((lo, hi)) = mesh.bounds() else { return Vec::new() };
+    let tolerance = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max) * 1e-6;
+    mesh.positions.iter().map(|p| (0..3).any(|k| p[k] - lo[k] <= tolerance || hi[k] - p[k] <= tolerance)).collect()
+}
+
+fn bytemuck_positions(positions: &[[f32; 3]]) -> &[u8] {
+    // SAFETY: [f32; 3] is 12 bytes with no padding, and u8 has no alignment requirement.
+    unsafe { std::slice::from_raw_parts(positions.as_ptr().cast(), std::mem::size_of_val(positions)) }
+}
+
+/// The triangles `indices` of `mesh` with only the vertices they use, kept in their order.
+fn compact(mesh: &Mesh, indices: &[u32]) -> Mesh {
+    let mut new_index = vec![u32::MAX; mesh.vertex_count()];
+    for &i in indices {
+        new_index[i as usize] = 0;
+    }
+    let mut kept = Vec::new();
+    for (old, slot) in new_index.iter_mut().enumerate() {
+        if *slot == 0 {
+            *slot = kept.len() as u32;
+            kept.push(old);
+        }
+    }
+    let take = |values: &[_]| kept.iter().map(|&i| values[i]).collect();
+    Mesh {
+        positions: take(&mesh.positions),
+        normals: take(&mesh.normals),
+        uvs: kept.iter().map(|&i| mesh.uvs[i]).collect(),
+        colors: mesh.colors.as_ref().map(|c| kept.iter().map(|&i| c[i]).collect()),
+        indices: indices.iter().map(|&i| new_index[i as usize]).collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::heightfield_mesh;
+    use crate::terrain::Heightfield;
+
+    fn hills() -> Mesh {
+        let hf = Heightfield::from_fn(65, 65, 1.0, |x, z| (x * 0.13).sin() * 6.0 + (z * 0.1).cos() * 4.0);
+        heightfield_mesh(&hf, 4097, None).mesh
+    }
+
+    #[test]
+    fn levels_keep_within_their_bound_and_get_coarser() {
+        let full = hills();
+        let mut last = full.triangle_count();
+        for bound in [0.1, 0.4, 1.6] {
+            let lod = simplify_within(&full, bound);
+            assert!(lod.deviation_m <= bound, "{} > {bound}", lod.deviation_m);
+            let triangles = lod.mesh.triangle_count();
+            assert!(triangles < last, "{triangles} triangles at {bound} m, {last} before");
+            assert!(lod.mesh.check().is_ok());
+            last = triangles;
+        }
+        assert!(last * 10 < full.triangle_count(), "{last} of {}", full.triangle_count());
+    }
+
+    #[test]
+    fn the_border_stays_where_it_was() {
+        let full = hills();
+        let lod = simplify_within(&full, 0.8);
+        let on_border = |p: &[f32; 3]| p[0] == 0.0 || p[2] == 0.0 || p[0] == 64.0 || p[2] == 64.0;
+        let border = |m: &Mesh| {
+            let mut v: Vec<[u32; 3]> =
+                m.positions.iter().filter(|p| on_border(p)).map(|p| p.map(f32::to_bits)).collect();
+            v.sort_unstable();
+            v
+        };
+        assert_eq!(border(&lod.mesh), border(&full), "every border vertex kept, bit for bit");
+    }
+
+    #[test]
+    fn compact_keeps_used_vertices_in_order() {
+        let full = hills();
+        let used = [5u32, 2, 9];
+        let m = compact(&full, &used);
+        assert_eq!(m.positions, vec![full.positions[2], full.positions[5], full.positions[9]]);
+        assert_eq!(m.indices, [1, 0, 2]);
+    }
+}

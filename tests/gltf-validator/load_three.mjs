@@ -1,0 +1,34 @@
+// Loads glb files with three.js's GLTFLoader and MeshoptDecoder, as a web client does, and
+// prints for each file what three.js built: per mesh, its name, vertex and triangle counts and
+// the bounding box in metres (the node's transform applied, so quantised positions come back
+// in metres). Used by tests/three_loads.rs.
+//
+//   node load_three.mjs file.glb [...]   → one JSON line per file
+import { readFile } from 'node:fs/promises';
+import { GLTFLoader } from 'three/examples/jsm/loaders/GLTFLoader.js';
+import { MeshoptDecoder } from 'three/examples/jsm/libs/meshopt_decoder.module.js';
+import { Box3 } from 'three';
+
+const loader = new GLTFLoader();
+loader.setMeshoptDecoder(MeshoptDecoder);
+
+for (const path of process.argv.slice(2)) {
+  const bytes = await readFile(path);
+  const data = bytes.buffer.slice(bytes.byteOffset, bytes.byteOffset + bytes.byteLength);
+  const gltf = await loader.parseAsync(data, '');
+  gltf.scene.updateMatrixWorld(true);
+  const meshes = [];
+  gltf.scene.traverse((object) => {
+    if (!object.isMesh) return;
+    const geometry = object.geometry;
+    const box = new Box3().setFromObject(object);
+    meshes.push({
+      name: object.name,
+      vertices: geometry.attributes.position.count,
+      triangles: geometry.index ? geometry.index.count / 3 : geometry.attributes.position.count / 3,
+      min: box.min.toArray(),
+      max: box.max.toArray(),
+    });
+  });
+  console.log(JSON.stringify({ path, meshes }));
+}
