@@ -3,7 +3,7 @@
 //! counting global allocator, and the peak heap growth must satisfy
 //! real ≤ estimate ≤ 3 × real.
 
-use landform::export::GlbForm;
+use landform::export::MeshSettings;
 use std::sync::atomic::AtomicBool;
 use std::sync::Mutex;
 
@@ -56,7 +56,8 @@ fn measure(kind: &dyn JobKind, body: &Value) -> Measured {
     let cost = kind.estimate(&prepared.params, &lookup).expect("estimate");
     let live = LiveJob::new("measured".into());
     let cancel = AtomicBool::new(false);
-    let ctx = RunContext { cancel: &cancel, sink: &live, terrain: &lookup, limits: &limits, glb: GlbForm::Quantize };
+    let ctx =
+        RunContext { cancel: &cancel, sink: &live, terrain: &lookup, limits: &limits, mesh: MeshSettings::default() };
     let before = counting_alloc::start();
     let started = std::time::Instant::now();
     let output = kind.run(&prepared.params, seed, &ctx).expect("run");

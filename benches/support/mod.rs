@@ -1,6 +1,6 @@
 //! What the benches share: a run context with no store behind it.
 
-use landform::export::GlbForm;
+use landform::export::MeshSettings;
 use std::sync::atomic::AtomicBool;
 
 use landform::jobs::{RunContext, SilentProgress};
@@ -28,5 +28,5 @@ pub fn with_context<T>(f: impl FnOnce(&RunContext) -> T) -> T {
 #[allow(dead_code)]
 pub fn with_limits<T>(limits: &Limits, f: impl FnOnce(&RunContext) -> T) -> T {
     let cancel = AtomicBool::new(false);
-    f(&RunContext { cancel: &cancel, sink: &SilentProgress, terrain: &NoStore, limits, glb: GlbForm::Quantize })
+    f(&RunContext { cancel: &cancel, sink: &SilentProgress, terrain: &NoStore, limits, mesh: MeshSettings::default() })
 }

@@ -6,6 +6,7 @@ mod glb;
 mod heightmap_png;
 mod heightmap_r16;
 mod hypsometric;
+mod mesh_glbs;
 mod normalmap_png;
 mod npy;
 mod preview_png;
@@ -31,6 +32,9 @@ pub use glb::{write_glb, GlbForm, MAX_U16_INDEXED_VERTICES};
 pub use heightmap_png::heightmap_png16;
 pub use heightmap_r16::{heightmap_r16, r16_summary};
 pub use hypsometric::Tint;
+pub use mesh_glbs::{
+    mesh_glbs, MeshSettings, DEFAULT_LODS, LOD_FRACTION_RANGE, LOD_MEMORY_FACTOR, MAX_LODS, SUGGESTED_LODS,
+};
 pub use normalmap_png::normalmap_png;
 pub use npy::{heightfield_npy, read_heightfield_npy};
 pub use preview_png::preview_png;
@@ -51,7 +55,7 @@ pub const SNAPSHOT_MAX_SIDE_PX: u32 = 256;
 #[derive(Debug)]
 pub struct HeightfieldArtifacts {
     /// `heightmap.png`, `preview.png`, `mesh.glb`, `heightfield.npy`, `heightmap.r16`,
-    /// `normalmap.png`, `splatmap.png`, in that order.
+    /// `normalmap.png`, `splatmap.png`, then `mesh_lod1.glb`, … in that order.
     pub artifacts: Vec<Artifact>,
     /// `{"z_min", "z_max", "grid": {"cols", "rows", "cell_size_m"}, "mesh": {"vertices",
     /// "triangles", "stride"}, "heightmap_r16": {…}}`, metres; z_min/z_max are the same decimals
@@ -60,13 +64,13 @@ pub struct HeightfieldArtifacts {
 }
 
 /// What a heightfield kind tells the export besides the heights.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Debug, Default)]
 pub struct HeightfieldExport<'a> {
     /// The kind's own material weight per sample (0–255; `splatmap.png`'s alpha), where it
     /// knows one.
     pub material: Option<&'a [u8]>,
-    /// How `mesh.glb` stores its vertices.
-    pub glb: GlbForm,
+    /// How `mesh.glb` stores its vertices, and its levels of detail.
+    pub mesh: MeshSettings,
     /// Below it the preview and the vertex colours show water (0 m unless the kind knows one).
     pub sea_level_m: f32,
 }
@@ -74,9 +78,9 @@ pub struct HeightfieldExport<'a> {
 /// Everything a heightfield kind delivers for its final terrain, built in parallel; the bytes
 /// depend only on the heightfield and `options`.
 pub fn heightfield_artifacts(hf: &Heightfield, options: &HeightfieldExport) -> HeightfieldArtifacts {
-    let HeightfieldExport { material, glb: form, sea_level_m } = *options;
+    let HeightfieldExport { material, ref mesh, sea_level_m } = *options;
     let (z_min, z_max) = hf.min_max();
-    let (((heightmap, preview), (r16, (normals, splat))), ((glb, mesh_summary), npy)) = rayon::join(
+    let (((heightmap, preview), (r16, (normals, splat))), (((glbs, glb_figures), mesh_summary), npy)) = rayon::join(
         || {
             rayon::join(
                 || rayon::join(|| heightmap_png16(hf), || preview_png(hf, PREVIEW_MAX_SIDE_PX, sea_level_m)),
@@ -99,7 +103,7 @@ pub fn heightfield_artifacts(hf: &Heightfield, options: &HeightfieldExport) -> H
                         "triangles": meshed.mesh.triangle_count(),
                         "stride": meshed.stride,
                     });
-                    (write_glb(&Scene::single("terrain", meshed.mesh), form), summary)
+                    (mesh_glbs(&Scene::single("terrain", meshed.mesh), mesh), summary)
                 },
                 || heightfield_npy(hf),
             )
@@ -111,19 +115,20 @@ pub fn heightfield_artifacts(hf: &Heightfield, options: &HeightfieldExport) -> H
         "grid": { "cols": hf.cols, "rows": hf.rows, "cell_size_m": short_decimal(hf.cell_size_m) },
         "mesh": mesh_summary,
         "heightmap_r16": r16_summary(hf),
+        "glb": glb_figures,
     });
-    HeightfieldArtifacts {
-        artifacts: vec![
-            Artifact::new("heightmap.png", "image/png", heightmap),
-            Artifact::new("preview.png", "image/png", preview),
-            Artifact::new("mesh.glb", "model/gltf-binary", glb),
-            Artifact::new("heightfield.npy", "application/octet-stream", npy),
-            Artifact::new("heightmap.r16", "application/octet-stream", r16),
-            Artifact::new("normalmap.png", "image/png", normals),
-            Artifact::new("splatmap.png", "image/png", splat),
-        ],
-        summary,
-    }
+    let mut glbs = glbs.into_iter();
+    let mut artifacts = vec![
+        Artifact::new("heightmap.png", "image/png", heightmap),
+        Artifact::new("preview.png", "image/png", preview),
+        glbs.next().expect("mesh.glb comes first"),
+        Artifact::new("heightfield.npy", "application/octet-stream", npy),
+        Artifact::new("heightmap.r16", "application/octet-stream", r16),
+        Artifact::new("normalmap.png", "image/png", normals),
+        Artifact::new("splatmap.png", "image/png", splat),
+    ];
+    artifacts.extend(glbs);
+    HeightfieldArtifacts { artifacts, summary }
 }
 
 /// Peak bytes [`heightfield_artifacts`] allocates for a `cols × rows` grid, with every writer

@@ -78,6 +78,18 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>], keys_required: bool) -> Open
         ))
         .into();
 
+    let (lod_min, lod_max) = crate::export::LOD_FRACTION_RANGE;
+    let lods: utoipa::openapi::schema::Schema = utoipa::openapi::schema::ArrayBuilder::new()
+        .items(ObjectBuilder::new().schema_type(SchemaType::new(Type::Number)).minimum(Some(lod_min)).maximum(Some(lod_max)))
+        .max_items(Some(crate::export::MAX_LODS))
+        .default(Some(serde_json::json!(crate::export::DEFAULT_LODS)))
+        .examples([serde_json::json!(crate::export::SUGGESTED_LODS)])
+        .description(Some(format!(
+            "Levels of detail beside `mesh.glb`: `mesh_lod1.glb`, `mesh_lod2.glb`, … one per error bound, each a fraction of the scene's longest side, increasing (default `[]`: none, as measuring the levels can take far longer than the job). Every node is simplified (meshoptimizer's edge collapser) with the vertices on its open borders and on its bounding box's faces held in place, and the result's `glb.levels` gives each level's triangles and its measured two-sided deviation from the full mesh, which never exceeds the bound. At most {} levels.",
+            crate::export::MAX_LODS
+        )))
+        .into();
+
     for kind in kinds {
         let (name, mut schema, refs) = kind.request_schema();
         super::openapi_bounds::close_objects(&mut schema);
@@ -93,6 +105,7 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>], keys_required: bool) -> Open
             o.properties.insert("seed".into(), RefOr::T(seed.clone()));
             o.properties.insert("label".into(), RefOr::T(label.clone()));
             o.properties.insert("compression".into(), RefOr::T(compression.clone()));
+            o.properties.insert("lods".into(), RefOr::T(lods.clone()));
         }
         components.schemas.insert(name.clone(), schema);
         components.schemas.insert(body_name.clone(), body);

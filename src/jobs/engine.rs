@@ -15,7 +15,7 @@ use super::live::{LiveJob, StopReason};
 use super::metrics::Metrics;
 use super::store_terrain::StoreTerrain;
 use super::{Job, JobEvent, JobKind, JobStatus, Progress, RequestError};
-use crate::export::GlbForm;
+use crate::export::{GlbForm, MeshSettings, LOD_MEMORY_FACTOR};
 use crate::store::{EventLog, IdempotentInsert, ListFilter, StoreError};
 use crate::validate::{FieldError, Limits};
 
@@ -447,13 +447,15 @@ impl Engine {
         let Value::Object(mut body) = body else {
             return Err(EngineError::field("", "the body must be a JSON object"));
         };
-        let (seed, label, compression) = take_common_fields(&mut body)?;
+        let (seed, label, mesh) = take_common_fields(&mut body)?;
         let limits = self.inner.config.limits.clone();
         let prepared = tokio::task::spawn_blocking(move || kind_impl.prepare(Value::Object(body), &limits))
             .await
             .map_err(|e| EngineError::Internal(e.to_string()))??;
         self.check_references(&prepared.references, owner.clone()).await?;
-        let (cost, uploads) = self.estimate(kind, &prepared.params, prepared.references.uploads, owner.clone()).await?;
+        let lods = !mesh.lods.is_empty();
+        let (cost, uploads) =
+            self.estimate(kind, &prepared.params, prepared.references.uploads, owner.clone(), lods).await?;
         self.check_quota(who, &cost).await?;
         self.store_uploads(uploads).await?;
 
@@ -462,7 +464,8 @@ impl Engine {
             _ => Map::new(),
         };
         request.insert("seed".into(), Value::from(seed));
-        request.insert("compression".into(), Value::from(compression.name()));
+        request.insert("compression".into(), Value::from(mesh.form.name()));
+        request.insert("lods".into(), Value::from(mesh.lods));
         if let Some(l) = &label {
             request.insert("label".into(), Value::String(l.clone()));
         }
@@ -507,6 +510,7 @@ impl Engine {
         params: &Value,
         uploads: Vec<(String, Vec<u8>)>,
         owner: Option<String>,
+        lods: bool,
     ) -> Result<(super::Cost, Vec<(String, Vec<u8>)>), EngineError> {
         let kind_impl = self.inner.kinds.get(kind).cloned().ok_or_else(|| EngineError::UnknownKind(kind.into()))?;
         let store = self.inner.store.clone();
@@ -523,6 +527,13 @@ impl Engine {
             super::SimError::Terrain(t) => EngineError::field("terrain", t.to_string()),
             other => EngineError::Internal(other.to_string()),
         })?;
+        // Levels of detail hold simplified copies and the deviation's search grids beside the
+        // full mesh (see LOD_MEMORY_FACTOR).
+        let cost = if lods {
+            super::Cost { memory_bytes: (cost.memory_bytes as f64 * LOD_MEMORY_FACTOR) as u64, ..cost }
+        } else {
+            cost
+        };
         self.check_cost(&cost)?;
         Ok((cost, uploads))
     }
@@ -579,7 +590,9 @@ impl Engine {
             )),
             other => other,
         })?;
-        let (cost, _) = self.estimate(&original.kind, &prepared.params, Vec::new(), original.owner.clone()).await?;
+        let lods = original.request.get("lods").and_then(Value::as_array).is_some_and(|l| !l.is_empty());
+        let (cost, _) =
+            self.estimate(&original.kind, &prepared.params, Vec::new(), original.owner.clone(), lods).await?;
         self.check_quota(who, &cost).await?;
         let replay_of = Some((id.to_string(), until_step));
         let mut job = new_job(&original.kind, original.label.clone(), original.request.clone(), replay_of);
@@ -849,9 +862,9 @@ impl Engine {
     }
 }
 
-/// The common fields of every body: `seed`, `label` and `compression` (checked here; the
-/// caller puts the seed and the compression, defaults filled in, back into the request).
-fn take_common_fields(body: &mut Map<String, Value>) -> Result<(u64, Option<String>, GlbForm), EngineError> {
+/// The common fields of every body: `seed`, `label`, `compression` and `lods` (checked here;
+/// the caller puts the seed and the mesh settings, defaults filled in, back into the request).
+fn take_common_fields(body: &mut Map<String, Value>) -> Result<(u64, Option<String>, MeshSettings), EngineError> {
     let seed = match body.remove("seed") {
         None | Some(Value::Null) => 0,
         Some(v) => v.as_u64().ok_or_else(|| EngineError::field("seed", "must be an unsigned 64-bit integer"))?,
@@ -870,7 +883,11 @@ fn take_common_fields(body: &mut Map<String, Value>) -> Result<(u64, Option<Stri
             EngineError::field("compression", format!("must be one of {}", GlbForm::NAMES.join(", ")))
         })?,
     };
-    Ok((seed, label, compression))
+    let lods = match body.remove("lods") {
+        None | Some(Value::Null) => MeshSettings::default().lods,
+        Some(v) => MeshSettings::parse_lods(&v).map_err(|e| EngineError::field("lods", e))?,
+    };
+    Ok((seed, label, MeshSettings { form: compression, lods }))
 }
 
 fn new_job(kind: &str, label: Option<String>, request: Value, replay_of: Option<(String, Option<u64>)>) -> Job {

@@ -66,8 +66,8 @@ pub struct RunContext<'a> {
     pub sink: &'a dyn ProgressSink,
     pub terrain: &'a dyn TerrainLookup,
     pub limits: &'a Limits,
-    /// How glb artifacts are written (the request's `compression`).
-    pub glb: crate::export::GlbForm,
+    /// How glb artifacts are written (the request's `compression` and `lods`).
+    pub mesh: crate::export::MeshSettings,
 }
 
 impl RunContext<'_> {

@@ -13,7 +13,7 @@ use super::engine::Engine;
 use super::live::{LiveJob, StopReason};
 use super::store_terrain::StoreTerrain;
 use super::{Artifact, Job, JobKind, JobOutput, JobStatus, ProgressSink, RunContext, SimError};
-use crate::export::GlbForm;
+use crate::export::{GlbForm, MeshSettings};
 use crate::store::JobStore;
 use crate::validate::Limits;
 
@@ -230,7 +230,7 @@ pub(super) fn compute(
     let kind =
         kinds.get(job.kind.as_str()).ok_or_else(|| SimError::Failed(format!("no job kind named {}", job.kind)))?;
     let lookup = StoreTerrain { store: store.clone(), owner: job.owner.clone() };
-    let ctx = RunContext { cancel, sink, terrain: &lookup, limits, glb: glb_form(job) };
+    let ctx = RunContext { cancel, sink, terrain: &lookup, limits, mesh: mesh_settings(job) };
     let params = job.params();
     match job.replay_spec() {
         None => kind.run(&params, job.seed(), &ctx),
@@ -246,10 +246,13 @@ pub(super) fn compute(
     }
 }
 
-/// How the job's glbs are written: its request's `compression`. A job stored before the field
-/// existed has none and wrote f32 glbs, which its replays must give again byte for byte.
-fn glb_form(job: &Job) -> GlbForm {
-    job.request.get("compression").and_then(Value::as_str).and_then(GlbForm::parse).unwrap_or(GlbForm::None)
+/// How the job's glbs are written: its request's `compression` and `lods`. A job stored before
+/// a field existed has none of it and wrote f32 glbs without levels of detail, which its replays
+/// must give again byte for byte.
+fn mesh_settings(job: &Job) -> MeshSettings {
+    let form = job.request.get("compression").and_then(Value::as_str).and_then(GlbForm::parse).unwrap_or(GlbForm::None);
+    let lods = job.request.get("lods").and_then(|l| MeshSettings::parse_lods(l).ok()).unwrap_or_default();
+    MeshSettings { form, lods }
 }
 
 /// The message of a panic caught around a job.

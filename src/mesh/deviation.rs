@@ -25,31 +25,57 @@ pub fn max_deviation(a: &Mesh, b: &Mesh, spacing_m: f32) -> f32 {
     ab.max(ba) as f32
 }
 
-/// The largest distance from a sample of `from` to the surface of `to`.
+/// The largest distance from a sample of `from` to the surface of `to`. A sample within the
+/// largest distance found so far (by any thread) cannot raise it, so it is only checked against
+/// that distance, stopping at the first triangle close enough; the others are measured exactly.
+/// The maximum is the same whichever samples were only checked.
 fn one_sided(from: &Mesh, to: &Mesh, spacing_m: f32) -> f64 {
+    use std::sync::atomic::{AtomicU64, Ordering};
     let index = TriangleIndex::new(to);
     let spacing = f64::from(spacing_m.max(1e-6));
-    from.indices
-        .par_chunks_exact(3)
-        .map(|t| {
+    // Non-negative f64s order as their bits do.
+    let found = AtomicU64::new(0f64.to_bits());
+    let measure = |s: [f64; 3], hint: &mut u32| {
+        let so_far = f64::from_bits(found.load(Ordering::Relaxed));
+        if !index.any_within(s, so_far, hint) {
+            let d = index.distance(s, so_far.max(index.cell));
+            found.fetch_max(d.to_bits(), Ordering::Relaxed);
+        }
+    };
+    // Triangles' centres first: on a coarse mesh they are the points farthest from the fine
+    // one, so the largest distance is found early and most later samples are only checked.
+    from.indices.par_chunks(3 * 256).for_each(|chunk| {
+        let mut hint = 0;
+        for t in chunk.chunks_exact(3) {
             let [p, q, r] = [0, 1, 2].map(|k| point(from, t[k]));
-            let longest = dist(p, q).max(dist(q, r)).max(dist(r, p));
-            let n = ((longest / spacing).ceil() as usize).clamp(1, MAX_SPLITS);
-            let mut worst = 0.0f64;
-            let mut guess = index.cell;
-            for i in 0..=n {
-                for j in 0..=n - i {
-                    let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
-                    let s: [f64; 3] = std::array::from_fn(|k| p[k] + u * (q[k] - p[k]) + v * (r[k] - p[k]));
-                    let d = index.distance(s, guess);
-                    // Neighbouring samples lie at similar distances: start the next search there.
-                    guess = (d + spacing).max(index.cell);
-                    worst = worst.max(d);
+            measure(std::array::from_fn(|k| (p[k] + q[k] + r[k]) / 3.0), &mut hint);
+        }
+    });
+    // Every vertex once, then the points along and inside each triangle (not its corners).
+    from.positions.par_chunks(1024).for_each(|chunk| {
+        let mut hint = 0;
+        for v in chunk {
+            measure(v.map(f64::from), &mut hint);
+        }
+    });
+    from.indices.par_chunks_exact(3).for_each(|t| {
+        let [p, q, r] = [0, 1, 2].map(|k| point(from, t[k]));
+        let longest = dist(p, q).max(dist(q, r)).max(dist(r, p));
+        let n = ((longest / spacing).ceil() as usize).clamp(1, MAX_SPLITS);
+        // Neighbouring samples are near the same triangles of `to`: the last one found close
+        // enough is tried first.
+        let mut hint = 0;
+        for i in 0..=n {
+            for j in 0..=n - i {
+                if (i == 0 && (j == 0 || j == n)) || i == n {
+                    continue;
                 }
+                let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+                measure(std::array::from_fn(|k| p[k] + u * (q[k] - p[k]) + v * (r[k] - p[k])), &mut hint);
             }
-            worst
-        })
-        .reduce(|| 0.0, f64::max)
+        }
+    });
+    f64::from_bits(found.into_inner())
 }
 
 fn point(mesh: &Mesh, i: u32) -> [f64; 3] {
@@ -77,7 +103,8 @@ impl<'a> TriangleIndex<'a> {
         let (lo, hi) = mesh.bounds().expect("a mesh with triangles");
         let origin = lo.map(f64::from);
         let extent = (0..3).map(|k| f64::from(hi[k] - lo[k])).fold(0.0, f64::max).max(1e-6);
-        // About 128 cells along the longest side, and no smaller than the mean triangle.
+        // Cells about the size of the mean triangle, so a search reads a few triangles per cell
+        // (only occupied cells are stored); at most 4096 along the longest side.
         let area: f64 = mesh
             .indices
             .chunks_exact(3)
@@ -88,7 +115,7 @@ impl<'a> TriangleIndex<'a> {
             })
             .sum();
         let mean_side = (2.0 * area / mesh.triangle_count().max(1) as f64).sqrt();
-        let cell = (extent / 128.0).max(mean_side);
+        let cell = (extent / 4096.0).max(mean_side);
         let dims: [i64; 3] = std::array::from_fn(|k| ((f64::from(hi[k] - lo[k]) / cell).floor() as i64 + 1).max(1));
         let key = |c: [i64; 3]| (c[0] + dims[0] * (c[1] + dims[1] * c[2])) as u64;
         let half_diagonal = 0.5 * cell * 3f64.sqrt();
@@ -130,6 +157,61 @@ impl<'a> TriangleIndex<'a> {
         starts.push(pairs.len() as u32);
         let triangles = pairs.into_iter().map(|(_, t)| t).collect();
         Self { mesh, origin, cell, dims, keys, starts, triangles }
+    }
+
+    /// Whether some triangle lies within `radius` of `p`: the cells next to `p` first (where a
+    /// close triangle usually is), then every cell within `radius`, stopping at the first.
+    /// `hint` is a triangle to try first, and becomes the one found.
+    fn any_within(&self, p: [f64; 3], radius: f64, hint: &mut u32) -> bool {
+        let r2 = radius * radius;
+        if (*hint as usize) < self.mesh.triangle_count() && self.triangle_within(*hint, p, r2) {
+            return true;
+        }
+        let mut search = |radius: f64| {
+            self.cells_around(p, radius).any(|key| {
+                let Ok(at) = self.keys.binary_search(&key) else { return false };
+                let list = &self.triangles[self.starts[at] as usize..self.starts[at + 1] as usize];
+                match list.iter().find(|&&t| self.triangle_within(t, p, r2)) {
+                    Some(&t) => {
+                        *hint = t;
+                        true
+                    }
+                    None => false,
+                }
+            })
+        };
+        search(self.cell.min(radius)) || (radius > self.cell && search(radius))
+    }
+
+    /// The keys of the grid's cells within `radius` of `p` along every axis.
+    fn cells_around(&self, p: [f64; 3], radius: f64) -> impl Iterator<Item = u64> + Clone + '_ {
+        let range = |k: usize| {
+            let lo = (((p[k] - radius - self.origin[k]) / self.cell).floor() as i64).max(0);
+            let hi = (((p[k] + radius - self.origin[k]) / self.cell).floor() as i64).min(self.dims[k] - 1);
+            lo..=hi
+        };
+        let (xs, ys, zs) = (range(0), range(1), range(2));
+        zs.flat_map(move |z| {
+            let xs = xs.clone();
+            ys.clone().flat_map(move |y| xs.clone().map(move |x| (x + self.dims[0] * (y + self.dims[1] * z)) as u64))
+        })
+    }
+
+    /// Whether triangle `t` lies within √`r2` of `p` (its bounding box first).
+    fn triangle_within(&self, t: u32, p: [f64; 3], r2: f64) -> bool {
+        let i = &self.mesh.indices[3 * t as usize..][..3];
+        let tri = [0, 1, 2].map(|k| point(self.mesh, i[k]));
+        let box_gap: f64 = (0..3)
+            .map(|k| {
+                let lo = tri[0][k].min(tri[1][k]).min(tri[2][k]);
+                let hi = tri[0][k].max(tri[1][k]).max(tri[2][k]);
+                (lo - p[k]).max(p[k] - hi).max(0.0).powi(2)
+            })
+            .sum();
+        box_gap <= r2 && {
+            let d = closest_on_triangle(p, tri);
+            (0..3).map(|k| (d[k] - p[k]).powi(2)).sum::<f64>() <= r2
+        }
     }
 
     /// The distance from `p` to the nearest triangle, searching cells within `radius` first and

@@ -32,8 +32,15 @@ pub struct ScalarField<'a> {
 /// smooth, uvs = (x, z) over the grid's extent in [0,1], colors None. Empty mesh when nothing
 /// is inside.
 ///
-/// A sample equal to `iso` (or NaN) is outside, so no crossing is degenerate. Crossings are
-/// linearly interpolated; where the region reaches the grid's side the surface closes half a
+/// A sample equal to `iso` (or NaN) is outside. Crossings are linearly interpolated, then kept
+/// at least [`MIN_CROSSING`] of an edge away from both ends: a sample lying on the surface
+/// (exactly `iso`, as on flat caps and floors that fall on a sample plane) would otherwise put
+/// the vertices of all its edges at one point, giving duplicated positions and zero-area
+/// triangles, which engines' physics and lightmappers reject. Kept apart, vertices on distinct
+/// edges never coincide and no triangle is degenerate (the points on a tetrahedron's edges
+/// strictly between its corners never lie three on a line); the surface moves by at most
+/// 1/1024 of a sample spacing (1 mm on a 1 m grid, far above f32's resolution at any
+/// coordinate below 4 km). Where the region reaches the grid's side the surface closes half a
 /// sample beyond the last sample, as for a voxel centred on its sample. Identical output
 /// whatever the thread count.
 ///
@@ -87,6 +94,9 @@ pub fn extract_isosurface(field: &ScalarField, iso: f32, stop: Stop) -> Result<M
     recompute_normals(&mut mesh);
     Ok(mesh)
 }
+
+/// The closest a crossing comes to either end of its edge, as a fraction of the edge.
+pub const MIN_CROSSING: f32 = 1.0 / 1024.0;
 
 /// The six Kuhn tetrahedra of a cube as corner numbers (`dx | dy << 1 | dz << 2`), each
 /// ordered so every edge runs from a corner to one with more bits, with the sign of its
@@ -219,7 +229,7 @@ impl<'a> PaddedGrid<'a> {
             (Some(va), Some(vb)) => {
                 let t = (self.iso - va) / (vb - va);
                 if t.is_finite() {
-                    t.clamp(0.0, 1.0)
+                    t.clamp(MIN_CROSSING, 1.0 - MIN_CROSSING)
                 } else {
                     0.5
                 }
@@ -434,6 +444,46 @@ pub(crate) mod tests {
         // The box 6 × 8 × 10 m less small chamfers along its edges.
         let volume = mesh.signed_volume();
         assert!(volume > 0.85 * 480.0 && volume < 480.0, "volume {volume}");
+    }
+
+    #[test]
+    fn samples_on_the_surface_give_no_degenerate_triangles_or_shared_positions() {
+        // Values in {-1, 0, 1}: a third of the samples lie exactly on the surface, as flat caps
+        // and floors on a sample plane do.
+        let n = 14;
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let values: Vec<f32> = (0..n * n * n)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state % 3) as f32 - 1.0
+            })
+            .collect();
+        let mesh = extract_isosurface(
+            &ScalarField { dims: [n; 3], origin_m: [0.0; 3], spacing_m: 1.0, values: &values },
+            0.0,
+            Stop::NEVER,
+        )
+        .unwrap();
+        assert!(mesh.triangle_count() > 1000);
+        assert_eq!(mesh.degeneracies(), (0, 0));
+        assert!(consistently_wound(&mesh));
+        // A slab whose faces fall on sample planes (exactly 0 there) keeps flat faces, moved by
+        // at most 1/1024 of a sample.
+        let slab: Vec<f32> = (0..n * n * n).map(|i| 3.0 - ((i / (n * n)) as f32 - 6.0).abs()).collect();
+        let mesh = extract_isosurface(
+            &ScalarField { dims: [n; 3], origin_m: [0.0; 3], spacing_m: 1.0, values: &slab },
+            0.0,
+            Stop::NEVER,
+        )
+        .unwrap();
+        assert_eq!(mesh.degeneracies(), (0, 0));
+        let (lo, hi) = mesh.bounds().unwrap();
+        assert_eq!((lo[1], hi[1]), (3.0 + MIN_CROSSING, 9.0 - MIN_CROSSING));
+        let faces = mesh.positions.iter().filter(|p| p[1] == lo[1] || p[1] == hi[1]).count();
+        let near_faces = mesh.positions.iter().filter(|p| p[1] < 3.5 || p[1] > 8.5).count();
+        assert_eq!(faces, near_faces, "every vertex near a face lies on its plane");
     }
 
     #[test]

@@ -82,14 +82,19 @@ pub fn sample_spacing(mesh: &Mesh, bound_m: f32) -> f32 {
         })
         .sum();
     let side = (2.0 * area / mesh.triangle_count().max(1) as f64).sqrt() as f32;
-    (0.25 * bound_m).max(0.5 * side)
+    (0.5 * bound_m).max(side)
 }
 
-/// Vertices on a face of the mesh's bounding box (within a millionth of its longest side).
+/// Vertices on a vertical side of the mesh's bounding box (within a millionth of its longest
+/// side), where a neighbouring piece would meet it: the box sides of a carved coast, a tile's
+/// edge. The top and bottom are free to simplify.
 fn locked_vertices(mesh: &Mesh) -> Vec<bool> {
     let Some((lo, hi)) = mesh.bounds() else { return Vec::new() };
     let tolerance = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max) * 1e-6;
-    mesh.positions.iter().map(|p| (0..3).any(|k| p[k] - lo[k] <= tolerance || hi[k] - p[k] <= tolerance)).collect()
+    mesh.positions
+        .iter()
+        .map(|p| [0, 2].iter().any(|&k| p[k] - lo[k] <= tolerance || hi[k] - p[k] <= tolerance))
+        .collect()
 }
 
 fn bytemuck_positions(positions: &[[f32; 3]]) -> &[u8] {

@@ -14,7 +14,7 @@ mod types;
 pub use deviation::max_deviation;
 pub use gpu_order::GpuOrder;
 pub use heightfield_mesh::{heightfield_mesh, mesh_stride, HeightfieldMesh, VertexColorFn, DEFAULT_MAX_SIDE_SAMPLES};
-pub use isosurface::{extract_isosurface, ScalarField};
+pub use isosurface::{extract_isosurface, ScalarField, MIN_CROSSING};
 pub use lod::{sample_spacing, simplify_within, Lod};
 pub use normals::recompute_normals;
 pub use smooth::{smooth, Smoothing};

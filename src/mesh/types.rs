@@ -91,6 +91,27 @@ impl Mesh {
         edges.chunk_by(|a, b| a == b).all(|run| run.len() == 2)
     }
 
+    /// `(zero-area triangles, vertices at the position of another)`: triangles whose corners'
+    /// cross product is exactly zero (computed in f64 from the f32 positions, so exact), and
+    /// vertices beyond the first at each position. Physics engines and lightmappers reject
+    /// meshes with either; every mesh Landform writes has (0, 0).
+    pub fn degeneracies(&self) -> (usize, usize) {
+        let p = |i: u32| self.positions[i as usize].map(f64::from);
+        let zero_area = self
+            .indices
+            .chunks_exact(3)
+            .filter(|t| {
+                let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
+                let (u, v) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
+                u[1] * v[2] - u[2] * v[1] == 0.0 && u[2] * v[0] - u[0] * v[2] == 0.0 && u[0] * v[1] - u[1] * v[0] == 0.0
+            })
+            .count();
+        let mut keys: Vec<[u32; 3]> = self.positions.iter().map(|q| q.map(|c| (c + 0.0).to_bits())).collect();
+        rayon::slice::ParallelSliceMut::par_sort_unstable(&mut keys[..]);
+        let duplicates = keys.windows(2).filter(|w| w[0] == w[1]).count();
+        (zero_area, duplicates)
+    }
+
     /// Signed volume in cubic metres enclosed by the triangles (divergence theorem, summed in
     /// f64). Positive when a closed mesh's triangles face outwards; meaningless when open.
     pub fn signed_volume(&self) -> f64 {

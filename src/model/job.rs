@@ -111,6 +111,7 @@ impl Job {
             obj.remove("seed");
             obj.remove("label");
             obj.remove("compression");
+            obj.remove("lods");
         }
         p
     }

@@ -1,7 +1,7 @@
 //! A run context for the kinds' unit tests: progress goes nowhere, and every `{"job": …}` terrain resolves
 //! to the one heightfield the test supplies.
 
-use crate::export::GlbForm;
+use crate::export::MeshSettings;
 use std::sync::atomic::AtomicBool;
 
 use crate::jobs::{RunContext, SilentProgress};
@@ -38,7 +38,7 @@ impl TestContext {
             sink: &SilentProgress,
             terrain: &self.terrain,
             limits: &self.limits,
-            glb: GlbForm::Quantize,
+            mesh: MeshSettings::default(),
         }
     }
 }

@@ -24,3 +24,32 @@ pub fn closed_nodes(glb: &[u8]) -> Vec<(String, bool)> {
         })
         .collect()
 }
+
+/// Per node with a mesh, of a glb with f32 positions (`compression: none`): its name, its
+/// zero-area triangles (corners' cross product exactly zero, in f64) and its vertices at the
+/// position of another (bit for bit).
+pub fn degenerate_nodes(glb: &[u8]) -> Vec<(String, usize, usize)> {
+    let gltf = gltf::Gltf::from_slice_without_validation(glb).expect("glb parses");
+    let blob = gltf.blob.as_deref().expect("a BIN chunk");
+    gltf.nodes()
+        .filter_map(|node| {
+            let prim = node.mesh()?.primitives().next()?;
+            let reader = prim.reader(|_| Some(blob));
+            let positions: Vec<[f32; 3]> = reader.read_positions().expect("f32 positions").collect();
+            let indices: Vec<u32> = reader.read_indices()?.into_u32().collect();
+            let p = |i: u32| positions[i as usize].map(f64::from);
+            let zero = indices
+                .chunks_exact(3)
+                .filter(|t| {
+                    let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
+                    let (u, v) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
+                    [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]] == [0.0; 3]
+                })
+                .count();
+            let mut keys: Vec<[u32; 3]> = positions.iter().map(|q| q.map(|c| (c + 0.0).to_bits())).collect();
+            keys.sort_unstable();
+            let duplicates = keys.windows(2).filter(|w| w[0] == w[1]).count();
+            Some((node.name().unwrap_or_default().to_string(), zero, duplicates))
+        })
+        .collect()
+}

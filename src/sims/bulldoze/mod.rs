@@ -58,7 +58,7 @@ impl Simulation for Bulldoze {
 
     fn run(params: &BulldozeParams, _seed: u64, ctx: &RunContext) -> Result<Outcome<BulldozeSequence>, SimError> {
         let edit = run_edit(params, ctx)?;
-        Ok(edit.finish(ctx.glb))
+        Ok(edit.finish(&ctx.mesh))
     }
 
     fn replay(
@@ -67,7 +67,7 @@ impl Simulation for Bulldoze {
         until_step: Option<u64>,
         ctx: &RunContext,
     ) -> Result<Outcome<BulldozeSequence>, SimError> {
-        Ok(replay_edit(sequence, until_step, ctx)?.finish(ctx.glb))
+        Ok(replay_edit(sequence, until_step, ctx)?.finish(&ctx.mesh))
     }
 }
 
@@ -290,9 +290,12 @@ impl Edit {
     }
 
     /// The job's outcome: the export summary merged with the bulldozer's figures.
-    fn finish(self, glb: crate::export::GlbForm) -> Outcome<BulldozeSequence> {
+    fn finish(self, mesh: &crate::export::MeshSettings) -> Outcome<BulldozeSequence> {
         let figures = self.figures();
-        let exported = crate::export::heightfield_artifacts(&self.hf, &HeightfieldExport { glb, ..Default::default() });
+        let exported = crate::export::heightfield_artifacts(
+            &self.hf,
+            &HeightfieldExport { mesh: mesh.clone(), ..Default::default() },
+        );
         let mut result = match exported.summary {
             Value::Object(map) => map,
             other => [("export".to_string(), other)].into_iter().collect(),

@@ -142,7 +142,7 @@ fn finish(
         Ok(())
     };
     let (result, artifacts) =
-        outputs::build(&implicit, params, &sequence.spheres, voxel_m, &mut on_chunk, ctx.stop(), ctx.glb)?;
+        outputs::build(&implicit, params, &sequence.spheres, voxel_m, &mut on_chunk, ctx.stop(), &ctx.mesh)?;
     Ok(Outcome { result, sequence, artifacts })
 }
 

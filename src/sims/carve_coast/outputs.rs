@@ -9,7 +9,7 @@ use super::field::{bands, columns, grid_for, remove_fragments, sample_planes, Gr
 use super::implicit::{Implicit, Sphere};
 use super::params::CarveCoastParams;
 use crate::export::{
-    heightfield_npy, heightmap_png16, render_png, render_png_framed, write_glb, Artifact, GlbForm, View,
+    heightfield_npy, heightmap_png16, mesh_glbs, render_png, render_png_framed, Artifact, MeshSettings, View,
 };
 use crate::jobs::{SimError, HEIGHTFIELD_ARTIFACT};
 use crate::mesh::{extract_isosurface, MaterialKind, Mesh, ScalarField, Scene, SceneNode};
@@ -182,7 +182,7 @@ pub fn build(
     voxel_m: f32,
     on_chunk: &mut dyn FnMut(usize, usize) -> Result<(), SimError>,
     stop: Stop,
-    glb: GlbForm,
+    mesh_settings: &MeshSettings,
 ) -> Result<(Value, Vec<Artifact>), SimError> {
     let sampled = sample(implicit, params, voxel_m, false, on_chunk)?;
     stop.check()?;
@@ -220,8 +220,8 @@ pub fn build(
             SceneNode::new("sea", sea_plane(implicit.hf, params.sea_level), MaterialKind::Water),
         ],
     };
-    let ((glb, preview), (heightmap, npy)) = rayon::join(
-        || rayon::join(|| write_glb(&scene, glb), || render_png_framed(&scene, &PREVIEW, focus, stop)),
+    let (((glbs, glb_figures), preview), (heightmap, npy)) = rayon::join(
+        || rayon::join(|| mesh_glbs(&scene, mesh_settings), || render_png_framed(&scene, &PREVIEW, focus, stop)),
         || rayon::join(|| heightmap_png16(&top), || heightfield_npy(&top)),
     );
     let preview = preview?;
@@ -239,16 +239,17 @@ pub fn build(
         // The topmost surface's grid, as heightfield kinds report it, so later jobs can read it.
         "grid": { "cols": top.cols, "rows": top.rows, "cell_size_m": top.cell_size_m },
         "z_min": z_min, "z_max": z_max,
+        "glb": glb_figures,
     });
-    Ok((
-        result,
-        vec![
-            Artifact::new("mesh.glb", "model/gltf-binary", glb),
-            Artifact::new("preview.png", "image/png", preview),
-            Artifact::new("heightmap.png", "image/png", heightmap),
-            Artifact::new(HEIGHTFIELD_ARTIFACT, "application/octet-stream", npy),
-        ],
-    ))
+    let mut glbs = glbs.into_iter();
+    let mut artifacts = vec![
+        glbs.next().expect("mesh.glb comes first"),
+        Artifact::new("preview.png", "image/png", preview),
+        Artifact::new("heightmap.png", "image/png", heightmap),
+        Artifact::new(HEIGHTFIELD_ARTIFACT, "application/octet-stream", npy),
+    ];
+    artifacts.extend(glbs);
+    Ok((result, artifacts))
 }
 
 #[cfg(test)]

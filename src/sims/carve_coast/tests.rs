@@ -1,7 +1,7 @@
 //! Measured on the sampled field and the mesh: no overhang without carving, overhangs only near
 //! sea level with it, no floating fragment, closed meshes, replay, thread-count determinism.
 
-use crate::export::GlbForm;
+use crate::export::MeshSettings;
 use serde_json::{json, Value};
 
 use super::field::{bands, columns, grid_for, sample_planes};
@@ -61,13 +61,16 @@ fn without_carving_or_warp_every_column_crosses_once_at_the_heightfield() {
     let mesh = surface(&s, Stop::NEVER).unwrap();
     assert!(mesh.is_closed());
     assert_eq!(topology(&mesh), (1, 0), "one solid, no through-hole");
-    // The caps lie on the box: nothing below its bottom or beyond its walls, and the bottom flat.
+    // The caps lie flat just inside the box (1/1024 of a voxel, where the extraction keeps
+    // vertices off the box's samples): nothing below its bottom or beyond its walls.
     let (lo, hi) = mesh.bounds().unwrap();
-    assert_eq!(lo[1], g.bottom_y);
+    let inset = crate::mesh::MIN_CROSSING * g.voxel_m;
+    assert_eq!(lo[1], g.bottom_y + inset);
     assert!(lo[0] >= 0.0 && lo[2] >= 0.0 && hi[0] <= hf.width_m() && hi[2] <= hf.depth_m());
     let bottom = mesh.positions.iter().filter(|p| p[1] < g.bottom_y + 0.5 * g.voxel_m).count();
-    let flat = mesh.positions.iter().filter(|p| p[1] == g.bottom_y).count();
+    let flat = mesh.positions.iter().filter(|p| p[1] == lo[1]).count();
     assert_eq!(bottom, flat, "every bottom vertex on the bottom plane");
+    assert_eq!(mesh.degeneracies(), (0, 0), "no zero-area triangle, no shared position");
 }
 
 #[test]
@@ -78,7 +81,8 @@ fn carving_makes_overhangs_only_around_sea_level() {
     assert!(spheres.len() > 20, "{} spheres", spheres.len());
     assert!(spheres.iter().any(|s| s.pass() == 2), "the second pass seeds on the carved surface");
     let implicit = Implicit::new(&hf, &spheres, None, 2);
-    let (result, _) = build(&implicit, &p, &spheres, 1.0, &mut no_progress, Stop::NEVER, GlbForm::Quantize).unwrap();
+    let (result, _) =
+        build(&implicit, &p, &spheres, 1.0, &mut no_progress, Stop::NEVER, &MeshSettings::default()).unwrap();
     assert!(result["overhangs"]["with_overhang"].as_u64().unwrap() > 0, "{result}");
     assert_eq!(result["mesh"]["closed"], true);
     // Compare carved and uncarved fields sample by sample.
@@ -123,11 +127,12 @@ fn floating_fragments_are_removed() {
         1.0,
         &mut no_progress,
         Stop::NEVER,
-        GlbForm::Quantize,
+        &MeshSettings::default(),
     )
     .unwrap();
     assert!(kept["pieces"].as_u64().unwrap() >= 2, "{kept}");
-    let (result, _) = build(&implicit, &p, &spheres, 1.0, &mut no_progress, Stop::NEVER, GlbForm::Quantize).unwrap();
+    let (result, _) =
+        build(&implicit, &p, &spheres, 1.0, &mut no_progress, Stop::NEVER, &MeshSettings::default()).unwrap();
     assert_eq!(result["pieces"], 1, "{result}");
     assert!(result["fragments_removed"].as_u64().unwrap() >= 1);
     assert_eq!(result["mesh"]["closed"], true);
@@ -139,7 +144,7 @@ fn warp_makes_strata_on_cliffs() {
     p.warp = Some(params::Warp { amplitude_m: 2.5, frequency_per_m: 0.3 });
     let hf = terrain(&p);
     let implicit = Implicit::new(&hf, &[], p.warp.as_ref(), 4);
-    let (result, _) = build(&implicit, &p, &[], 1.0, &mut no_progress, Stop::NEVER, GlbForm::Quantize).unwrap();
+    let (result, _) = build(&implicit, &p, &[], 1.0, &mut no_progress, Stop::NEVER, &MeshSettings::default()).unwrap();
     assert_eq!(result["mesh"]["closed"], true, "{result}");
     assert_eq!(result["pieces"], 1, "{result}");
     assert!(result["overhangs"]["with_overhang"].as_u64().unwrap() > 0, "{result}");
@@ -171,7 +176,7 @@ fn replay_until_k_carves_only_the_first_k_spheres() {
     let first = &full.sequence.spheres[..k as usize];
     let implicit = Implicit::new(&hf, first, None, 5);
     let (result, artifacts) =
-        build(&implicit, &p, first, 1.0, &mut no_progress, Stop::NEVER, GlbForm::Quantize).unwrap();
+        build(&implicit, &p, first, 1.0, &mut no_progress, Stop::NEVER, &MeshSettings::default()).unwrap();
     assert_eq!(part.result, result);
     assert_eq!(part.artifacts, artifacts);
     assert_ne!(hashes(&part), hashes(&full));

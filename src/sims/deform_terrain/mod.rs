@@ -108,7 +108,7 @@ impl Simulation for DeformTerrain {
         let history = std::mem::take(&mut tracker.history);
         let sequence = DeformSequence { terrain: params.terrain.clone(), operations: searched.operations.clone() };
         let run = RunFigures { searched: Some(&searched), candidates: vertices.len(), prediction: params.prediction };
-        finish(&problem, &fields, &h, &history, &interest, &settings, sequence, run, ctx.glb)
+        finish(&problem, &fields, &h, &history, &interest, &settings, sequence, run, &ctx.mesh)
     }
 
     fn replay(
@@ -146,7 +146,7 @@ impl Simulation for DeformTerrain {
         let history = std::mem::take(&mut tracker.history);
         let sequence = DeformSequence { terrain: sequence.terrain.clone(), operations: ops.to_vec() };
         let run = RunFigures { searched: None, candidates: 0, prediction: params.prediction };
-        finish(&problem, &fields, &h, &history, &interest, &settings, sequence, run, ctx.glb)
+        finish(&problem, &fields, &h, &history, &interest, &settings, sequence, run, &ctx.mesh)
     }
 }
 
@@ -338,7 +338,7 @@ fn finish(
     settings: &Settings,
     sequence: DeformSequence,
     run: RunFigures,
-    glb: crate::export::GlbForm,
+    mesh: &crate::export::MeshSettings,
 ) -> Result<Outcome<DeformSequence>, SimError> {
     let grid = problem.grid();
     if let Some(i) = h.iter().position(|v| !v.is_finite()) {
@@ -354,7 +354,7 @@ fn finish(
     let sequence_bytes = serde_json::to_vec_pretty(&sequence).map_err(|e| SimError::Failed(e.to_string()))?.len();
     let roads = constraints::road_material(fields, grid.cells());
     let sea_level_m = constraints::water_level(fields).unwrap_or(0.0) as f32;
-    let options = crate::export::HeightfieldExport { material: roads.as_deref(), glb, sea_level_m };
+    let options = crate::export::HeightfieldExport { material: roads.as_deref(), mesh: mesh.clone(), sea_level_m };
     let exported = crate::export::heightfield_artifacts(&hf, &options);
     let heightmap_png_bytes =
         exported.artifacts.iter().find(|a| a.name == "heightmap.png").map_or(0, |a| a.bytes.len());

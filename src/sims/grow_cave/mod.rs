@@ -52,7 +52,7 @@ impl Simulation for GrowCave {
             Ok(())
         })?;
         ctx.report("meshing", sequence.passes as u64, params.rings as u64, "building the scene");
-        let (result, artifacts) = outputs::build(params, &sequence, ctx.stop(), ctx.glb)?;
+        let (result, artifacts) = outputs::build(params, &sequence, ctx.stop(), &ctx.mesh)?;
         Ok(Outcome { result, sequence, artifacts })
     }
 
@@ -64,7 +64,7 @@ impl Simulation for GrowCave {
     ) -> Result<Outcome<Self::Sequence>, SimError> {
         ctx.check_cancelled()?;
         let sequence = sequence.until(until_step);
-        let (result, artifacts) = outputs::build(params, &sequence, ctx.stop(), ctx.glb)?;
+        let (result, artifacts) = outputs::build(params, &sequence, ctx.stop(), &ctx.mesh)?;
         Ok(Outcome { result, sequence, artifacts })
     }
 }

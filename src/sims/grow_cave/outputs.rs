@@ -8,7 +8,7 @@ use super::chamber::ChamberShape;
 use super::params::{GrowCaveParams, Mineral};
 use super::sequence::{CaveSequence, RecordedSite};
 use super::speleothem_mesh::{column_mesh, speleothem_mesh};
-use crate::export::{render_png, write_glb, Artifact, GlbForm, View};
+use crate::export::{mesh_glbs, render_png, Artifact, MeshSettings, View};
 use crate::mesh::{heightfield_mesh, MaterialKind, Mesh, Scene, SceneNode, DEFAULT_MAX_SIDE_SAMPLES};
 use crate::stop::{Stop, Stopped};
 
@@ -108,11 +108,12 @@ pub fn build(
     params: &GrowCaveParams,
     sequence: &CaveSequence,
     stop: Stop,
-    glb: GlbForm,
+    mesh_settings: &MeshSettings,
 ) -> Result<(Value, Vec<Artifact>), Stopped> {
     let scene = scene(params, sequence);
     stop.check()?;
-    let (glb, preview) = rayon::join(|| write_glb(&scene, glb), || render_png(&cut_away(&scene), &PREVIEW, stop));
+    let ((glbs, glb_figures), preview) =
+        rayon::join(|| mesh_glbs(&scene, mesh_settings), || render_png(&cut_away(&scene), &PREVIEW, stop));
     let preview = preview?;
     let (mut stalactites, mut stalagmites, mut columns) = (Stats::default(), Stats::default(), Stats::default());
     for s in &sequence.sites {
@@ -138,8 +139,11 @@ pub fn build(
         "stalagmites": stalagmites.summary(),
         "columns": columns.summary(),
         "triangles": { "speleothems": triangles, "total": all_triangles },
+        "glb": glb_figures,
     });
-    let artifacts =
-        vec![Artifact::new("mesh.glb", "model/gltf-binary", glb), Artifact::new("preview.png", "image/png", preview)];
+    let mut glbs = glbs.into_iter();
+    let mut artifacts =
+        vec![glbs.next().expect("mesh.glb comes first"), Artifact::new("preview.png", "image/png", preview)];
+    artifacts.extend(glbs);
     Ok((result, artifacts))
 }

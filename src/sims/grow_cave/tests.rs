@@ -102,7 +102,8 @@ fn level_0_grows_nothing() {
     let p = one_site("0", "standard", "normal", 10);
     let seq = grown(&p, 1);
     assert!(seq.sites[0].growth.stalactite.is_empty() && seq.sites[0].growth.stalagmite.is_empty());
-    let (result, _) = outputs::build(&p, &seq, crate::stop::Stop::NEVER, crate::export::GlbForm::Quantize).unwrap();
+    let (result, _) =
+        outputs::build(&p, &seq, crate::stop::Stop::NEVER, &crate::export::MeshSettings::default()).unwrap();
     assert_eq!(result["stalactites"]["count"], 0);
     assert_eq!(result["stalagmites"]["count"], 0);
     assert_eq!(result["triangles"]["speleothems"], 0);
@@ -123,7 +124,8 @@ fn a_stalactite_meeting_its_stalagmite_becomes_one_column_and_stops() {
     longer.rings = 100;
     let again = grown(&longer, 3);
     assert_eq!((again.sites[0].growth.stalactite.len(), again.sites[0].growth.stalagmite.len()), rings);
-    let (result, _) = outputs::build(&p, &seq, crate::stop::Stop::NEVER, crate::export::GlbForm::Quantize).unwrap();
+    let (result, _) =
+        outputs::build(&p, &seq, crate::stop::Stop::NEVER, &crate::export::MeshSettings::default()).unwrap();
     assert_eq!(result["columns"]["count"], 1);
     assert_eq!(result["stalactites"]["count"], 0);
     assert!((result["columns"]["length_m"]["max"].as_f64().unwrap() - 1.2).abs() < 1e-4);

@@ -76,7 +76,7 @@ impl Simulation for WeatherColumn {
         ctx.check_cancelled()?;
         ctx.report("meshing", history.steps() as u64, params.steps as u64, "extracting the surface");
         let (result, artifacts) =
-            outputs::build(params, &rock.grid, &rock.resistance, &rock.state, &history, ctx.stop(), ctx.glb)?;
+            outputs::build(params, &rock.grid, &rock.resistance, &rock.state, &history, ctx.stop(), &ctx.mesh)?;
         let sequence = WeatherSequence::record(&rock.grid, seed, &history, &rock.state);
         Ok(Outcome { result, sequence, artifacts })
     }
@@ -92,7 +92,7 @@ impl Simulation for WeatherColumn {
         ctx.check_cancelled()?;
         ctx.report("meshing", history.steps() as u64, sequence.steps as u64, "extracting the surface");
         let resistance = ResistanceField::new(params, sequence.seed);
-        let (result, artifacts) = outputs::build(params, &grid, &resistance, &state, &history, ctx.stop(), ctx.glb)?;
+        let (result, artifacts) = outputs::build(params, &grid, &resistance, &state, &history, ctx.stop(), &ctx.mesh)?;
         let sequence = WeatherSequence::record(&grid, sequence.seed, &history, &state);
         Ok(Outcome { result, sequence, artifacts })
     }

@@ -9,7 +9,7 @@ use super::grid::{Grid, NEVER_ROCK};
 use super::params::WeatherColumnParams;
 use super::resistance::ResistanceField;
 use super::weathering::History;
-use crate::export::{render_png, write_glb, Artifact, GlbForm, View};
+use crate::export::{mesh_glbs, render_png, Artifact, MeshSettings, View};
 use crate::mesh::{extract_isosurface, smooth, MaterialKind, Mesh, ScalarField, Scene, SceneNode, Smoothing};
 use crate::stop::{Stop, Stopped};
 
@@ -152,7 +152,7 @@ pub fn build(
     state: &[u16],
     history: &History,
     stop: Stop,
-    glb: GlbForm,
+    mesh_settings: &MeshSettings,
 ) -> Result<(Value, Vec<Artifact>), Stopped> {
     let rock = |i: usize| state[i] == super::grid::ROCK;
     let mut mesh = rock_mesh(grid, &rock, params.mesh.smoothing_iterations, stop)?;
@@ -162,7 +162,8 @@ pub fn build(
     let (vertices, triangles) = (mesh.vertex_count(), mesh.triangle_count());
     let scene = scene(mesh);
     stop.check()?;
-    let (glb, preview) = rayon::join(|| write_glb(&scene, glb), || render_png(&scene, &PREVIEW, stop));
+    let ((glbs, glb_figures), preview) =
+        rayon::join(|| mesh_glbs(&scene, mesh_settings), || render_png(&scene, &PREVIEW, stop));
     let preview = preview?;
 
     let initial = state.par_iter().filter(|&&s| s != NEVER_ROCK).count() as u64;
@@ -180,8 +181,11 @@ pub fn build(
             "max": history.active_per_step.iter().max().copied().unwrap_or(0),
         },
         "mesh": { "vertices": vertices, "triangles": triangles, "closed": closed, "volume_m3": mesh_volume },
+        "glb": glb_figures,
     });
-    let artifacts =
-        vec![Artifact::new("mesh.glb", "model/gltf-binary", glb), Artifact::new("preview.png", "image/png", preview)];
+    let mut glbs = glbs.into_iter();
+    let mut artifacts =
+        vec![glbs.next().expect("mesh.glb comes first"), Artifact::new("preview.png", "image/png", preview)];
+    artifacts.extend(glbs);
     Ok((result, artifacts))
 }

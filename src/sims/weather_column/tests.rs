@@ -202,7 +202,7 @@ fn weathered_rock_mesh_is_closed_and_holds_the_rock_volume() {
             &rock.state,
             &history,
             Stop::NEVER,
-            crate::export::GlbForm::Quantize,
+            &crate::export::MeshSettings::default(),
         )
         .unwrap();
         assert_eq!(result["mesh"]["closed"], json!(true));
