@@ -68,9 +68,11 @@ impl MeshSettings {
 /// full mesh, first) for the result.
 pub fn mesh_glbs(scene: &Scene, settings: &MeshSettings) -> (Vec<Artifact>, Value) {
     let longest = longest_side(scene);
-    let full = (scene.clone(), LevelFigures::default());
-    let levels: Vec<(Scene, LevelFigures)> = std::iter::once(full)
-        .chain(settings.lods.iter().map(|&fraction| simplified(scene, fraction * longest)))
+    // The full scene is borrowed, not copied: a copy would raise every job's peak memory.
+    let simplified: Vec<(Scene, LevelFigures)> =
+        settings.lods.iter().map(|&fraction| simplified(scene, fraction * longest)).collect();
+    let levels: Vec<(&Scene, LevelFigures)> = std::iter::once((scene, LevelFigures::default()))
+        .chain(simplified.iter().map(|(scene, figures)| (scene, *figures)))
         .collect();
     let files: Vec<Vec<u8>> = levels.par_iter().map(|(scene, _)| write_glb(scene, settings.form)).collect();
     let mut artifacts = Vec::with_capacity(files.len());
