@@ -78,6 +78,19 @@ fn one_sided(from: &Mesh, to: &Mesh, spacing_m: f32) -> f64 {
     f64::from_bits(found.into_inner())
 }
 
+/// The side of a square of the mesh's mean triangle area, metres (0 without triangles).
+pub fn mean_triangle_side(mesh: &Mesh) -> f64 {
+    let area: f64 = mesh
+        .indices
+        .chunks_exact(3)
+        .map(|t| {
+            let [p, q, r] = [0, 1, 2].map(|k| point(mesh, t[k]));
+            0.5 * norm(cross(sub(q, p), sub(r, p)))
+        })
+        .sum();
+    (2.0 * area / mesh.triangle_count().max(1) as f64).sqrt()
+}
+
 fn point(mesh: &Mesh, i: u32) -> [f64; 3] {
     mesh.positions[i as usize].map(f64::from)
 }
@@ -105,17 +118,7 @@ impl<'a> TriangleIndex<'a> {
         let extent = (0..3).map(|k| f64::from(hi[k] - lo[k])).fold(0.0, f64::max).max(1e-6);
         // Cells about the size of the mean triangle, so a search reads a few triangles per cell
         // (only occupied cells are stored); at most 4096 along the longest side.
-        let area: f64 = mesh
-            .indices
-            .chunks_exact(3)
-            .map(|t| {
-                let [p, q, r] = [0, 1, 2].map(|k| point(mesh, t[k]));
-                let (u, v) = (sub(q, p), sub(r, p));
-                0.5 * norm(cross(u, v))
-            })
-            .sum();
-        let mean_side = (2.0 * area / mesh.triangle_count().max(1) as f64).sqrt();
-        let cell = (extent / 4096.0).max(mean_side);
+        let cell = (extent / 4096.0).max(mean_triangle_side(mesh));
         let dims: [i64; 3] = std::array::from_fn(|k| ((f64::from(hi[k] - lo[k]) / cell).floor() as i64 + 1).max(1));
         let key = |c: [i64; 3]| (c[0] + dims[0] * (c[1] + dims[1] * c[2])) as u64;
         let half_diagonal = 0.5 * cell * 3f64.sqrt();
@@ -169,9 +172,7 @@ impl<'a> TriangleIndex<'a> {
         }
         let mut search = |radius: f64| {
             self.cells_around(p, radius).any(|key| {
-                let Ok(at) = self.keys.binary_search(&key) else { return false };
-                let list = &self.triangles[self.starts[at] as usize..self.starts[at + 1] as usize];
-                match list.iter().find(|&&t| self.triangle_within(t, p, r2)) {
+                match self.cell_triangles(key).iter().find(|&&t| self.triangle_within(t, p, r2)) {
                     Some(&t) => {
                         *hint = t;
                         true
@@ -199,8 +200,7 @@ impl<'a> TriangleIndex<'a> {
 
     /// Whether triangle `t` lies within √`r2` of `p` (its bounding box first).
     fn triangle_within(&self, t: u32, p: [f64; 3], r2: f64) -> bool {
-        let i = &self.mesh.indices[3 * t as usize..][..3];
-        let tri = [0, 1, 2].map(|k| point(self.mesh, i[k]));
+        let tri = self.triangle(t);
         let box_gap: f64 = (0..3)
             .map(|k| {
                 let lo = tri[0][k].min(tri[1][k]).min(tri[2][k]);
@@ -219,30 +219,34 @@ impl<'a> TriangleIndex<'a> {
     fn distance(&self, p: [f64; 3], radius: f64) -> f64 {
         let mut radius = radius.max(self.cell);
         loop {
-            let lo: [i64; 3] = std::array::from_fn(|k| ((p[k] - radius - self.origin[k]) / self.cell).floor() as i64);
-            let hi: [i64; 3] = std::array::from_fn(|k| ((p[k] + radius - self.origin[k]) / self.cell).floor() as i64);
-            let clamp = |c: i64, k: usize| c.clamp(0, self.dims[k] - 1);
-            let mut best = f64::INFINITY;
-            for z in clamp(lo[2], 2)..=clamp(hi[2], 2) {
-                for y in clamp(lo[1], 1)..=clamp(hi[1], 1) {
-                    for x in clamp(lo[0], 0)..=clamp(hi[0], 0) {
-                        let key = (x + self.dims[0] * (y + self.dims[1] * z)) as u64;
-                        let Ok(at) = self.keys.binary_search(&key) else { continue };
-                        for &t in &self.triangles[self.starts[at] as usize..self.starts[at + 1] as usize] {
-                            let i = &self.mesh.indices[3 * t as usize..][..3];
-                            let tri = [0, 1, 2].map(|k| point(self.mesh, i[k]));
-                            best = best.min(dist(p, closest_on_triangle(p, tri)));
-                        }
-                    }
-                }
-            }
+            let best = self
+                .cells_around(p, radius)
+                .flat_map(|key| self.cell_triangles(key))
+                .map(|&t| dist(p, closest_on_triangle(p, self.triangle(t))))
+                .fold(f64::INFINITY, f64::min);
             // Every triangle within `radius` of p passes through a searched cell.
-            let whole = (0..3).all(|k| lo[k] <= 0 && hi[k] >= self.dims[k] - 1);
+            let whole = (0..3).all(|k| {
+                p[k] - radius <= self.origin[k] && p[k] + radius >= self.origin[k] + self.dims[k] as f64 * self.cell
+            });
             if best <= radius || whole {
                 return best;
             }
             radius *= 2.0;
         }
+    }
+
+    /// The triangles listed in cell `key` (none for an empty cell).
+    fn cell_triangles(&self, key: u64) -> &[u32] {
+        match self.keys.binary_search(&key) {
+            Ok(at) => &self.triangles[self.starts[at] as usize..self.starts[at + 1] as usize],
+            Err(_) => &[],
+        }
+    }
+
+    /// Triangle `t`'s corners.
+    fn triangle(&self, t: u32) -> [[f64; 3]; 3] {
+        let i = &self.mesh.indices[3 * t as usize..][..3];
+        [0, 1, 2].map(|k| point(self.mesh, i[k]))
     }
 }
 

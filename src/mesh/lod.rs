@@ -8,7 +8,7 @@
 //! sides of a carved coast, a column's base on the ground) never move, so pieces that meet stay
 //! joined at every level.
 
-use super::deviation::max_deviation;
+use super::deviation::{max_deviation, mean_triangle_side};
 use super::Mesh;
 
 /// Halvings of meshoptimizer's target before a level falls back to the full mesh.
@@ -35,7 +35,7 @@ pub struct Lod {
 pub fn simplify_within(mesh: &Mesh, bound_m: f32) -> Lod {
     let spacing = sample_spacing(mesh, bound_m);
     let locked = locked_vertices(mesh);
-    let positions = meshopt::VertexDataAdapter::new(bytemuck_positions(&mesh.positions), 12, 0)
+    let positions = meshopt::VertexDataAdapter::new(meshopt::typed_to_bytes(&mesh.positions), 12, 0)
         .expect("positions are 12-byte vertices");
     let mut target = bound_m;
     for _ in 0..=RETRIES {
@@ -72,18 +72,7 @@ pub fn simplify_within(mesh: &Mesh, bound_m: f32) -> Lod {
 /// up to about half the spacing; the reported figure is the sampled one. Every vertex of both
 /// meshes, where the surfaces bend, is a sample.
 pub fn sample_spacing(mesh: &Mesh, bound_m: f32) -> f32 {
-    let area: f64 = mesh
-        .indices
-        .chunks_exact(3)
-        .map(|t| {
-            let [p, q, r] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize].map(f64::from));
-            let (u, v) = ([0, 1, 2].map(|k| q[k] - p[k]), [0, 1, 2].map(|k| r[k] - p[k]));
-            let c = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
-            0.5 * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt()
-        })
-        .sum();
-    let side = (2.0 * area / mesh.triangle_count().max(1) as f64).sqrt() as f32;
-    (0.5 * bound_m).max(side)
+    (0.5 * bound_m).max(mean_triangle_side(mesh) as f32)
 }
 
 /// Vertices on a vertical side of the mesh's bounding box (within a millionth of its longest
@@ -96,11 +85,6 @@ fn locked_vertices(mesh: &Mesh) -> Vec<bool> {
         .iter()
         .map(|p| [0, 2].iter().any(|&k| p[k] - lo[k] <= tolerance || hi[k] - p[k] <= tolerance))
         .collect()
-}
-
-fn bytemuck_positions(positions: &[[f32; 3]]) -> &[u8] {
-    // SAFETY: [f32; 3] is 12 bytes with no padding, and u8 has no alignment requirement.
-    unsafe { std::slice::from_raw_parts(positions.as_ptr().cast(), std::mem::size_of_val(positions)) }
 }
 
 /// The triangles `indices` of `mesh` with only the vertices they use, kept in their order.

@@ -37,18 +37,16 @@ pub fn degenerate_nodes(glb: &[u8]) -> Vec<(String, usize, usize)> {
             let reader = prim.reader(|_| Some(blob));
             let positions: Vec<[f32; 3]> = reader.read_positions().expect("f32 positions").collect();
             let indices: Vec<u32> = reader.read_indices()?.into_u32().collect();
-            let p = |i: u32| positions[i as usize].map(f64::from);
-            let zero = indices
-                .chunks_exact(3)
-                .filter(|t| {
-                    let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
-                    let (u, v) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
-                    [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]] == [0.0; 3]
-                })
-                .count();
-            let mut keys: Vec<[u32; 3]> = positions.iter().map(|q| q.map(|c| (c + 0.0).to_bits())).collect();
-            keys.sort_unstable();
-            let duplicates = keys.windows(2).filter(|w| w[0] == w[1]).count();
+            // The library's own count, on the mesh as the file gives it back.
+            let n = positions.len();
+            let mesh = landform::mesh::Mesh {
+                positions,
+                normals: vec![[0.0, 1.0, 0.0]; n],
+                uvs: vec![[0.0; 2]; n],
+                colors: None,
+                indices,
+            };
+            let (zero, duplicates) = mesh.degeneracies();
             Some((node.name().unwrap_or_default().to_string(), zero, duplicates))
         })
         .collect()
