@@ -158,7 +158,8 @@ pub enum Role {
 #[derive(Args, Clone, Debug)]
 pub struct WorkerArgs {
     /// Seconds a claimed job stays this worker's without a renewal (renewed every third of
-    /// it): how soon another worker takes over the jobs of one that died.
+    /// it): how soon another worker takes over the jobs of one that died. A worker `serve`
+    /// supervises is killed and replaced when it has been silent this long (at least 3 s).
     #[arg(long, env = "LANDFORM_LEASE_SECS", default_value_t = DEFAULT_LEASE_SECS, value_parser = clap::value_parser!(u64).range(1..=3600))]
     pub lease_secs: u64,
     /// The name kept with this worker's claims (default `worker-PID`).
@@ -172,7 +173,8 @@ pub struct WorkerArgs {
     #[arg(long, env = "LANDFORM_WORKER_NICE", default_value_t = DEFAULT_WORKER_NICE, value_parser = clap::value_parser!(i32).range(0..=19))]
     pub nice: i32,
     /// Give the jobs back and exit when standard input closes: `serve` holds it open for the
-    /// worker it supervises, so the worker never outlives it.
+    /// worker it supervises, so the worker never outlives it. Also beats a heartbeat on
+    /// standard output, by which `serve` kills a worker that stopped (`supervisor`).
     #[arg(long, hide = true)]
     pub exit_with_parent: bool,
 }

@@ -146,7 +146,10 @@ async fn serve(http: HttpArgs, service: ServiceArgs, role: Role, worker_args: Wo
     // one supervised child process, with `api` workers started on their own.
     let engine = tokio::task::block_in_place(|| engine(&service, false))?;
     let supervisor = match role {
-        Role::All => Some(Supervisor::spawn(service.worker_command_args(&worker_args))?),
+        Role::All => Some(Supervisor::spawn(
+            service.worker_command_args(&worker_args),
+            std::time::Duration::from_secs(worker_args.lease_secs),
+        )?),
         Role::Api | Role::Worker => None,
     };
     let http_config = http.http_config(engine.config().memory_budget)?;
@@ -205,6 +208,11 @@ async fn serve(http: HttpArgs, service: ServiceArgs, role: Role, worker_args: Wo
 /// lets them finish until the shutdown deadline and gives the rest back to the queue.
 async fn worker(service: ServiceArgs, args: WorkerArgs) -> anyhow::Result<()> {
     init_tracing("info");
+    if args.exit_with_parent {
+        // From the start: opening the store may wait for its lock or its migrations.
+        let lease = std::time::Duration::from_secs(args.lease_secs);
+        tokio::spawn(heartbeat(landform::supervisor::heartbeat_interval(lease)));
+    }
     let store = tokio::task::block_in_place(|| service.open_store(true))?;
     let config = service.worker_config(&args);
     landform::jobs::build_pool(service.engine_config().workers);
@@ -238,6 +246,19 @@ async fn worker(service: ServiceArgs, args: WorkerArgs) -> anyhow::Result<()> {
     // store inside the runtime: the synchronous PostgreSQL client closes its connection with a
     // runtime of its own, which may not start within this one.
     std::process::exit(0)
+}
+
+/// Tells the supervising process this one is alive: a byte on standard output at every tick.
+/// A one-byte write to a pipe the supervisor keeps reading does not block.
+async fn heartbeat(every: std::time::Duration) {
+    let mut ticks = tokio::time::interval(every);
+    loop {
+        ticks.tick().await;
+        let mut out = std::io::stdout().lock();
+        if out.write_all(b".").and_then(|()| out.flush()).is_err() {
+            return;
+        }
+    }
 }
 
 /// Resolves when standard input closes (the supervising process has ended), if asked to

@@ -4,10 +4,17 @@
 //! and the job is retried by the lease rules. The child holds a pipe from this process on its
 //! standard input: when this process dies, the pipe closes and the child gives its jobs back
 //! and exits, so no worker outlives its API.
+//!
+//! The child in turn writes a byte to its standard output every quarter lease (from its async
+//! runtime, the one that renews its leases). A child silent for a whole lease — stopped
+//! (SIGSTOP), wedged — is killed and replaced: on the embedded store a process frozen inside a
+//! write transaction holds SQLite's only write lock, and every writer (this API's submissions
+//! too) would wait for it for as long as it stays frozen.
 
 use std::process::Stdio;
 use std::time::{Duration, Instant};
 
+use tokio::io::AsyncReadExt;
 use tokio::sync::watch;
 use tokio::task::JoinHandle;
 
@@ -17,17 +24,33 @@ const MAX_BACKOFF: Duration = Duration::from_secs(10);
 /// A worker that lived this long died of something new: restart it at once.
 const HEALTHY_AFTER: Duration = Duration::from_secs(30);
 
+/// How often a supervised worker says it is alive, for a lease of this length.
+pub fn heartbeat_interval(lease: Duration) -> Duration {
+    lease / 4
+}
+
+/// How long a supervised worker may stay silent before it is killed: its lease, by which time
+/// its claims have lapsed anyway (four beats missed), and never less than this floor, so a busy
+/// machine's scheduling delays are not taken for a hang. Shorter than the embedded store's
+/// wait for its lock, so a write of the API's that a frozen worker holds up goes through once
+/// the worker is killed.
+fn watchdog_timeout(lease: Duration) -> Duration {
+    lease.max(WATCHDOG_FLOOR)
+}
+const WATCHDOG_FLOOR: Duration = Duration::from_secs(3);
+
 pub struct Supervisor {
     stop: watch::Sender<bool>,
     task: JoinHandle<()>,
 }
 
 impl Supervisor {
-    /// Start `landform worker ARGS…` (this same executable) and keep one running.
-    pub fn spawn(args: Vec<String>) -> std::io::Result<Self> {
+    /// Start `landform worker ARGS…` (this same executable) and keep one running; `lease` is
+    /// the worker's lease, which sets its heartbeat.
+    pub fn spawn(args: Vec<String>, lease: Duration) -> std::io::Result<Self> {
         let exe = std::env::current_exe()?;
         let (stop, stopped) = watch::channel(false);
-        let task = tokio::spawn(supervise(exe, args, stopped));
+        let task = tokio::spawn(supervise(exe, args, watchdog_timeout(lease), stopped));
         Ok(Supervisor { stop, task })
     }
 
@@ -39,7 +62,7 @@ impl Supervisor {
     }
 }
 
-async fn supervise(exe: std::path::PathBuf, args: Vec<String>, mut stopped: watch::Receiver<bool>) {
+async fn supervise(exe: std::path::PathBuf, args: Vec<String>, silence: Duration, mut stopped: watch::Receiver<bool>) {
     let mut backoff = FIRST_BACKOFF;
     while !*stopped.borrow() {
         let started = Instant::now();
@@ -48,8 +71,9 @@ async fn supervise(exe: std::path::PathBuf, args: Vec<String>, mut stopped: watc
             .args(&args)
             .arg("--exit-with-parent")
             .stdin(Stdio::piped())
-            // The API's standard output is its own (it prints the address it bound).
-            .stdout(Stdio::null())
+            // The child's heartbeat; the API's own standard output stays its own (it prints
+            // the address it bound).
+            .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn();
         let mut child = match spawned {
@@ -62,8 +86,16 @@ async fn supervise(exe: std::path::PathBuf, args: Vec<String>, mut stopped: watc
         };
         // Held, never written: it closes when this process ends, however it ends.
         let _parent_alive = child.stdin.take();
+        let heartbeat = child.stdout.take();
         tracing::info!(pid = child.id(), "worker process started");
         tokio::select! {
+            () = silent_for(heartbeat, silence) => {
+                tracing::error!(pid = child.id(), ?silence, "the worker process stopped answering; killing it");
+                // SIGKILL ends a stopped process too; the next turn of the loop reaps it.
+                let _ = child.start_kill();
+                let status = child.wait().await;
+                tracing::error!(?status, "the silent worker process is gone; starting another");
+            }
             status = child.wait() => {
                 tracing::error!(?status, "the worker process stopped; starting another");
                 backoff = if started.elapsed() > HEALTHY_AFTER { FIRST_BACKOFF } else { (backoff * 2).min(MAX_BACKOFF) };
@@ -82,6 +114,20 @@ async fn supervise(exe: std::path::PathBuf, args: Vec<String>, mut stopped: watc
                 tracing::info!(?status, "worker process stopped");
                 return;
             }
+        }
+    }
+}
+
+/// Resolves once `heartbeat` has been silent for `silence` while still open. A closed pipe
+/// (the child exited) is the wait's to report, so that never resolves.
+async fn silent_for(heartbeat: Option<tokio::process::ChildStdout>, silence: Duration) {
+    let Some(mut heartbeat) = heartbeat else { return std::future::pending().await };
+    let mut buf = [0u8; 256];
+    loop {
+        match tokio::time::timeout(silence, heartbeat.read(&mut buf)).await {
+            Err(_elapsed) => return,
+            Ok(Ok(n)) if n > 0 => {}
+            Ok(_closed) => return std::future::pending().await,
         }
     }
 }

@@ -2,13 +2,18 @@
 //! `LANDFORM_TEST_DATABASE_URL` names one): a worker SIGKILLed mid-job, a worker stalled
 //! (SIGSTOP) past its lease and resumed, an API replica SIGKILLed while clients stream from it.
 //! Nothing accepted is lost, and every job ends with the bytes an undisturbed run makes.
+//!
+//! The stall and resume of a worker started on its own runs on PostgreSQL only: on the SQLite
+//! file a process stopped inside a write transaction keeps the database's only write lock, so
+//! no other process can write until it is resumed (a limit of the embedded store, stated in the
+//! README). There `serve` kills a supervised worker that stops, tested below.
 
 mod common;
 
 use std::time::{Duration, Instant};
 
 use common::bodies::seconds_bulldoze;
-use common::processes::{api_replica, children_of, kill_pid, with_schema, WorkerProcess};
+use common::processes::{api_replica, children_of, kill_pid, signal_pid, with_schema, WorkerProcess};
 use common::server::{artifact_hashes, Options, TestServer};
 use common::sse::read_events;
 use serde_json::Value;
@@ -88,12 +93,6 @@ async fn clients_of_a_killed_api_resume_on_another_and_miss_nothing(database: &s
 async fn sqlite_a_killed_workers_job_finishes_on_another_worker() {
     let dir = tempfile::tempdir().unwrap();
     a_killed_workers_job_finishes_on_another_worker(dir.path().join("f.db").to_str().unwrap()).await;
-}
-
-#[tokio::test]
-async fn sqlite_a_stalled_workers_late_writes_are_refused() {
-    let dir = tempfile::tempdir().unwrap();
-    a_stalled_workers_late_writes_are_refused(dir.path().join("f.db").to_str().unwrap()).await;
 }
 
 #[tokio::test]
@@ -213,4 +212,27 @@ async fn sqlite_the_supervised_worker_yields_the_cores_in_a_session_of_its_own()
     assert!(ours.starts_with("/autogroup-") && ours.ends_with("nice 10"), "the worker's group: {ours:?}");
     assert!(api.ends_with("nice 0"), "the API's group: {api:?}");
     assert_ne!(ours.split_whitespace().next(), api.split_whitespace().next());
+}
+
+#[tokio::test]
+async fn sqlite_a_stopped_worker_child_is_killed_and_replaced_while_the_api_takes_jobs() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = supervised(&dir.path().join("s.db")).await;
+    let body = seconds_bulldoze(9);
+    let id = server.submit("bulldoze", &body).await["id"].as_str().unwrap().to_string();
+    wait_running(&server, &id).await;
+    let stopped = worker_child(&server).await;
+    // Stopped wherever it happens to be, perhaps inside a write transaction holding the lock.
+    signal_pid(stopped, "STOP");
+    // Submissions wait for the lock rather than fail, until the supervisor has killed the
+    // silent worker; the API answers throughout.
+    let (status, _) = server.get_json("/healthz").await;
+    assert_eq!(status, 200);
+    let second = server.submit("bulldoze", &seconds_bulldoze(1)).await["id"].as_str().unwrap().to_string();
+    let done = server.wait_done(&id).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    assert_eq!(server.wait_done(&second).await["status"], "succeeded");
+    assert!(!std::path::Path::new(&format!("/proc/{stopped}")).exists(), "the stopped worker was killed and reaped");
+    assert_ne!(worker_child(&server).await, stopped, "a new worker process took over");
+    assert_eq!(artifact_hashes(&done), undisturbed(&body).await);
 }

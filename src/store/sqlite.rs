@@ -139,8 +139,10 @@ const NOW_MS: &str = "CAST(unixepoch('subsec') * 1000 AS INTEGER)";
 /// Read connections opened beside the writer (none for an in-memory database, whose
 /// connections would each see a different database).
 const READERS: usize = 4;
-/// Attempts of `retry_busy` before a locked database is an error: about 5 s in all.
-const BUSY_ATTEMPTS: i32 = 1_100;
+/// Attempts of `retry_busy` before a locked database is an error: about 10 s in all, longer
+/// than a supervised worker may stay silent before it is killed (`supervisor`), so a worker
+/// frozen while it holds the write lock delays the API's writes rather than failing them.
+const BUSY_ATTEMPTS: i32 = 1_950;
 
 /// How long to wait before trying a locked database again (SQLite calls this with the number of
 /// attempts so far; false gives up). The API and its worker are separate processes writing one
@@ -152,7 +154,7 @@ fn retry_busy(attempts: i32) -> bool {
     let pause = match attempts {
         0..100 => Duration::from_micros(100), // the first 10 ms
         100..300 => Duration::from_millis(1), // then 200 ms
-        _ => Duration::from_millis(6),        // then about 4.8 s
+        _ => Duration::from_millis(6),        // then about 9.9 s
     };
     std::thread::sleep(pause);
     attempts < BUSY_ATTEMPTS

@@ -108,5 +108,10 @@ pub fn children_of(pid: u32) -> Vec<u32> {
 
 /// SIGKILL a process by id.
 pub fn kill_pid(pid: u32) {
-    let _ = Command::new("kill").args(["-KILL", &pid.to_string()]).status();
+    signal_pid(pid, "KILL");
+}
+
+/// Send the signal `name` (`STOP`, `CONT`, …) to a process, if it is still there.
+pub fn signal_pid(pid: u32, name: &str) {
+    let _ = Command::new("kill").args([&format!("-{name}"), &pid.to_string()]).status();
 }
