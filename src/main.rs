@@ -370,7 +370,12 @@ async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: 
     std::fs::create_dir_all(&out)?;
     for a in &job.artifacts {
         // A chunk at a time, as the server sends them: a large artifact is never whole in memory.
-        let mut file = std::io::BufWriter::new(std::fs::File::create(out.join(&a.name))?);
+        // Names are the kinds' own (`tiles/0/1_2.glb` has folders), never a client's.
+        let path = out.join(&a.name);
+        if let Some(folder) = path.parent() {
+            std::fs::create_dir_all(folder)?;
+        }
+        let mut file = std::io::BufWriter::new(std::fs::File::create(&path)?);
         let mut offset = 0u64;
         while offset < a.bytes {
             let piece = engine

@@ -180,6 +180,24 @@ fn cases() -> Vec<Case> {
             field: Some("seed"),
         },
         Case {
+            name: "no tiles along a side",
+            body: Json(json!({"terrain": {"fractal": {"size": 33}}, "operations": [], "tiles": {"count": [0, 2]}})),
+            status: 422,
+            field: Some("tiles.count"),
+        },
+        Case {
+            name: "too many tiles",
+            body: Json(json!({"terrain": {"fractal": {"size": 33}}, "operations": [], "tiles": {"count": [17, 2]}})),
+            status: 422,
+            field: Some("tiles.count"),
+        },
+        Case {
+            name: "a tile count that is not a pair",
+            body: Json(json!({"terrain": {"fractal": {"size": 33}}, "operations": [], "tiles": {"count": [2]}})),
+            status: 422,
+            field: Some("tiles.count"),
+        },
+        Case {
             name: "a label that is no string",
             body: Json(json!({"terrain": {"fractal": {"size": 33}}, "operations": [], "label": 5})),
             status: 422,

@@ -113,6 +113,13 @@ impl Quantized {
 /// If a mesh fails [`Mesh::check`] (mismatched arrays or out-of-range indices) or the file
 /// would exceed glb's 4 GiB limit: both are bugs in the caller.
 pub fn write_glb(scene: &Scene, form: GlbForm) -> Vec<u8> {
+    write_glb_in_frame(scene, form, None)
+}
+
+/// [`write_glb`], quantising every node in one frame, the box `(lowest, highest corner)`,
+/// which must hold every vertex, rather than each node in its own box. Meshes written in one
+/// frame decode a position they share to the same floats: the tiles of a terrain meet exactly.
+pub fn write_glb_in_frame(scene: &Scene, form: GlbForm, frame: Option<([f32; 3], [f32; 3])>) -> Vec<u8> {
     let mut root = json::Root {
         asset: json::Asset { generator: Some("Landform".into()), ..Default::default() },
         ..Default::default()
@@ -132,7 +139,7 @@ pub fn write_glb(scene: &Scene, form: GlbForm) -> Vec<u8> {
         // glTF forbids empty accessors, so a node without triangles carries no mesh.
         if mesh.triangle_count() > 0 {
             let bounds = mesh.bounds().expect("a mesh with triangles has vertices");
-            let quantized = form.quantizes().then(|| Quantized::of(mesh, bounds, form));
+            let quantized = form.quantizes().then(|| Quantized::of(mesh, frame.unwrap_or(bounds), form));
             if let Some(q) = &quantized {
                 gltf_node.translation = Some(q.origin);
                 gltf_node.scale = Some([q.step; 3]);

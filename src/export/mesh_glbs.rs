@@ -131,7 +131,7 @@ fn simplified(scene: &Scene, bound_m: f64) -> (Scene, LevelFigures) {
 }
 
 /// The longest side of the box around every node's vertices (1 m for an empty scene).
-fn longest_side(scene: &Scene) -> f64 {
+pub(super) fn longest_side(scene: &Scene) -> f64 {
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
     for (l, h) in scene.nodes.iter().filter_map(|n| n.mesh.bounds()) {
@@ -149,12 +149,12 @@ fn longest_side(scene: &Scene) -> f64 {
 }
 
 /// Metres to a tenth of a millimetre, for the result.
-fn round_mm(m: f64) -> f64 {
+pub(super) fn round_mm(m: f64) -> f64 {
     (m * 1e4).round() / 1e4
 }
 
 /// Upwards, so a figure shown is never below what was measured.
-fn round_up_mm(m: f64) -> f64 {
+pub(super) fn round_up_mm(m: f64) -> f64 {
     (m * 1e4).ceil() / 1e4
 }
 

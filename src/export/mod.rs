@@ -14,6 +14,7 @@ mod render;
 mod scale_bar;
 mod splatmap_png;
 mod srgb;
+mod tiles;
 
 #[cfg(test)]
 pub(crate) mod test_png {
@@ -28,7 +29,7 @@ pub(crate) mod test_png {
 }
 
 pub use artifact::Artifact;
-pub use glb::{write_glb, GlbForm, MAX_U16_INDEXED_VERTICES};
+pub use glb::{write_glb, write_glb_in_frame, GlbForm, MAX_U16_INDEXED_VERTICES};
 pub use heightmap_png::heightmap_png16;
 pub use heightmap_r16::{heightmap_r16, r16_summary};
 pub use hypsometric::Tint;
@@ -40,6 +41,7 @@ pub use npy::{heightfield_npy, read_heightfield_npy};
 pub use preview_png::preview_png;
 pub use render::{render_png, render_png_framed, View};
 pub use splatmap_png::splatmap_png;
+pub use tiles::{tile_artifacts, TileGrid, MAX_TILES_PER_SIDE};
 
 use serde_json::{json, Value};
 
@@ -55,10 +57,11 @@ pub const SNAPSHOT_MAX_SIDE_PX: u32 = 256;
 #[derive(Debug)]
 pub struct HeightfieldArtifacts {
     /// `heightmap.png`, `preview.png`, `mesh.glb`, `heightfield.npy`, `heightmap.r16`,
-    /// `normalmap.png`, `splatmap.png`, then `mesh_lod1.glb`, … in that order.
+    /// `normalmap.png`, `splatmap.png`, then `mesh_lod1.glb`, …, then the tiles and
+    /// `tiles/index.json` when asked for, in that order.
     pub artifacts: Vec<Artifact>,
     /// `{"z_min", "z_max", "grid": {"cols", "rows", "cell_size_m"}, "mesh": {"vertices",
-    /// "triangles", "stride"}, "heightmap_r16": {…}}`, metres; z_min/z_max are the same decimals
+    /// "triangles", "stride"}, "heightmap_r16": {…}, "glb": {…}, "tiles": {…}}`, metres; z_min/z_max are the same decimals
     /// as the PNG's text.
     pub summary: Value,
 }
@@ -73,42 +76,62 @@ pub struct HeightfieldExport<'a> {
     pub mesh: MeshSettings,
     /// Below it the preview and the vertex colours show water (0 m unless the kind knows one).
     pub sea_level_m: f32,
+    /// The request's `tiles`: the mesh cut into tiles at every level too.
+    pub tiles: Option<TileGrid>,
+}
+
+impl HeightfieldExport<'static> {
+    /// The request's compression, levels of detail and tiles; no material, sea at 0 m.
+    pub fn new(mesh: &MeshSettings, tiles: Option<TileGrid>) -> Self {
+        Self { mesh: mesh.clone(), tiles, ..Default::default() }
+    }
 }
 
 /// Everything a heightfield kind delivers for its final terrain, built in parallel; the bytes
 /// depend only on the heightfield and `options`.
 pub fn heightfield_artifacts(hf: &Heightfield, options: &HeightfieldExport) -> HeightfieldArtifacts {
-    let HeightfieldExport { material, ref mesh, sea_level_m } = *options;
+    let HeightfieldExport { material, ref mesh, sea_level_m, tiles } = *options;
     let (z_min, z_max) = hf.min_max();
-    let (((heightmap, preview), (r16, (normals, splat))), (((glbs, glb_figures), mesh_summary), npy)) = rayon::join(
-        || {
-            rayon::join(
-                || rayon::join(|| heightmap_png16(hf), || preview_png(hf, PREVIEW_MAX_SIDE_PX, sea_level_m)),
-                || {
-                    rayon::join(
-                        || heightmap_r16(hf),
-                        || rayon::join(|| normalmap_png(hf), || splatmap_png(hf, material)),
-                    )
-                },
-            )
-        },
-        || {
-            rayon::join(
-                || {
-                    let tint = Tint::with_sea_level(z_min, z_max, sea_level_m);
-                    let color = |height_m: f32, _slope_deg: f32| tint.srgba8(height_m);
-                    let meshed = heightfield_mesh(hf, DEFAULT_MAX_SIDE_SAMPLES, Some(&color));
-                    let summary = json!({
-                        "vertices": meshed.mesh.vertex_count(),
-                        "triangles": meshed.mesh.triangle_count(),
-                        "stride": meshed.stride,
-                    });
-                    (mesh_glbs(&Scene::single("terrain", meshed.mesh), mesh), summary)
-                },
-                || heightfield_npy(hf),
-            )
-        },
-    );
+    let (((heightmap, preview), (r16, (normals, splat))), ((((glbs, glb_figures), tiled), mesh_summary), npy)) =
+        rayon::join(
+            || {
+                rayon::join(
+                    || rayon::join(|| heightmap_png16(hf), || preview_png(hf, PREVIEW_MAX_SIDE_PX, sea_level_m)),
+                    || {
+                        rayon::join(
+                            || heightmap_r16(hf),
+                            || rayon::join(|| normalmap_png(hf), || splatmap_png(hf, material)),
+                        )
+                    },
+                )
+            },
+            || {
+                rayon::join(
+                    || {
+                        let tint = Tint::with_sea_level(z_min, z_max, sea_level_m);
+                        let color = |height_m: f32, _slope_deg: f32| tint.srgba8(height_m);
+                        let meshed = heightfield_mesh(hf, DEFAULT_MAX_SIDE_SAMPLES, Some(&color));
+                        let summary = json!({
+                            "vertices": meshed.mesh.vertex_count(),
+                            "triangles": meshed.mesh.triangle_count(),
+                            "stride": meshed.stride,
+                        });
+                        let scene = Scene::single("terrain", meshed.mesh);
+                        let glbs = rayon::join(
+                            || mesh_glbs(&scene, mesh),
+                            || {
+                                tiles.map(|grid| {
+                                    let longest = mesh_glbs::longest_side(&scene);
+                                    tile_artifacts(&scene.nodes[0].mesh, meshed.vertices, grid, mesh, longest)
+                                })
+                            },
+                        );
+                        (glbs, summary)
+                    },
+                    || heightfield_npy(hf),
+                )
+            },
+        );
     let summary = json!({
         "z_min": short_decimal(z_min),
         "z_max": short_decimal(z_max),
@@ -117,6 +140,14 @@ pub fn heightfield_artifacts(hf: &Heightfield, options: &HeightfieldExport) -> H
         "heightmap_r16": r16_summary(hf),
         "glb": glb_figures,
     });
+    let (tile_files, summary) = match tiled {
+        Some((files, figures)) => {
+            let mut summary = summary;
+            summary["tiles"] = figures;
+            (files, summary)
+        }
+        None => (Vec::new(), summary),
+    };
     let mut glbs = glbs.into_iter();
     let mut artifacts = vec![
         Artifact::new("heightmap.png", "image/png", heightmap),
@@ -128,6 +159,7 @@ pub fn heightfield_artifacts(hf: &Heightfield, options: &HeightfieldExport) -> H
         Artifact::new("splatmap.png", "image/png", splat),
     ];
     artifacts.extend(glbs);
+    artifacts.extend(tile_files);
     HeightfieldArtifacts { artifacts, summary }
 }
 
@@ -135,8 +167,9 @@ pub fn heightfield_artifacts(hf: &Heightfield, options: &HeightfieldExport) -> H
 /// running at once: the 16-bit samples and their deflated PNG, the preview (a copy of the grid
 /// when it is small enough, its slopes, RGB and PNG), the decimated mesh three times over
 /// (mesh, glb buffer, glb file), the `.npy`, the `.r16`, the normal map (RGB and its PNG) and
-/// the splat map (RGBA and its PNG).
-pub fn heightfield_artifacts_peak_bytes(cols: u64, rows: u64) -> u64 {
+/// the splat map (RGBA and its PNG); with `tiles`, the tiles' meshes and files as well (the
+/// mesh twice more).
+pub fn heightfield_artifacts_peak_bytes(cols: u64, rows: u64, tiles: bool) -> u64 {
     let cells = cols.saturating_mul(rows);
     let longest = cols.max(rows).max(1);
     let max_side = PREVIEW_MAX_SIDE_PX as u64;
@@ -150,7 +183,8 @@ pub fn heightfield_artifacts_peak_bytes(cols: u64, rows: u64) -> u64 {
     let stride = longest.saturating_sub(1).div_ceil(DEFAULT_MAX_SIDE_SAMPLES as u64 - 1).max(1);
     let (nx, nz) = (cols.saturating_sub(1).div_ceil(stride) + 1, rows.saturating_sub(1).div_ceil(stride) + 1);
     let mesh = 36 * nx * nz + 24 * (nx - 1) * (nz - 1);
-    cells.saturating_mul(10 + 2 + 6 + 8) + preview + 3 * mesh
+    let meshes = if tiles { 5 } else { 3 };
+    cells.saturating_mul(10 + 2 + 6 + 8) + preview + meshes * mesh
 }
 
 /// A small preview for live progress snapshots.
@@ -160,7 +194,7 @@ pub fn snapshot_png(hf: &Heightfield) -> Vec<u8> {
 
 /// An f32 as the JSON number with its shortest decimal (`0.1`, not `0.10000000149011612`), so
 /// the summary matches the heightmap's text chunks.
-fn short_decimal(value: f32) -> Value {
+pub(crate) fn short_decimal(value: f32) -> Value {
     heightmap_png::decimal(value).parse::<f64>().map(Value::from).unwrap_or(Value::Null)
 }
 

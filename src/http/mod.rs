@@ -75,7 +75,7 @@ pub fn app(engine: Engine, config: HttpConfig) -> Router {
         .route("/v1/jobs/{id}", get(jobs::get::get_job).delete(jobs::delete::delete_job))
         .route("/v1/jobs/{id}/events", get(jobs::events::job_events))
         .route("/v1/jobs/{id}/live.png", get(jobs::live::live_png))
-        .route("/v1/jobs/{id}/artifacts/{name}", get(jobs::artifacts::get_artifact))
+        .route("/v1/jobs/{id}/artifacts/{*name}", get(jobs::artifacts::get_artifact))
         .route("/v1/jobs/{id}/sequence", get(jobs::sequence::get_sequence))
         .route("/v1/jobs/{id}/replay", post(jobs::replay::replay_job))
         .route("/v1/jobs/{id}/cancel", post(jobs::cancel::cancel_job));

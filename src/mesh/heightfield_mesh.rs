@@ -19,8 +19,11 @@ pub type VertexColorFn<'a> = &'a (dyn Fn(f32, f32) -> [u8; 4] + Sync);
 /// A heightfield's mesh and the grid stride it was sampled with (1 = every sample).
 #[derive(Clone, Debug, PartialEq)]
 pub struct HeightfieldMesh {
+    /// `vertices[0] × vertices[1]` vertices, row by row (see [`grid_triangles`]).
     pub mesh: Mesh,
     pub stride: usize,
+    /// Vertices along X and along Z.
+    pub vertices: [usize; 2],
 }
 
 /// The smallest stride that keeps both sides at or under `max_side_samples` vertices, counting
@@ -57,7 +60,7 @@ pub fn heightfield_mesh(hf: &Heightfield, max_side_samples: usize, colors: Optio
     let (nx, nz) = (xs.len(), zs.len());
     let n = nx * nz;
     if n == 0 {
-        return HeightfieldMesh { mesh: Mesh::default(), stride };
+        return HeightfieldMesh { mesh: Mesh::default(), stride, vertices: [nx, nz] };
     }
 
     let grid = SampledGrid { hf, xs: &xs, zs: &zs };
@@ -93,7 +96,15 @@ pub fn heightfield_mesh(hf: &Heightfield, max_side_samples: usize, colors: Optio
         out
     });
 
-    let mut indices = vec![0u32; (nx.saturating_sub(1)) * (nz.saturating_sub(1)) * 6];
+    let indices = grid_triangles(nx, nz);
+
+    HeightfieldMesh { mesh: Mesh { positions, normals, uvs, colors, indices }, stride, vertices: [nx, nz] }
+}
+
+/// The triangles of a grid of `nx × nz` vertices numbered row by row: two per quad, wound
+/// counter-clockwise seen from +Y, each quad split along the same diagonal.
+pub(super) fn grid_triangles(nx: usize, nz: usize) -> Vec<u32> {
+    let mut indices = vec![0u32; nx.saturating_sub(1) * nz.saturating_sub(1) * 6];
     if nx > 1 {
         indices.par_chunks_mut((nx - 1) * 6).enumerate().for_each(|(j, row)| {
             for (i, quad) in row.chunks_exact_mut(6).enumerate() {
@@ -107,8 +118,7 @@ pub fn heightfield_mesh(hf: &Heightfield, max_side_samples: usize, colors: Optio
             }
         });
     }
-
-    HeightfieldMesh { mesh: Mesh { positions, normals, uvs, colors, indices }, stride }
+    indices
 }
 
 /// The heightfield seen through the kept rows and columns.

@@ -4,6 +4,7 @@
 
 mod deviation;
 mod gpu_order;
+mod grid_tiles;
 mod heightfield_mesh;
 mod isosurface;
 mod lod;
@@ -13,6 +14,7 @@ mod types;
 
 pub use deviation::max_deviation;
 pub use gpu_order::GpuOrder;
+pub use grid_tiles::{grid_patch, tile_edges};
 pub use heightfield_mesh::{heightfield_mesh, mesh_stride, HeightfieldMesh, VertexColorFn, DEFAULT_MAX_SIDE_SAMPLES};
 pub use isosurface::{extract_isosurface, ScalarField, MIN_CROSSING};
 pub use lod::{sample_spacing, simplify_within, Lod};

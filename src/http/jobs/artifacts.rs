@@ -13,7 +13,7 @@ use crate::store::CHUNK_BYTES;
     get, path = "/v1/jobs/{id}/artifacts/{name}", tag = "jobs",
     params(
         ("id" = String, Path, description = "Job id"),
-        ("name" = String, Path, description = "Artifact name, e.g. mesh.glb, heightmap.png, preview.png, sequence.json"),
+        ("name" = String, Path, description = "Artifact name, e.g. mesh.glb, heightmap.png, preview.png, sequence.json, tiles/0/1_2.glb (a name may hold folders: send it as it is, or with its slashes percent-encoded)"),
         ("If-None-Match" = Option<String>, Header, description = "An ETag from before: 304 when it still matches"),
         ("Range" = Option<String>, Header, description = "`bytes=FIRST-LAST`, `bytes=FIRST-` or `bytes=-SUFFIX` (one range): 206 with that part. Other forms are ignored (the whole artifact)"),
     ),

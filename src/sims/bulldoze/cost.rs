@@ -66,7 +66,7 @@ pub fn estimate(params: &BulldozeParams, terrain: &dyn TerrainLookup) -> Result<
     let load = 8 * source;
     let resample = 4 * source + 4 * cells;
     // The edited grid and the grid before the edit, the exports, the steps.
-    let finish = 8 * cells + heightfield_artifacts_peak_bytes(cols, rows);
+    let finish = 8 * cells + heightfield_artifacts_peak_bytes(cols, rows, params.tiles.is_some());
     let mut cost = CostBuilder::new();
     cost.memory("", BASE_BYTES).memory("operations", steps_bytes);
     if load.max(resample) > finish {

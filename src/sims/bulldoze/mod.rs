@@ -58,16 +58,16 @@ impl Simulation for Bulldoze {
 
     fn run(params: &BulldozeParams, _seed: u64, ctx: &RunContext) -> Result<Outcome<BulldozeSequence>, SimError> {
         let edit = run_edit(params, ctx)?;
-        Ok(edit.finish(&ctx.mesh))
+        Ok(edit.finish(HeightfieldExport::new(&ctx.mesh, params.tiles)))
     }
 
     fn replay(
-        _params: &BulldozeParams,
+        params: &BulldozeParams,
         sequence: &BulldozeSequence,
         until_step: Option<u64>,
         ctx: &RunContext,
     ) -> Result<Outcome<BulldozeSequence>, SimError> {
-        Ok(replay_edit(sequence, until_step, ctx)?.finish(&ctx.mesh))
+        Ok(replay_edit(sequence, until_step, ctx)?.finish(HeightfieldExport::new(&ctx.mesh, params.tiles)))
     }
 }
 
@@ -290,12 +290,9 @@ impl Edit {
     }
 
     /// The job's outcome: the export summary merged with the bulldozer's figures.
-    fn finish(self, mesh: &crate::export::MeshSettings) -> Outcome<BulldozeSequence> {
+    fn finish(self, output: HeightfieldExport) -> Outcome<BulldozeSequence> {
         let figures = self.figures();
-        let exported = crate::export::heightfield_artifacts(
-            &self.hf,
-            &HeightfieldExport { mesh: mesh.clone(), ..Default::default() },
-        );
+        let exported = crate::export::heightfield_artifacts(&self.hf, &output);
         let mut result = match exported.summary {
             Value::Object(map) => map,
             other => [("export".to_string(), other)].into_iter().collect(),

@@ -7,6 +7,7 @@ use utoipa::ToSchema;
 use super::blade::Blade;
 use super::combine::Operator;
 use super::primitives::Shape;
+use crate::export::TileGrid;
 use crate::terrain::TerrainSource;
 use crate::validate::{Limits, Validate, Validator};
 
@@ -43,6 +44,10 @@ pub struct BulldozeParams {
     /// Primitives and path vertices together may number at most the server's operation cap
     /// (100 000 by default; more is answered with 413).
     pub operations: Vec<Operation>,
+    /// Cut the terrain's mesh into tiles as well, at every level of detail (`tiles/…`).
+    /// Absent: no tiles.
+    #[serde(default)]
+    pub tiles: Option<TileGrid>,
 }
 
 /// A plan rectangle in metres (inclusive bounds).
@@ -234,6 +239,9 @@ pub(crate) fn check_resampled(cols: u64, rows: u64, limits: &Limits) -> Option<(
 impl Validate for BulldozeParams {
     fn validate(&self, v: &mut Validator, limits: &Limits) {
         v.field("terrain", |v| self.terrain.validate(v, limits));
+        if let Some(tiles) = &self.tiles {
+            v.field("tiles", |v| tiles.validate(v, limits));
+        }
         if let Some(w) = &self.window {
             v.field("window", |v| w.validate(v, limits));
         }

@@ -79,7 +79,7 @@ pub fn estimate(params: &DeformTerrainParams, terrain: &dyn TerrainLookup) -> Re
     let grid = GRID_BYTES_PER_CELL * cells;
     let fields = field_cells * cells + BUILD_BYTES_PER_CELL * cells;
     let search_bytes = TABLE_ENTRY_BYTES * entries + 24 * lattice + kernel_bytes;
-    let exports = heightfield_artifacts_peak_bytes(cols, rows);
+    let exports = heightfield_artifacts_peak_bytes(cols, rows, params.tiles.is_some());
     let mut cost = CostBuilder::new();
     cost.memory("", BASE_BYTES)
         .memory("terrain", grid)

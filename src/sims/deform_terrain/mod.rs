@@ -24,7 +24,7 @@ pub use params::{
 };
 pub use sequence::{DeformSequence, Deformation};
 
-use crate::export::Artifact;
+use crate::export::{Artifact, HeightfieldExport};
 use crate::jobs::{Outcome, RunContext, SimError, Simulation};
 use crate::terrain::{Heightfield, TerrainSource};
 use constraints::{Field, Fitness, Grid};
@@ -108,7 +108,17 @@ impl Simulation for DeformTerrain {
         let history = std::mem::take(&mut tracker.history);
         let sequence = DeformSequence { terrain: params.terrain.clone(), operations: searched.operations.clone() };
         let run = RunFigures { searched: Some(&searched), candidates: vertices.len(), prediction: params.prediction };
-        finish(&problem, &fields, &h, &history, &interest, &settings, sequence, run, &ctx.mesh)
+        finish(
+            &problem,
+            &fields,
+            &h,
+            &history,
+            &interest,
+            &settings,
+            sequence,
+            run,
+            HeightfieldExport::new(&ctx.mesh, params.tiles),
+        )
     }
 
     fn replay(
@@ -146,7 +156,17 @@ impl Simulation for DeformTerrain {
         let history = std::mem::take(&mut tracker.history);
         let sequence = DeformSequence { terrain: sequence.terrain.clone(), operations: ops.to_vec() };
         let run = RunFigures { searched: None, candidates: 0, prediction: params.prediction };
-        finish(&problem, &fields, &h, &history, &interest, &settings, sequence, run, &ctx.mesh)
+        finish(
+            &problem,
+            &fields,
+            &h,
+            &history,
+            &interest,
+            &settings,
+            sequence,
+            run,
+            HeightfieldExport::new(&ctx.mesh, params.tiles),
+        )
     }
 }
 
@@ -338,7 +358,7 @@ fn finish(
     settings: &Settings,
     sequence: DeformSequence,
     run: RunFigures,
-    mesh: &crate::export::MeshSettings,
+    output: HeightfieldExport,
 ) -> Result<Outcome<DeformSequence>, SimError> {
     let grid = problem.grid();
     if let Some(i) = h.iter().position(|v| !v.is_finite()) {
@@ -354,7 +374,7 @@ fn finish(
     let sequence_bytes = serde_json::to_vec_pretty(&sequence).map_err(|e| SimError::Failed(e.to_string()))?.len();
     let roads = constraints::road_material(fields, grid.cells());
     let sea_level_m = constraints::water_level(fields).unwrap_or(0.0) as f32;
-    let options = crate::export::HeightfieldExport { material: roads.as_deref(), mesh: mesh.clone(), sea_level_m };
+    let options = HeightfieldExport { material: roads.as_deref(), sea_level_m, ..output };
     let exported = crate::export::heightfield_artifacts(&hf, &options);
     let heightmap_png_bytes =
         exported.artifacts.iter().find(|a| a.name == "heightmap.png").map_or(0, |a| a.bytes.len());

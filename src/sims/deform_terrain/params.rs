@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use crate::export::TileGrid;
 use crate::terrain::TerrainSource;
 use crate::validate::{Limits, Validate, Validator};
 
@@ -164,6 +165,10 @@ pub struct DeformTerrainParams {
     #[serde(default = "default_batch")]
     #[schema(default = 16, minimum = 1, maximum = 256)]
     pub batch: u32,
+    /// Cut the terrain's mesh into tiles as well, at every level of detail (`tiles/…`).
+    /// Absent: no tiles.
+    #[serde(default)]
+    pub tiles: Option<TileGrid>,
 }
 
 /// One constraint: exactly one of the kinds.
@@ -489,6 +494,9 @@ impl DeformTerrainParams {
 impl Validate for DeformTerrainParams {
     fn validate(&self, v: &mut Validator, limits: &Limits) {
         v.field("terrain", |v| self.terrain.validate(v, limits));
+        if let Some(tiles) = &self.tiles {
+            v.field("tiles", |v| tiles.validate(v, limits));
+        }
         let dims = self.terrain.known_dimensions();
         let extent = match (dims, self.terrain.known_cell_size()) {
             (Some((c, r)), Some(cell)) => Some(((c - 1) as f64 * cell as f64, (r - 1) as f64 * cell as f64)),

@@ -1,0 +1,275 @@
+//! Tiles as a game engine streams them: a bulldozed hillside cut into 3 × 2 tiles with three
+//! levels of detail, run by the real binary in each compression form. Neighbouring tiles must
+//! hold the same edge vertices bit for bit at every level (positions, normals, texcoords,
+//! colours, as stored in the files), every level must keep all of level 0's edge vertices, and
+//! the tiles of level 0 together must be `mesh.glb`'s triangles exactly (checked on the stored
+//! bytes of the `none` and `quantize` forms). The Khronos validator finds no error in any tile,
+//! and three.js loads the compressed ones with the counts the index states.
+//!
+//! Needs `npm ci --prefix tests/gltf-validator` first (as tests/glb_valid.rs does).
+
+mod common;
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use common::gltf_validator::validate_glb;
+use serde_json::{json, Value};
+
+const LODS: [f64; 3] = [0.002, 0.008, 0.032];
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `api/bulldoze/hillside-road.json` in `form`, cut into 3 × 2 tiles, run into `out`: the
+/// job's result.
+fn run(form: &str, out: &Path) -> Value {
+    let mut body: Value =
+        serde_json::from_slice(&std::fs::read(repo().join("api/bulldoze/hillside-road.json")).unwrap()).unwrap();
+    body["compression"] = form.into();
+    body["lods"] = json!(LODS);
+    body["tiles"] = json!({ "count": [3, 2] });
+    let request = out.with_extension("json");
+    std::fs::write(&request, body.to_string()).unwrap();
+    let status = Command::new(env!("CARGO_BIN_EXE_landform"))
+        .args(["run", request.to_str().unwrap(), "--kind", "bulldoze", "--out", out.to_str().unwrap()])
+        .stdout(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success(), "hillside-road in form {form}");
+    let job: Value = serde_json::from_slice(&std::fs::read(out.join("job.json")).unwrap()).unwrap();
+    job["result"].clone()
+}
+
+/// One vertex as the file stores it: the bytes of each of its attributes, position first.
+type Stored = Vec<Vec<u8>>;
+
+/// A glb's one mesh as stored: the node's transform (bits), its vertices and its triangles.
+struct Read {
+    transform: Vec<u32>,
+    vertices: Vec<Stored>,
+    /// Each vertex's position in metres (the node's transform applied), for finding edges.
+    metres: Vec<[f64; 3]>,
+    triangles: Vec<[u32; 3]>,
+}
+
+fn read(path: &Path) -> Read {
+    let bytes = std::fs::read(path).unwrap();
+    let gltf = gltf::Gltf::from_slice_without_validation(&bytes).expect("glb parses");
+    let blob = gltf.blob.as_deref().expect("a BIN chunk");
+    let node = gltf.nodes().find(|n| n.mesh().is_some()).expect("a node with a mesh");
+    let (translation, _, scale) = node.transform().decomposed();
+    let prim = node.mesh().unwrap().primitives().next().unwrap();
+    let raw = |accessor: gltf::Accessor| -> Vec<Vec<u8>> {
+        let view = accessor.view().expect("a buffer view");
+        let size = accessor.size();
+        let stride = view.stride().unwrap_or(size);
+        let start = view.offset() + accessor.offset();
+        (0..accessor.count()).map(|i| blob[start + i * stride..start + i * stride + size].to_vec()).collect()
+    };
+    let mut attributes: Vec<(String, gltf::Accessor)> =
+        prim.attributes().map(|(semantic, a)| (semantic.to_string(), a)).collect();
+    attributes.sort_by_key(|(s, _)| if s == "POSITION" { String::new() } else { s.clone() });
+    let position = attributes[0].1.clone();
+    let columns: Vec<Vec<Vec<u8>>> = attributes.into_iter().map(|(_, a)| raw(a)).collect();
+    let n = columns[0].len();
+    let vertices: Vec<Stored> = (0..n).map(|i| columns.iter().map(|c| c[i].clone()).collect()).collect();
+    let metres = columns[0]
+        .iter()
+        .map(|p| {
+            let q: [f64; 3] = match position.data_type() {
+                gltf::accessor::DataType::F32 => {
+                    std::array::from_fn(|k| f64::from(f32::from_le_bytes(p[4 * k..4 * k + 4].try_into().unwrap())))
+                }
+                gltf::accessor::DataType::U16 => {
+                    std::array::from_fn(|k| f64::from(u16::from_le_bytes(p[2 * k..2 * k + 2].try_into().unwrap())))
+                }
+                other => panic!("positions as {other:?}"),
+            };
+            std::array::from_fn(|k| f64::from(translation[k]) + f64::from(scale[k]) * q[k])
+        })
+        .collect();
+    let indices: Vec<u32> = prim.reader(|_| Some(blob)).read_indices().unwrap().into_u32().collect();
+    let transform = translation.iter().chain(&scale).map(|v| v.to_bits()).collect();
+    Read { transform, vertices, metres, triangles: indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect() }
+}
+
+/// The stored vertices of `tile` on the side where coordinate `axis` is lowest or highest.
+fn side(tile: &Read, axis: usize, highest: bool) -> BTreeSet<Stored> {
+    let values = tile.metres.iter().map(|p| p[axis]);
+    let edge = if highest { values.fold(f64::MIN, f64::max) } else { values.fold(f64::MAX, f64::min) };
+    tile.vertices.iter().zip(&tile.metres).filter(|(_, p)| p[axis] == edge).map(|(v, _)| v.clone()).collect()
+}
+
+/// Every triangle as its corners' stored positions, starting from the least, in turn.
+fn triangle_set(mesh: &Read) -> BTreeMap<[Vec<u8>; 3], usize> {
+    let mut out = BTreeMap::new();
+    for t in &mesh.triangles {
+        let corners = t.map(|i| mesh.vertices[i as usize][0].clone());
+        let first = (0..3).min_by_key(|&k| corners[k].clone()).unwrap();
+        let turned = std::array::from_fn(|k| corners[(first + k) % 3].clone());
+        *out.entry(turned).or_insert(0) += 1;
+    }
+    out
+}
+
+fn check_form(form: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join(form);
+    let result = run(form, &out);
+    let tiles = &result["tiles"];
+    assert_eq!(tiles["count"], json!([3, 2]), "{tiles}");
+    let index: Value = serde_json::from_slice(&std::fs::read(out.join("tiles/index.json")).unwrap()).unwrap();
+    // The same figures (one may write 0 where the other writes 0.0).
+    let numbers = |v: &Value| -> Vec<Vec<f64>> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|l| l.as_object().unwrap().values().map(|n| n.as_f64().unwrap()).collect())
+            .collect()
+    };
+    assert_eq!(numbers(&index["levels"]), numbers(&tiles["levels"]));
+    assert_eq!(index["form"], form);
+    let levels = index["levels"].as_array().unwrap();
+    assert_eq!(levels.len(), 1 + LODS.len());
+    for level in levels {
+        let (bound, worst) = (level["error_bound_m"].as_f64().unwrap(), level["max_deviation_m"].as_f64().unwrap());
+        assert!(worst <= bound, "{form}: level {level}");
+    }
+    let entries = index["tiles"].as_array().unwrap();
+    assert_eq!(entries.len(), 6);
+    // tiles[level][(x, z)]
+    let mut by_level: Vec<BTreeMap<(u64, u64), Read>> = (0..levels.len()).map(|_| BTreeMap::new()).collect();
+    let mut transform = None;
+    for entry in entries {
+        let place = (entry["x"].as_u64().unwrap(), entry["z"].as_u64().unwrap());
+        for (level, figures) in entry["levels"].as_array().unwrap().iter().enumerate() {
+            let file = out.join(figures["file"].as_str().unwrap());
+            assert_eq!(figures["file"], format!("tiles/{level}/{}_{}.glb", place.0, place.1));
+            let report = validate_glb(&std::fs::read(&file).unwrap());
+            assert_eq!(report.errors, 0, "{form} {file:?}: {}", report.summary());
+            if form == "meshopt" {
+                // The glTF crate does not decode compressed views: three.js does, below.
+                continue;
+            }
+            let tile = read(&file);
+            assert_eq!(tile.vertices.len() as u64, figures["vertices"].as_u64().unwrap(), "{file:?}");
+            assert_eq!(tile.triangles.len() as u64, figures["triangles"].as_u64().unwrap(), "{file:?}");
+            // One frame for every tile: shared bytes decode to the same floats.
+            assert_eq!(*transform.get_or_insert(tile.transform.clone()), tile.transform, "{file:?}");
+            by_level[level].insert(place, tile);
+        }
+    }
+    if form == "meshopt" {
+        check_in_three(&out, entries);
+        return;
+    }
+    for (level, tiles) in by_level.iter().enumerate() {
+        for (&(x, z), tile) in tiles {
+            // X runs along the columns (axis 0), Z along the rows (axis 2).
+            for (axis, neighbour) in [(0, (x + 1, z)), (2, (x, z + 1))] {
+                let Some(other) = tiles.get(&neighbour) else { continue };
+                let (mine, theirs) = (side(tile, axis, true), side(other, axis, false));
+                assert!(mine.len() > 2, "{form} level {level} tile {x}_{z}: an edge of {} vertices", mine.len());
+                assert_eq!(mine, theirs, "{form} level {level}: tiles {x}_{z} and {neighbour:?} differ on their edge");
+                let full = side(&by_level[0][&(x, z)], axis, true);
+                assert_eq!(mine, full, "{form} level {level} tile {x}_{z}: the edge lost vertices");
+            }
+        }
+        if level + 1 < by_level.len() {
+            let count = |l: &BTreeMap<_, Read>| l.values().map(|t| t.triangles.len()).sum::<usize>();
+            assert!(count(&by_level[level + 1]) <= count(tiles), "{form}: level {} has more triangles", level + 1);
+        }
+    }
+    // Level 0 reassembles into mesh.glb: the same triangles, each once.
+    let whole = triangle_set(&read(&out.join("mesh.glb")));
+    let mut together = BTreeMap::new();
+    for tile in by_level[0].values() {
+        for (t, n) in triangle_set(tile) {
+            *together.entry(t).or_insert(0) += n;
+        }
+    }
+    assert_eq!(together.len(), whole.len(), "{form}: triangles of the tiles against mesh.glb's");
+    assert!(together == whole, "{form}: the tiles at level 0 are not mesh.glb's mesh");
+}
+
+/// three.js (with `MeshoptDecoder`) builds from every tile file the counts the index states.
+fn check_in_three(out: &Path, entries: &[Value]) {
+    let levels = |e: &Value| e["levels"].as_array().unwrap().clone();
+    let files: Vec<PathBuf> =
+        entries.iter().flat_map(|e| levels(e).into_iter().map(|l| out.join(l["file"].as_str().unwrap()))).collect();
+    let expected: Vec<(u64, u64)> = entries
+        .iter()
+        .flat_map(|e| {
+            levels(e).into_iter().map(|l| (l["vertices"].as_u64().unwrap(), l["triangles"].as_u64().unwrap()))
+        })
+        .collect();
+    assert_eq!(three_counts(&files), expected, "three.js's counts against the index");
+}
+
+/// Vertices and triangles three.js builds from each file.
+fn three_counts(files: &[PathBuf]) -> Vec<(u64, u64)> {
+    let dir = repo().join("tests").join("gltf-validator");
+    let output = Command::new("node")
+        .arg(dir.join("load_three.mjs"))
+        .args(files)
+        .current_dir(&dir)
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run `node` ({e}); install Node.js 18 or later"));
+    assert!(output.status.success(), "three.js failed:\n{}", String::from_utf8_lossy(&output.stderr));
+    String::from_utf8(output.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let v: Value = serde_json::from_str(l).unwrap();
+            let meshes = v["meshes"].as_array().unwrap();
+            let sum = |key: &str| meshes.iter().map(|m| m[key].as_u64().unwrap()).sum::<u64>();
+            (sum("vertices"), sum("triangles"))
+        })
+        .collect()
+}
+
+#[test]
+fn float_tiles_meet_and_reassemble() {
+    check_form("none");
+}
+
+#[test]
+fn quantized_tiles_meet_and_reassemble() {
+    check_form("quantize");
+}
+
+/// The compressed form holds the quantised form's data (the edges are checked there).
+#[test]
+fn compressed_tiles_load_in_three_js() {
+    check_form("meshopt");
+}
+
+/// The service serves every tile under its folder name, with the sha256 the job lists, and the
+/// index names the files the job has.
+#[tokio::test]
+async fn the_service_serves_tiles_by_their_folder_names() {
+    use sha2::Digest;
+    let server = common::server::TestServer::start().await;
+    let mut body = common::bodies::small_bulldoze();
+    body["tiles"] = json!({ "count": [2, 2] });
+    body["lods"] = json!([0.01]);
+    let job = server.run("bulldoze", &body).await;
+    assert_eq!(job["status"], "succeeded", "{job}");
+    let listed: BTreeMap<String, String> = common::server::artifact_hashes(&job).into_iter().collect();
+    let index: Value =
+        serde_json::from_slice(&server.artifact(job["id"].as_str().unwrap(), "tiles/index.json").await).unwrap();
+    let files: Vec<&str> = index["tiles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|t| t["levels"].as_array().unwrap().iter().map(|l| l["file"].as_str().unwrap()))
+        .collect();
+    assert_eq!(files.len(), 2 * 2 * 2);
+    for file in files {
+        let bytes = server.artifact(job["id"].as_str().unwrap(), file).await;
+        assert_eq!(Some(&format!("{:x}", sha2::Sha256::digest(&bytes))), listed.get(file), "{file}");
+    }
+}
