@@ -301,3 +301,24 @@ fn seeds_change_the_noise_and_the_rock() {
     let b = WeatherColumn::run(&goblin(20, "synchronized"), 2, &t.ctx()).unwrap();
     assert_ne!(a.sequence.removal_steps, b.sequence.removal_steps);
 }
+
+#[test]
+fn a_large_grids_snapshot_sees_blocks_and_keeps_a_one_voxel_spire() {
+    use super::grid::{Grid, NEVER_ROCK};
+    let grid = Grid { nx: 120, ny: 200, nz: 120, voxel_size_m: 0.1, floating: true };
+    // 2.88 M voxels: blocks of 2³ (60 × 100 × 60 = 360 000).
+    assert_eq!(outputs::snapshot_block(&grid), 2);
+    assert_eq!(outputs::snapshot_block(&Grid { nx: 160, ny: 400, nz: 160, ..grid }), 3);
+    assert_eq!(outputs::snapshot_block(&Grid { nx: 64, ny: 64, nz: 64, ..grid }), 1);
+    let empty = vec![NEVER_ROCK; grid.len()];
+    let mut spire = empty.clone();
+    for y in 0..grid.ny {
+        spire[grid.index(61, y, 61)] = ROCK;
+    }
+    let picture = |state: &[u16]| outputs::snapshot_png(&grid, state, Stop::NEVER).expect("renders");
+    let (info, nothing) = crate::export::test_png::decode(&picture(&empty));
+    let (_, something) = crate::export::test_png::decode(&picture(&spire));
+    assert_eq!((info.width, info.height), (256, 192));
+    let differ = nothing.chunks(3).zip(something.chunks(3)).filter(|(a, b)| a != b).count();
+    assert!(differ > 100, "the one-voxel spire shows in the snapshot: {differ} pixels differ");
+}
