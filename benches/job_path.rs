@@ -4,7 +4,8 @@
 //! - **alone**: the kind's `run` with a sink that drops progress and never asks for a snapshot
 //!   (the algorithm and its output files);
 //! - **live**: the same with a sink that takes progress and renders a live snapshot whenever
-//!   the service would (the first at once, then one a second), keeping the PNGs;
+//!   the service would (the first a quarter second into the steps, then one a second),
+//!   keeping the PNGs;
 //! - **service**: the whole path — the engine on an embedded SQLite store in a temporary
 //!   folder: submission, queue, the job's thread, progress events and snapshots stored and
 //!   broadcast, artifacts written to the database — from submission until the job is done.
@@ -28,8 +29,10 @@ use landform::validate::Limits;
 #[path = "support/mod.rs"]
 mod support;
 
-/// A sink that renders snapshots at the service's rate and keeps them.
+/// A sink that renders snapshots at the service's rate and keeps them: the first a quarter
+/// second into the steps, then one a second (as `jobs::live`'s throttle).
 struct LiveSink {
+    first: Mutex<Option<Instant>>,
     last: Mutex<Option<Instant>>,
     progress: AtomicUsize,
     snapshots: Mutex<Vec<Vec<u8>>>,
@@ -41,7 +44,10 @@ impl ProgressSink for LiveSink {
         self.progress.fetch_add(1, Ordering::Relaxed);
     }
     fn snapshot_due(&self) -> bool {
-        self.last.lock().is_none_or(|at| at.elapsed() >= Duration::from_secs(1))
+        match *self.last.lock() {
+            Some(at) => at.elapsed() >= Duration::from_secs(1),
+            None => self.first.lock().get_or_insert_with(Instant::now).elapsed() >= Duration::from_millis(250),
+        }
     }
     fn snapshot(&self, png: Vec<u8>, progress: Progress) {
         *self.last.lock() = Some(Instant::now());
@@ -122,7 +128,12 @@ fn alone(kind: &dyn JobKind, params: &Value, seed: u64, limits: &Limits) -> f64 
 /// Seconds, progress calls and snapshots.
 fn live(kind: &dyn JobKind, params: &Value, seed: u64, limits: &Limits) -> (f64, usize, usize) {
     let cancel = AtomicBool::new(false);
-    let sink = LiveSink { last: Mutex::new(None), progress: AtomicUsize::new(0), snapshots: Mutex::new(Vec::new()) };
+    let sink = LiveSink {
+        first: Mutex::new(None),
+        last: Mutex::new(None),
+        progress: AtomicUsize::new(0),
+        snapshots: Mutex::new(Vec::new()),
+    };
     let ctx =
         RunContext { cancel: &cancel, sink: &sink, terrain: &support::NoStore, limits, mesh: MeshSettings::default() };
     let started = Instant::now();

@@ -174,8 +174,16 @@ async fn events_resume_after_last_event_id_and_live_png_shows_the_run() {
     let first = read_events(&server.client, &url, None, 3).await;
     assert_eq!(first.len(), 3);
     let last = first.last().unwrap().id.unwrap();
-    let png = server.client.get(server.url(&format!("/v1/jobs/{id}/live.png"))).send().await.unwrap();
-    assert_eq!(png.status(), 200, "a live snapshot is there once progress flows");
+    // The first snapshot comes a quarter second into the steps.
+    let started = std::time::Instant::now();
+    let png = loop {
+        let png = server.client.get(server.url(&format!("/v1/jobs/{id}/live.png"))).send().await.unwrap();
+        if png.status() == 200 || started.elapsed() > std::time::Duration::from_secs(60) {
+            break png;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+    };
+    assert_eq!(png.status(), 200, "a live snapshot is there once the job has run a while");
     assert_eq!(png.headers()["content-type"], "image/png");
     let rest = read_events(&server.client, &url, Some(last), 100_000).await;
     assert!(rest.iter().all(|e| e.id.unwrap() > last), "only what was missed");

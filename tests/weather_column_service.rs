@@ -37,6 +37,34 @@ fn png_size(bytes: &[u8]) -> (u32, u32) {
     (reader.info().width, reader.info().height)
 }
 
+/// Weathering long enough for live snapshots (the first comes a quarter second into the steps):
+/// a 2.3 M-voxel column for 150 steps, about a second in the test profile. A snapshot shows the
+/// rock as it is (once the job ends, live.png is the final preview).
+#[tokio::test]
+async fn a_long_weathering_publishes_live_snapshots() {
+    let server = TestServer::start().await;
+    let body = json!({
+        "seed": 4,
+        "grid": {"x": 120, "y": 160, "z": 120},
+        "voxel_size_m": 0.1,
+        "column": {"profile": {"cylinder": {"radius_m": 5.5}}},
+        "layers": [{"top_m": 20, "resistance": 1.0, "bubble": {"sphere": {"radius": 3}}}],
+        "rate": 0.3,
+        "steps": 150
+    });
+    let id = server.submit("weather-column", &body).await["id"].as_str().unwrap().to_string();
+    let events =
+        common::sse::read_events(&server.client, &server.url(&format!("/v1/jobs/{id}/events")), None, 100_000).await;
+    assert_eq!(events.last().unwrap().event, "done");
+    let snapshot = events
+        .iter()
+        .find_map(|e| (e.event == "progress").then(|| e.data["snapshot"].as_str()).flatten())
+        .expect("a progress event announces a live snapshot");
+    let live = server.client.get(server.url(snapshot)).send().await.unwrap();
+    assert_eq!(live.status(), 200);
+    assert!(png_size(&live.bytes().await.unwrap()).0 >= 256);
+}
+
 #[tokio::test]
 async fn a_goblin_weathers_streams_and_replays_to_the_same_bytes() {
     let server = TestServer::start().await;
@@ -50,12 +78,6 @@ async fn a_goblin_weathers_streams_and_replays_to_the_same_bytes() {
         progress.iter().any(|p| p["stage"] == "weathering" && p["message"].as_str().unwrap().contains("active voxels")),
         "{progress:?}"
     );
-    // The first step publishes a live snapshot of the rock (once the job ends, live.png is the
-    // final preview).
-    let snapshot = progress.iter().find_map(|p| p["snapshot"].as_str()).expect("a progress event announces a snapshot");
-    let live = server.client.get(server.url(snapshot)).send().await.unwrap();
-    assert_eq!(live.status(), 200);
-    assert!(png_size(&live.bytes().await.unwrap()).0 >= 256);
     let job = server.wait_done(&id).await;
     assert_eq!(job["status"], "succeeded", "{job}");
     let result = &job["result"];

@@ -88,7 +88,7 @@ fn locked_vertices(mesh: &Mesh) -> Vec<bool> {
 }
 
 /// The triangles `indices` of `mesh` with only the vertices they use, kept in their order.
-fn compact(mesh: &Mesh, indices: &[u32]) -> Mesh {
+pub(super) fn compact(mesh: &Mesh, indices: &[u32]) -> Mesh {
     let mut new_index = vec![u32::MAX; mesh.vertex_count()];
     for &i in indices {
         new_index[i as usize] = 0;

@@ -9,6 +9,7 @@ mod heightfield_mesh;
 mod isosurface;
 mod lod;
 mod normals;
+mod rtin;
 mod smooth;
 mod types;
 
@@ -19,5 +20,6 @@ pub use heightfield_mesh::{heightfield_mesh, mesh_stride, HeightfieldMesh, Verte
 pub use isosurface::{extract_isosurface, ScalarField, MIN_CROSSING};
 pub use lod::{sample_spacing, simplify_within, Lod};
 pub use normals::recompute_normals;
+pub use rtin::Rtin;
 pub use smooth::{smooth, Smoothing};
 pub use types::{MaterialKind, Mesh, Scene, SceneNode};

@@ -4,7 +4,8 @@
 use crate::export::MeshSettings;
 use std::sync::atomic::AtomicBool;
 
-use crate::jobs::{RunContext, SilentProgress};
+use crate::jobs::{ProgressSink, RunContext, SilentProgress};
+use crate::model::Progress;
 use crate::terrain::{Heightfield, TerrainLookup, TerrainSource};
 use crate::validate::Limits;
 
@@ -33,13 +34,33 @@ impl TestContext {
     }
 
     pub fn ctx(&self) -> RunContext<'_> {
+        self.ctx_reporting_to(&SilentProgress)
+    }
+
+    /// The context with progress and snapshots going to `sink`.
+    pub fn ctx_reporting_to<'a>(&'a self, sink: &'a dyn ProgressSink) -> RunContext<'a> {
         RunContext {
             cancel: &self.cancel,
-            sink: &SilentProgress,
+            sink,
             terrain: &self.terrain,
             limits: &self.limits,
             mesh: MeshSettings::default(),
         }
+    }
+}
+
+/// A sink that wants a live snapshot at every step and keeps them, so a kind's snapshots can be
+/// tested however quickly it runs (the service's sink takes the first after a quarter second).
+#[derive(Default)]
+pub struct EverySnapshot(pub std::sync::Mutex<Vec<Vec<u8>>>);
+
+impl ProgressSink for EverySnapshot {
+    fn progress(&self, _progress: Progress) {}
+    fn snapshot_due(&self) -> bool {
+        true
+    }
+    fn snapshot(&self, png: Vec<u8>, _progress: Progress) {
+        self.0.lock().expect("not poisoned").push(png);
     }
 }
 

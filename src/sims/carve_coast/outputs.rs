@@ -115,6 +115,74 @@ fn coastline_bounds(mesh: &Mesh, sea_level: f32, voxel_m: f32) -> Option<([f32; 
     Some((lo, hi))
 }
 
+/// A box by its lowest and highest corner, metres.
+type Box3 = ([f32; 3], [f32; 3]);
+
+/// Vertices whose normal points this far down (its y) face the water from beneath an overhang.
+const UNDERSIDE_NORMAL_Y: f32 = -0.3;
+/// The close-up's window is this share of the land's footprint on a side (at least
+/// [`CLOSE_UP_MIN_VOXELS`]), low enough to look into the caves.
+const CLOSE_UP_SHARE: f32 = 1.0 / 3.0;
+const CLOSE_UP_MIN_VOXELS: f32 = 24.0;
+const CLOSE_UP_ELEVATION_DEG: f32 = 14.0;
+/// The close-up frames land up to this share of its window's side above the sea.
+const CLOSE_UP_MAX_HEIGHT_SHARE: f32 = 0.5;
+
+/// The preview's view of the coast where the waves carved most: a window of a third of the
+/// land's footprint around the densest cluster of overhang undersides (vertices above the sea
+/// whose normals point down), seen low from the sea, looking inland (away from the land's
+/// centre through the window). From there a person sees the overhangs and the sea caves'
+/// mouths rather than the island's top. `None` when nothing overhangs: the whole coastline
+/// is framed instead.
+fn close_up(mesh: &Mesh, sea_level: f32, voxel_m: f32) -> Option<(View, Box3)> {
+    let floor = sea_level + 0.5 * voxel_m;
+    let land: Vec<[f32; 3]> = mesh.positions.iter().copied().filter(|p| p[1] >= floor).collect();
+    let under: Vec<[f32; 3]> = mesh
+        .positions
+        .iter()
+        .zip(&mesh.normals)
+        .filter(|(p, n)| p[1] >= floor && n[1] < UNDERSIDE_NORMAL_Y)
+        .map(|(p, _)| *p)
+        .collect();
+    if under.is_empty() {
+        return None;
+    }
+    let (lo, hi) = land.iter().fold(([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]), |(lo, hi), p| {
+        ([lo[0].min(p[0]), lo[1].min(p[2])], [hi[0].max(p[0]), hi[1].max(p[2])])
+    });
+    let side = ((hi[0] - lo[0]).max(hi[1] - lo[1]) * CLOSE_UP_SHARE).max(CLOSE_UP_MIN_VOXELS * voxel_m);
+    // Undersides binned by window-sized cells; the fullest cell (first in row order on a tie).
+    let cells = [((hi[0] - lo[0]) / side).floor() as usize + 1, ((hi[1] - lo[1]) / side).floor() as usize + 1];
+    let cell_of = |p: &[f32; 3]| {
+        let c = |k: usize, v: f32| (((v - lo[k]) / side).floor().max(0.0) as usize).min(cells[k] - 1);
+        c(1, p[2]) * cells[0] + c(0, p[0])
+    };
+    let mut counts = vec![0usize; cells[0] * cells[1]];
+    for p in &under {
+        counts[cell_of(p)] += 1;
+    }
+    let best = (0..counts.len()).max_by_key(|&i| (counts[i], std::cmp::Reverse(i)))?;
+    let chosen: Vec<&[f32; 3]> = under.iter().filter(|p| cell_of(p) == best).collect();
+    let mean = |k: usize| chosen.iter().map(|p| f64::from(p[k])).sum::<f64>() / chosen.len() as f64;
+    let centre = [mean(0) as f32, mean(2) as f32];
+    let half = 0.5 * side;
+    let (wlo, whi) = ([centre[0] - half, centre[1] - half], [centre[0] + half, centre[1] + half]);
+    let top = land
+        .iter()
+        .filter(|p| (wlo[0]..=whi[0]).contains(&p[0]) && (wlo[1]..=whi[1]).contains(&p[2]))
+        .map(|p| p[1])
+        .fold(floor, f32::max)
+        // Higher ground is cut off by the picture's top: the shore fills the frame.
+        .min(sea_level + CLOSE_UP_MAX_HEIGHT_SHARE * side);
+    // Looking inland: the camera stands out to sea, beyond the window from the land's centre.
+    let land_centre = [0, 2].map(|k| (land.iter().map(|p| f64::from(p[k])).sum::<f64>() / land.len() as f64) as f32);
+    let out = [centre[0] - land_centre[0], centre[1] - land_centre[1]];
+    let azimuth_deg =
+        if out[0].hypot(out[1]) > voxel_m { out[0].atan2(out[1]).to_degrees() } else { PREVIEW.azimuth_deg };
+    let view = View { azimuth_deg, elevation_deg: CLOSE_UP_ELEVATION_DEG, ..PREVIEW };
+    Some((view, ([wlo[0], sea_level, wlo[1]], [whi[0], top, whi[1]])))
+}
+
 fn sea_plane(hf: &Heightfield, sea_level: f32) -> Mesh {
     let (w, d) = (hf.width_m(), hf.depth_m());
     Mesh {
@@ -213,7 +281,10 @@ pub fn build(
             *n += 1;
         }
     }
-    let focus = coastline_bounds(&mesh, params.sea_level, voxel_m);
+    let (view, focus) = match close_up(&mesh, params.sea_level, voxel_m) {
+        Some((view, focus)) => (view, Some(focus)),
+        None => (PREVIEW, coastline_bounds(&mesh, params.sea_level, voxel_m)),
+    };
     let scene = Scene {
         nodes: vec![
             SceneNode::new("terrain", mesh, MaterialKind::VertexColors),
@@ -221,7 +292,7 @@ pub fn build(
         ],
     };
     let (((glbs, glb_figures), preview), (heightmap, npy)) = rayon::join(
-        || rayon::join(|| mesh_glbs(&scene, mesh_settings), || render_png_framed(&scene, &PREVIEW, focus, stop)),
+        || rayon::join(|| mesh_glbs(&scene, mesh_settings), || render_png_framed(&scene, &view, focus, stop)),
         || rayon::join(|| heightmap_png16(&top), || heightfield_npy(&top)),
     );
     let preview = preview?;
@@ -264,5 +335,37 @@ mod framing_tests {
         // Footprint 20 m: a tenth is 2 m, under 3 voxels, so 3 m each side; down to the sea.
         assert_eq!(coastline_bounds(&mesh, 2.0, 1.0), Some(([7.0, 2.0, 17.0], [33.0, 5.0, 28.0])));
         assert_eq!(coastline_bounds(&mesh, 6.0, 1.0), None);
+        // Nothing faces down: no close-up.
+        assert!(close_up(&mesh, 2.0, 1.0).is_none());
+    }
+
+    #[test]
+    fn the_close_up_looks_inland_at_the_densest_overhangs() {
+        // Land from x 0–100, z 0–100 at 10 m; undersides (normals down) at 5 m: three near
+        // (90, 50) on the east shore, one at (10, 10).
+        let mut positions = vec![[0.0, 10.0, 0.0], [100.0, 10.0, 0.0], [0.0, 10.0, 100.0], [100.0, 10.0, 100.0]];
+        let mut normals = vec![[0.0, 1.0, 0.0]; 4];
+        for p in [[88.0, 5.0, 48.0], [92.0, 5.0, 52.0], [90.0, 6.0, 50.0], [10.0, 5.0, 10.0]] {
+            positions.push(p);
+            normals.push([1.0, -0.7, 0.0]);
+        }
+        let n = positions.len();
+        let mesh = Mesh { positions, normals, uvs: vec![[0.0; 2]; n], ..Mesh::default() };
+        let (view, (lo, hi)) = close_up(&mesh, 0.0, 1.0).expect("a close-up");
+        // A third of 100 m: windows of 33.3 m; the undersides' mean is (90, 50).
+        let side = 100.0 / 3.0;
+        for (got, want) in [
+            (lo[0], 90.0 - side / 2.0),
+            (hi[0], 90.0 + side / 2.0),
+            (lo[2], 50.0 - side / 2.0),
+            (hi[2], 50.0 + side / 2.0),
+        ] {
+            assert!((got - want).abs() < 1e-3, "{lo:?} {hi:?}");
+        }
+        assert_eq!((lo[1], hi[1]), (0.0, 6.0), "from the sea to the window's highest land");
+        // The land's vertices average (60, 45): out to sea is (30, 5) from there, so the
+        // camera stands east-south-east (azimuth atan2(30, 5) ≈ 80.5°) and looks inland.
+        assert!((view.azimuth_deg - 30f32.atan2(5.0).to_degrees()).abs() < 1e-3, "{}", view.azimuth_deg);
+        assert_eq!(view.elevation_deg, CLOSE_UP_ELEVATION_DEG);
     }
 }

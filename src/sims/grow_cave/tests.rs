@@ -271,3 +271,16 @@ fn one_and_two_threads_give_identical_artifacts() {
     assert_eq!(bytes(&one), bytes(&two));
     assert_eq!(one.result, two.result);
 }
+
+#[test]
+fn each_pass_can_publish_a_live_snapshot_of_the_cave() {
+    use crate::jobs::Simulation;
+    let p = random_cave(12, 30);
+    let test = TestContext::new(Heightfield::from_fn(2, 2, 1.0, |_, _| 0.0));
+    let sink = crate::sims::test_support::EverySnapshot::default();
+    let out = GrowCave::run(&p, 3, &test.ctx_reporting_to(&sink)).expect("grows");
+    let snapshots = sink.0.into_inner().unwrap();
+    assert_eq!(snapshots.len() as u64, out.sequence.passes as u64, "one per pass");
+    let (info, _) = crate::export::test_png::decode(snapshots.last().unwrap());
+    assert_eq!((info.width, info.height), (256, 192));
+}
