@@ -1,15 +1,17 @@
 //! Binary glTF 2.0 (`.glb`) from a [`Scene`]: the mesh format every kind delivers.
 //!
 //! glTF is Y-up, right-handed, in metres, counter-clockwise front faces: our conventions. One
-//! buffer holds, per node, separate (non-interleaved) position, normal, texcoord, optional colour
-//! and index views, each starting on a 4-byte boundary. Indices are u16 while every index fits
+//! buffer holds one view per kind of array (positions, normals, texcoords, colours, indices of
+//! each width), every node's array one after another in it (as gltfpack lays a scene out), each
+//! view starting on a 4-byte boundary. Indices are u16 while every index fits
 //! below the primitive-restart value 65535, else u32. Output bytes depend only on the scene and
 //! the form:
 //!
 //! - [`GlbForm::None`]: f32 positions (as they are), normals and texcoords.
 //! - [`GlbForm::Quantize`] (`KHR_mesh_quantization`, declared used and required): positions as
-//!   unsigned 16-bit steps from the mesh's lowest corner, one step (the longest side of its
-//!   bounding box ÷ 65535) on every axis, which the node's `translation` and uniform `scale`
+//!   unsigned 16-bit steps from the scene's lowest corner, one step (the longest side of the
+//!   box around every node ÷ 65535; one grid for all nodes) on every axis, which each node's
+//!   `translation` and uniform `scale`
 //!   turn back into metres (the same step on every axis keeps normals right under the node's
 //!   transform; the error is at most half a step); normals as normalised signed bytes;
 //!   texcoords as normalised unsigned 16-bit when they lie in [0, 1], else f32. Every importer
@@ -73,7 +75,7 @@ impl GlbForm {
 const QUANTIZATION: &str = "KHR_mesh_quantization";
 const MESHOPT: &str = "EXT_meshopt_compression";
 /// Bits per position coordinate in the meshopt form (gltfpack's default): an error of at most
-/// half of the mesh's longest side ÷ 16383.
+/// half of the scene's longest side ÷ 16383.
 const MESHOPT_POSITION_BITS: u32 = 14;
 
 /// A mesh's quantisation: positions are `origin + q × step` for q in 0..=`top`.
@@ -113,11 +115,24 @@ impl Quantized {
 /// If a mesh fails [`Mesh::check`] (mismatched arrays or out-of-range indices) or the file
 /// would exceed glb's 4 GiB limit: both are bugs in the caller.
 pub fn write_glb(scene: &Scene, form: GlbForm) -> Vec<u8> {
-    write_glb_in_frame(scene, form, None)
+    write_glb_in_frame(scene, form, scene_bounds(scene))
+}
+
+/// The box around every node's vertices, if any. Quantised in it, all nodes share one grid of
+/// steps (as gltfpack quantises a scene): a small node gets the whole scene's precision rather
+/// than finer steps nobody sees, which compress worse (grow-cave's many speleothems: 17 % more
+/// position bytes each in a frame of its own).
+fn scene_bounds(scene: &Scene) -> Option<([f32; 3], [f32; 3])> {
+    scene
+        .nodes
+        .iter()
+        .filter(|n| n.mesh.triangle_count() > 0)
+        .filter_map(|n| n.mesh.bounds())
+        .reduce(|(lo, hi), (l, h)| (std::array::from_fn(|k| lo[k].min(l[k])), std::array::from_fn(|k| hi[k].max(h[k]))))
 }
 
 /// [`write_glb`], quantising every node in one frame, the box `(lowest, highest corner)`,
-/// which must hold every vertex, rather than each node in its own box. Meshes written in one
+/// which must hold every vertex (`None`: each node in its own box). Meshes written in one
 /// frame decode a position they share to the same floats: the tiles of a terrain meet exactly.
 pub fn write_glb_in_frame(scene: &Scene, form: GlbForm, frame: Option<([f32; 3], [f32; 3])>) -> Vec<u8> {
     let mut root = json::Root {
@@ -125,22 +140,41 @@ pub fn write_glb_in_frame(scene: &Scene, form: GlbForm, frame: Option<([f32; 3],
         ..Default::default()
     };
     let mut materials: Vec<(MaterialKind, bool)> = Vec::new();
-    let mut layouts = Vec::new();
-    let mut views = Vec::new();
-    let mut offset = 0usize;
-
-    let mut node_indices = Vec::with_capacity(scene.nodes.len());
+    // First every mesh's place in the shared views, then the views, then the JSON per node.
+    let mut groups: Vec<Group> = Vec::new();
+    let mut layouts: Vec<Option<Layout>> = Vec::with_capacity(scene.nodes.len());
     for node in &scene.nodes {
         let mesh = &node.mesh;
         if let Err(e) = mesh.check() {
             panic!("mesh of node {:?} is malformed: {e}", node.name);
         }
-        let mut gltf_node = json::Node { name: Some(node.name.clone()), ..Default::default() };
         // glTF forbids empty accessors, so a node without triangles carries no mesh.
-        if mesh.triangle_count() > 0 {
+        layouts.push((mesh.triangle_count() > 0).then(|| {
             let bounds = mesh.bounds().expect("a mesh with triangles has vertices");
             let quantized = form.quantizes().then(|| Quantized::of(mesh, frame.unwrap_or(bounds), form));
-            if let Some(q) = &quantized {
+            Layout::new(mesh, bounds, quantized, &mut groups)
+        }));
+    }
+    let len = place_groups(&mut groups);
+    let oct_normals = form == GlbForm::Meshopt;
+    let view_indices: Vec<json::Index<json::buffer::View>> = groups.iter().map(|g| push_view(&mut root, g)).collect();
+    let views: Vec<ViewData> = groups
+        .iter()
+        .map(|g| ViewData {
+            offset: g.offset,
+            stride: g.stride,
+            count: g.count,
+            indices: g.slot == Slot::Indices,
+            filter: (oct_normals && g.slot == Slot::Normals).then_some("OCTAHEDRAL"),
+        })
+        .collect();
+
+    let mut node_indices = Vec::with_capacity(scene.nodes.len());
+    for (node, layout) in scene.nodes.iter().zip(&layouts) {
+        let mesh = &node.mesh;
+        let mut gltf_node = json::Node { name: Some(node.name.clone()), ..Default::default() };
+        if let Some(layout) = layout {
+            if let Some(q) = &layout.quantized {
                 gltf_node.translation = Some(q.origin);
                 gltf_node.scale = Some([q.step; 3]);
                 if root.extensions_used.is_empty() {
@@ -148,7 +182,6 @@ pub fn write_glb_in_frame(scene: &Scene, form: GlbForm, frame: Option<([f32; 3],
                     root.extensions_required.push(QUANTIZATION.into());
                 }
             }
-            let layout = Layout::new(mesh, bounds, quantized, &mut offset);
             let key = (node.material, mesh.colors.is_some());
             let material = match materials.iter().position(|m| *m == key) {
                 Some(i) => json::Index::new(i as u32),
@@ -157,7 +190,7 @@ pub fn write_glb_in_frame(scene: &Scene, form: GlbForm, frame: Option<([f32; 3],
                     root.push(pbr_material(key.0, key.1))
                 }
             };
-            let primitive = layout.push_json(&mut root, &mut views, mesh, material);
+            let primitive = layout.push_json(&mut root, &view_indices, mesh, material);
             gltf_node.mesh = Some(root.push(json::Mesh {
                 extensions: None,
                 extras: Default::default(),
@@ -165,7 +198,6 @@ pub fn write_glb_in_frame(scene: &Scene, form: GlbForm, frame: Option<([f32; 3],
                 primitives: vec![primitive],
                 weights: None,
             }));
-            layouts.push((layout, mesh));
         }
         node_indices.push(root.push(gltf_node));
     }
@@ -174,7 +206,9 @@ pub fn write_glb_in_frame(scene: &Scene, form: GlbForm, frame: Option<([f32; 3],
         root.push(json::Scene { extensions: None, extras: Default::default(), name: None, nodes: node_indices });
     root.scene = Some(scene_index);
 
-    let mut bin = fill_buffer(offset, &layouts);
+    let meshes: Vec<(&Layout, &Mesh)> =
+        layouts.iter().zip(&scene.nodes).filter_map(|(l, n)| l.as_ref().map(|l| (l, &n.mesh))).collect();
+    let mut bin = fill_buffer(len, &groups, &meshes);
     if !bin.is_empty() {
         let buffer = root.push(json::Buffer {
             byte_length: USize64::from(bin.len()),
@@ -237,102 +271,147 @@ fn strides(quantized: Option<&Quantized>) -> (usize, usize, usize) {
     }
 }
 
-/// Where one mesh's arrays sit in the buffer (byte offsets, each a multiple of 4).
+/// Which array of a mesh a buffer view holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Slot {
+    Positions,
+    Normals,
+    TexCoords,
+    Colors,
+    Indices,
+}
+
+/// One buffer view: every mesh's array of one slot and element size, one after another (as
+/// gltfpack lays them out). Fewer views make a smaller JSON chunk and, compressed, fewer
+/// streams.
+struct Group {
+    slot: Slot,
+    stride: usize,
+    /// Bytes from the buffer's start (a multiple of 4), once placed.
+    offset: usize,
+    len: usize,
+    count: usize,
+}
+
+/// An array's place: its view (group) and its byte offset in it.
+#[derive(Clone, Copy, Debug)]
+struct Member {
+    group: usize,
+    at: usize,
+}
+
+/// Give the array of `count` elements of `stride` bytes a place in its slot's view.
+fn join_group(groups: &mut Vec<Group>, slot: Slot, stride: usize, count: usize) -> Member {
+    let group = match groups.iter().position(|g| g.slot == slot && g.stride == stride) {
+        Some(g) => g,
+        None => {
+            groups.push(Group { slot, stride, offset: 0, len: 0, count: 0 });
+            groups.len() - 1
+        }
+    };
+    let g = &mut groups[group];
+    // Vertex strides are multiples of 4; index arrays hold whole triangles, so every array
+    // starts on a multiple of its component size.
+    let at = g.len;
+    g.len += count * stride;
+    g.count += count;
+    Member { group, at }
+}
+
+/// Lay the views out in the buffer by slot (each from a 4-byte boundary); the buffer's length.
+fn place_groups(groups: &mut [Group]) -> usize {
+    let mut order: Vec<usize> = (0..groups.len()).collect();
+    order.sort_by_key(|&g| (groups[g].slot, groups[g].stride));
+    let mut offset = 0;
+    for g in order {
+        groups[g].offset = offset;
+        offset += groups[g].len.next_multiple_of(4);
+    }
+    offset
+}
+
+/// Where one mesh's arrays sit in the shared views.
 struct Layout {
     /// The mesh's bounding box (lowest and highest corner).
     bounds: ([f32; 3], [f32; 3]),
     quantized: Option<Quantized>,
-    positions: usize,
-    normals: usize,
-    uvs: usize,
-    colors: Option<usize>,
-    indices: usize,
+    positions: Member,
+    normals: Member,
+    uvs: Option<Member>,
+    colors: Option<Member>,
+    indices: Member,
     wide_indices: bool,
-    end: usize,
 }
 
 impl Layout {
-    fn new(mesh: &Mesh, bounds: ([f32; 3], [f32; 3]), quantized: Option<Quantized>, offset: &mut usize) -> Self {
+    fn new(mesh: &Mesh, bounds: ([f32; 3], [f32; 3]), quantized: Option<Quantized>, groups: &mut Vec<Group>) -> Self {
         let n = mesh.vertex_count();
         let wide_indices = n > MAX_U16_INDEXED_VERTICES;
-        let mut take = |bytes: usize| {
-            let at = *offset;
-            *offset += bytes.next_multiple_of(4);
-            at
-        };
         let (position_bytes, normal_bytes, uv_bytes) = strides(quantized.as_ref());
-        let positions = take(n * position_bytes);
-        let normals = take(n * normal_bytes);
-        let uvs = take(n * uv_bytes);
-        let colors = mesh.colors.as_ref().map(|_| take(n * 4));
-        let indices = take(mesh.indices.len() * if wide_indices { 4 } else { 2 });
-        Self { bounds, quantized, positions, normals, uvs, colors, indices, wide_indices, end: *offset }
+        let positions = join_group(groups, Slot::Positions, position_bytes, n);
+        let normals = join_group(groups, Slot::Normals, normal_bytes, n);
+        let uvs = (uv_bytes > 0).then(|| join_group(groups, Slot::TexCoords, uv_bytes, n));
+        let colors = mesh.colors.as_ref().map(|_| join_group(groups, Slot::Colors, 4, n));
+        let index_bytes = if wide_indices { 4 } else { 2 };
+        let indices = join_group(groups, Slot::Indices, index_bytes, mesh.indices.len());
+        Self { bounds, quantized, positions, normals, uvs, colors, indices, wide_indices }
     }
 
     fn strides(&self) -> (usize, usize, usize) {
         strides(self.quantized.as_ref())
     }
 
-    /// Views, accessors and the primitive for this mesh.
+    /// Accessors (into the shared `views`) and the primitive for this mesh.
     fn push_json(
         &self,
         root: &mut json::Root,
-        views: &mut Vec<ViewData>,
+        views: &[json::Index<json::buffer::View>],
         mesh: &Mesh,
         material: json::Index<json::Material>,
     ) -> json::mesh::Primitive {
         use json::accessor::{ComponentType, Type};
-        use json::buffer::Target;
         use json::mesh::Semantic;
 
         let n = mesh.vertex_count();
         let (min, max) = self.bounds;
         let mut attributes = std::collections::BTreeMap::new();
-        let oct_normals = self.quantized.as_ref().is_some_and(|q| q.oct_normals);
-        let mut attribute = |root: &mut json::Root, semantic, at, stride, component, ty, normalized, bounds| {
-            // Elements shorter than their 4-byte-aligned stride need the stride stated.
-            let padded = matches!((component, ty), (ComponentType::U16, Type::Vec3) | (ComponentType::I8, Type::Vec3));
-            let filter = (oct_normals && semantic == Semantic::Normals).then_some("OCTAHEDRAL");
-            views.push(ViewData { offset: at, stride, count: n, indices: false, filter });
-            let view = push_view(root, at, n * stride, Target::ArrayBuffer, padded.then_some(stride));
-            let accessor = push_accessor(root, view, n, component, ty, normalized, bounds);
+        let mut attribute = |root: &mut json::Root, semantic, at: Member, component, ty, normalized, bounds| {
+            let accessor = push_accessor(root, views[at.group], at.at, n, component, ty, normalized, bounds);
             attributes.insert(Valid(semantic), accessor);
         };
-        let (ps, ns, us) = self.strides();
         match &self.quantized {
             None => {
                 let bounds = Some((json::Value::from(min.to_vec()), json::Value::from(max.to_vec())));
-                attribute(root, Semantic::Positions, self.positions, ps, ComponentType::F32, Type::Vec3, false, bounds);
-                attribute(root, Semantic::Normals, self.normals, ns, ComponentType::F32, Type::Vec3, false, None);
+                attribute(root, Semantic::Positions, self.positions, ComponentType::F32, Type::Vec3, false, bounds);
+                attribute(root, Semantic::Normals, self.normals, ComponentType::F32, Type::Vec3, false, None);
             }
             Some(q) => {
                 // Rounding keeps order, so the corners' steps are the data's bounds.
                 let steps = |p: [f32; 3]| json::Value::from(q.position(p).map(u32::from).to_vec());
                 let bounds = Some((steps(min), steps(max)));
-                attribute(root, Semantic::Positions, self.positions, ps, ComponentType::U16, Type::Vec3, false, bounds);
-                attribute(root, Semantic::Normals, self.normals, ns, ComponentType::I8, Type::Vec3, true, None);
+                attribute(root, Semantic::Positions, self.positions, ComponentType::U16, Type::Vec3, false, bounds);
+                attribute(root, Semantic::Normals, self.normals, ComponentType::I8, Type::Vec3, true, None);
             }
         }
-        if us > 0 {
+        if let Some(at) = self.uvs {
             let (uv_type, uv_normalized) =
-                if us == 4 { (ComponentType::U16, true) } else { (ComponentType::F32, false) };
-            attribute(root, Semantic::TexCoords(0), self.uvs, us, uv_type, Type::Vec2, uv_normalized, None);
+                if self.strides().2 == 4 { (ComponentType::U16, true) } else { (ComponentType::F32, false) };
+            attribute(root, Semantic::TexCoords(0), at, uv_type, Type::Vec2, uv_normalized, None);
         }
         if let Some(at) = self.colors {
-            attribute(root, Semantic::Colors(0), at, 4, ComponentType::U8, Type::Vec4, true, None);
+            attribute(root, Semantic::Colors(0), at, ComponentType::U8, Type::Vec4, true, None);
         }
-
-        let (index_type, index_bytes) =
-            if self.wide_indices { (ComponentType::U32, 4) } else { (ComponentType::U16, 2) };
-        views.push(ViewData {
-            offset: self.indices,
-            stride: index_bytes,
-            count: mesh.indices.len(),
-            indices: true,
-            filter: None,
-        });
-        let view = push_view(root, self.indices, mesh.indices.len() * index_bytes, Target::ElementArrayBuffer, None);
-        let indices = push_accessor(root, view, mesh.indices.len(), index_type, Type::Scalar, false, None);
+        let index_type = if self.wide_indices { ComponentType::U32 } else { ComponentType::U16 };
+        let indices = push_accessor(
+            root,
+            views[self.indices.group],
+            self.indices.at,
+            mesh.indices.len(),
+            index_type,
+            Type::Scalar,
+            false,
+            None,
+        );
 
         json::mesh::Primitive {
             attributes,
@@ -438,20 +517,17 @@ fn meshopt_compressed(root: &json::Root, views: &[ViewData], bin: &[u8]) -> (Vec
     (compressed, serde_json::to_vec(&value).expect("glTF JSON serialises"))
 }
 
-fn push_view(
-    root: &mut json::Root,
-    offset: usize,
-    bytes: usize,
-    target: json::buffer::Target,
-    stride: Option<usize>,
-) -> json::Index<json::buffer::View> {
+/// A group's view: vertex views state their stride (several accessors share them).
+fn push_view(root: &mut json::Root, group: &Group) -> json::Index<json::buffer::View> {
+    use json::buffer::Target;
+    let indices = group.slot == Slot::Indices;
     root.push(json::buffer::View {
         buffer: json::Index::new(0),
-        byte_length: USize64::from(bytes),
-        byte_offset: Some(USize64::from(offset)),
-        byte_stride: stride.map(json::buffer::Stride),
+        byte_length: USize64::from(group.len),
+        byte_offset: Some(USize64::from(group.offset)),
+        byte_stride: (!indices).then_some(json::buffer::Stride(group.stride)),
         name: None,
-        target: Some(Valid(target)),
+        target: Some(Valid(if indices { Target::ElementArrayBuffer } else { Target::ArrayBuffer })),
         extensions: None,
         extras: Default::default(),
     })
@@ -461,6 +537,7 @@ fn push_view(
 fn push_accessor(
     root: &mut json::Root,
     view: json::Index<json::buffer::View>,
+    offset: usize,
     count: usize,
     component: json::accessor::ComponentType,
     ty: json::accessor::Type,
@@ -470,7 +547,7 @@ fn push_accessor(
     let (min, max) = bounds.unzip();
     root.push(json::Accessor {
         buffer_view: Some(view),
-        byte_offset: None,
+        byte_offset: (offset > 0).then(|| USize64::from(offset)),
         count: USize64::from(count),
         component_type: Valid(json::accessor::GenericComponentType(component)),
         extensions: None,
@@ -484,27 +561,23 @@ fn push_accessor(
     })
 }
 
-/// The binary chunk: every mesh's arrays, little-endian, at their layout offsets (gaps zero),
-/// vertices and triangles in the mesh's GPU order.
-fn fill_buffer(len: usize, layouts: &[(Layout, &Mesh)]) -> Vec<u8> {
+/// The binary chunk: every mesh's arrays, little-endian, at their places in the views (gaps
+/// zero), vertices and triangles in the mesh's GPU order.
+fn fill_buffer(len: usize, groups: &[Group], meshes: &[(&Layout, &Mesh)]) -> Vec<u8> {
     let mut bin = vec![0u8; len];
-    let mut rest = bin.as_mut_slice();
-    let mut base = 0;
-    for (layout, mesh) in layouts {
-        let (region, tail) = rest.split_at_mut(layout.end - base);
-        let local = |at: usize| at - base;
+    for (layout, mesh) in meshes {
+        let n = mesh.vertex_count();
+        let (ps, ns, us) = layout.strides();
         let order = match &layout.quantized {
             Some(q) if q.oct_normals => GpuOrder::for_compression(mesh),
             _ => GpuOrder::of(mesh),
         };
-        let n = mesh.vertex_count();
-        let (ps, ns, us) = layout.strides();
-        let positions = &mut region[local(layout.positions)..][..n * ps];
+        let positions = region(&mut bin, groups, layout.positions, n * ps);
         match &layout.quantized {
             None => put(positions, ps, &order, &mesh.positions, f32s::<3, 12>),
             Some(q) => put(positions, ps, &order, &mesh.positions, |p| u16s::<3, 6>(q.position(p))),
         }
-        let normals = &mut region[local(layout.normals)..][..n * ns];
+        let normals = region(&mut bin, groups, layout.normals, n * ns);
         match &layout.quantized {
             None => put(normals, ns, &order, &mesh.normals, |v| f32s::<3, 12>(unit(v))),
             Some(q) if q.oct_normals => oct_normals(normals, &order, &mesh.normals),
@@ -512,35 +585,38 @@ fn fill_buffer(len: usize, layouts: &[(Layout, &Mesh)]) -> Vec<u8> {
                 unit(v).map(|c| ((f64::from(c) * 127.0).round() as i8) as u8)
             }),
         }
-        let uvs = &mut region[local(layout.uvs)..][..n * us];
-        if us == 0 {
-            // Not written in this form.
-        } else if us == 4 {
-            put(uvs, us, &order, &mesh.uvs, |uv| {
-                u16s::<2, 4>(uv.map(|c| (f64::from(c) * 65535.0).round().clamp(0.0, 65535.0) as u16))
-            });
-        } else {
-            put(uvs, us, &order, &mesh.uvs, f32s::<2, 8>);
+        if let Some(at) = layout.uvs {
+            let uvs = region(&mut bin, groups, at, n * us);
+            if us == 4 {
+                put(uvs, us, &order, &mesh.uvs, |uv| {
+                    u16s::<2, 4>(uv.map(|c| (f64::from(c) * 65535.0).round().clamp(0.0, 65535.0) as u16))
+                });
+            } else {
+                put(uvs, us, &order, &mesh.uvs, f32s::<2, 8>);
+            }
         }
         if let (Some(at), Some(colors)) = (layout.colors, &mesh.colors) {
-            put(&mut region[local(at)..][..n * 4], 4, &order, colors, linear_color);
+            put(region(&mut bin, groups, at, n * 4), 4, &order, colors, linear_color);
         }
-        let indices = &mut region[local(layout.indices)..];
         if layout.wide_indices {
-            indices[..order.indices.len() * 4]
+            region(&mut bin, groups, layout.indices, order.indices.len() * 4)
                 .par_chunks_mut(4)
                 .zip(order.indices.par_iter())
                 .for_each(|(out, &i)| out.copy_from_slice(&i.to_le_bytes()));
         } else {
-            indices[..order.indices.len() * 2]
+            region(&mut bin, groups, layout.indices, order.indices.len() * 2)
                 .par_chunks_mut(2)
                 .zip(order.indices.par_iter())
                 .for_each(|(out, &i)| out.copy_from_slice(&(i as u16).to_le_bytes()));
         }
-        base = layout.end;
-        rest = tail;
     }
     bin
+}
+
+/// The bytes of one mesh's array in the buffer.
+fn region<'a>(bin: &'a mut [u8], groups: &[Group], at: Member, bytes: usize) -> &'a mut [u8] {
+    let start = groups[at.group].offset + at.at;
+    &mut bin[start..start + bytes]
 }
 
 /// Write each vertex's `values` in the new order, `encode`d, at the start of its `stride`.
@@ -843,15 +919,20 @@ mod tests {
             let json_node = &m["nodes"][n];
             let scale = json_node["scale"][0].as_f64().unwrap();
             let translation: Vec<f64> = (0..3).map(|k| json_node["translation"][k].as_f64().unwrap()).collect();
-            let (lo, hi) = mesh.bounds().unwrap();
+            let (lo, hi) = scene_bounds(&scene).unwrap();
             let longest = (0..3).map(|k| f64::from(hi[k] - lo[k])).fold(0.0, f64::max);
-            assert!((scale - longest / 16383.0).abs() < 1e-9, "14-bit steps");
+            assert!((scale - longest / 16383.0).abs() < 1e-9, "14-bit steps of the scene's box");
             let prim = &m["meshes"][n]["primitives"][0];
             assert!(prim["attributes"].get("TEXCOORD_0").is_none(), "no texcoords in this form");
-            let view_of = |accessor: &serde_json::Value| {
-                m["accessors"][accessor.as_u64().unwrap() as usize]["bufferView"].as_u64().unwrap() as usize
+            // An accessor's elements: its view decoded, from its offset in it (views are shared).
+            let view_of = |accessor: &serde_json::Value| -> (Vec<u8>, usize) {
+                let a = &m["accessors"][accessor.as_u64().unwrap() as usize];
+                let (data, stride) = decode(a["bufferView"].as_u64().unwrap() as usize);
+                let at = a["byteOffset"].as_u64().unwrap_or(0) as usize;
+                let count = a["count"].as_u64().unwrap() as usize;
+                (data[at..at + count * stride].to_vec(), stride)
             };
-            let (positions, stride) = decode(view_of(&prim["attributes"]["POSITION"]));
+            let (positions, stride) = view_of(&prim["attributes"]["POSITION"]);
             for k in 0..mesh.vertex_count() {
                 let p = order.at(&mesh.positions, k);
                 for c in 0..3 {
@@ -860,7 +941,7 @@ mod tests {
                     assert!((back - f64::from(p[c])).abs() <= 0.5 * scale + 1e-5, "{back} for {}", p[c]);
                 }
             }
-            let (normals, stride) = decode(view_of(&prim["attributes"]["NORMAL"]));
+            let (normals, stride) = view_of(&prim["attributes"]["NORMAL"]);
             for k in 0..mesh.vertex_count() {
                 let q: Vec<f64> = (0..3).map(|c| f64::from(normals[k * stride + c] as i8) / 127.0).collect();
                 let len = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
@@ -869,12 +950,12 @@ mod tests {
                 assert!(cos >= 2f64.to_radians().cos(), "{q:?} for {u:?}");
             }
             if let Some(colors) = &mesh.colors {
-                let (decoded, _) = decode(view_of(&prim["attributes"]["COLOR_0"]));
+                let (decoded, _) = view_of(&prim["attributes"]["COLOR_0"]);
                 let expected: Vec<u8> =
                     (0..mesh.vertex_count()).flat_map(|k| linear_color(order.at(colors, k))).collect();
                 assert!(decoded == expected, "colours");
             }
-            let (indices, stride) = decode(view_of(&prim["indices"]));
+            let (indices, stride) = view_of(&prim["indices"]);
             // The index codec may rotate a triangle's corners (winding kept): compare each
             // triangle from its smallest index.
             let canonical = |indices: Vec<u32>| -> Vec<[u32; 3]> {

@@ -74,7 +74,7 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>], keys_required: bool) -> Open
         .enum_values(Some(crate::export::GlbForm::NAMES))
         .default(Some(serde_json::Value::from(crate::export::GlbForm::default().name())))
         .description(Some(
-            "How glb artifacts store their vertices: `quantize` (the default) with KHR_mesh_quantization — 16-bit positions (the node's translation and scale give metres; error at most half of the mesh's longest side ÷ 65535), 8-bit normals, 16-bit texcoords; `meshopt`: the same arrays compressed with EXT_meshopt_compression, declared required (no uncompressed fallback is written; three.js reads it with MeshoptDecoder, Babylon.js as it is); or `none`: 32-bit floats.",
+            "How glb artifacts store their vertices: `quantize` (the default) with KHR_mesh_quantization — 16-bit positions (the node's translation and scale give metres; one grid for the whole scene; error at most half of the scene's longest side ÷ 65535), 8-bit normals, 16-bit texcoords; `meshopt`: the same arrays compressed with EXT_meshopt_compression, declared required (no uncompressed fallback is written; three.js reads it with MeshoptDecoder, Babylon.js as it is); or `none`: 32-bit floats.",
         ))
         .into();
 
