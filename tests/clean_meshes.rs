@@ -6,14 +6,10 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+use common::cli::{repo, run_job};
 use common::glb_topology::degenerate_nodes;
 use serde_json::{json, Value};
-
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
 
 fn examples() -> Vec<PathBuf> {
     let mut out = Vec::new();
@@ -41,17 +37,7 @@ fn check(example: &Path, dir: &Path) -> Vec<String> {
     body["compression"] = "none".into();
     body["lods"] = json!([0.002, 0.008, 0.032]);
     let out = dir.join(name.replace('/', "_"));
-    let request = out.with_extension("json");
-    std::fs::write(&request, body.to_string()).unwrap();
-    let status = Command::new(env!("CARGO_BIN_EXE_landform"))
-        .args(["run", request.to_str().unwrap(), "--kind", kind, "--out", out.to_str().unwrap()])
-        .stdout(std::process::Stdio::null())
-        .status()
-        .unwrap();
-    if !status.success() {
-        return vec![format!("{name}: the job failed")];
-    }
-    let job: Value = serde_json::from_slice(&std::fs::read(out.join("job.json")).unwrap()).unwrap();
+    let Some(job) = run_job(kind, &body, &out) else { return vec![format!("{name}: the job failed")] };
     let levels = job["result"]["glb"]["levels"].as_array().cloned().unwrap_or_default();
     let mut problems = Vec::new();
     if levels.len() != 4 {

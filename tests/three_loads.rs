@@ -10,52 +10,22 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+use common::cli::{example_body, load_in_three, run_job, three_counts};
 use common::glb_topology::degenerate_nodes;
 use common::gltf_validator::validate_glb;
 use serde_json::Value;
 
 const FORMS: [&str; 3] = ["none", "quantize", "meshopt"];
 
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// Run `api/<kind>/<example>.json` with `compression: form` into `out`; the job's result.
+/// Run `api/<kind>/<example>.json` with `compression: form` and three levels into `out`; the
+/// job's result.
 fn run(kind: &str, example: &str, form: &str, out: &Path) -> Value {
-    let mut body: Value =
-        serde_json::from_slice(&std::fs::read(repo().join("api").join(kind).join(format!("{example}.json"))).unwrap())
-            .unwrap();
+    let mut body = example_body(kind, example);
     body["compression"] = form.into();
     body["lods"] = serde_json::json!([0.002, 0.008, 0.032]);
-    let request = out.with_extension("json");
-    std::fs::write(&request, body.to_string()).unwrap();
-    let status = Command::new(env!("CARGO_BIN_EXE_landform"))
-        .args(["run", request.to_str().unwrap(), "--kind", kind, "--out", out.to_str().unwrap()])
-        .stdout(std::process::Stdio::null())
-        .status()
-        .unwrap();
-    assert!(status.success(), "{kind}/{example} in form {form}");
-    let job: Value = serde_json::from_slice(&std::fs::read(out.join("job.json")).unwrap()).unwrap();
+    let job = run_job(kind, &body, out).unwrap_or_else(|| panic!("{kind}/{example} in form {form}"));
     job["result"].clone()
-}
-
-/// What three.js built from each file: one JSON object per file, in order.
-fn load_in_three(files: &[PathBuf]) -> Vec<Value> {
-    let dir = repo().join("tests").join("gltf-validator");
-    assert!(
-        dir.join("node_modules").join("three").is_dir(),
-        "three.js is not installed: run `npm ci --prefix tests/gltf-validator` (needs node and npm)"
-    );
-    let output = Command::new("node")
-        .arg(dir.join("load_three.mjs"))
-        .args(files)
-        .current_dir(&dir)
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run `node` ({e}); install Node.js 18 or later"));
-    assert!(output.status.success(), "three.js failed:\n{}", String::from_utf8_lossy(&output.stderr));
-    String::from_utf8(output.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect()
 }
 
 fn check_example(kind: &str, example: &str) {
@@ -71,10 +41,9 @@ fn check_example(kind: &str, example: &str) {
         let loaded = load_in_three(&files);
         for ((level, file), three) in levels.iter().zip(&files).zip(&loaded) {
             let what = format!("{kind}/{example} {form} {}", level["file"]);
-            let meshes = three["meshes"].as_array().unwrap();
-            let sum = |key: &str| meshes.iter().map(|m| m[key].as_u64().unwrap()).sum::<u64>();
-            assert_eq!(sum("vertices"), level["vertices"].as_u64().unwrap(), "{what}: vertices");
-            assert_eq!(sum("triangles"), level["triangles"].as_u64().unwrap(), "{what}: triangles");
+            let (vertices, triangles) = three_counts(three);
+            assert_eq!(vertices, level["vertices"].as_u64().unwrap(), "{what}: vertices");
+            assert_eq!(triangles, level["triangles"].as_u64().unwrap(), "{what}: triangles");
             let (bound, deviation) =
                 (level["error_bound_m"].as_f64().unwrap(), level["max_deviation_m"].as_f64().unwrap());
             assert!(deviation <= bound, "{what}: deviation {deviation} m over the bound {bound} m");

@@ -12,35 +12,21 @@ mod common;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+use common::cli::{example_body, load_in_three, run_job, three_counts};
 use common::gltf_validator::validate_glb;
 use serde_json::{json, Value};
 
 const LODS: [f64; 3] = [0.002, 0.008, 0.032];
 
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
 /// `api/bulldoze/hillside-road.json` in `form`, cut into 3 × 2 tiles, run into `out`: the
 /// job's result.
 fn run(form: &str, out: &Path) -> Value {
-    let mut body: Value =
-        serde_json::from_slice(&std::fs::read(repo().join("api/bulldoze/hillside-road.json")).unwrap()).unwrap();
+    let mut body = example_body("bulldoze", "hillside-road");
     body["compression"] = form.into();
     body["lods"] = json!(LODS);
     body["tiles"] = json!({ "count": [3, 2] });
-    let request = out.with_extension("json");
-    std::fs::write(&request, body.to_string()).unwrap();
-    let status = Command::new(env!("CARGO_BIN_EXE_landform"))
-        .args(["run", request.to_str().unwrap(), "--kind", "bulldoze", "--out", out.to_str().unwrap()])
-        .stdout(std::process::Stdio::null())
-        .status()
-        .unwrap();
-    assert!(status.success(), "hillside-road in form {form}");
-    let job: Value = serde_json::from_slice(&std::fs::read(out.join("job.json")).unwrap()).unwrap();
-    job["result"].clone()
+    run_job("bulldoze", &body, out).unwrap_or_else(|| panic!("hillside-road in form {form}"))["result"].clone()
 }
 
 /// One vertex as the file stores it: the bytes of each of its attributes, position first.
@@ -206,29 +192,11 @@ fn check_in_three(out: &Path, entries: &[Value]) {
             levels(e).into_iter().map(|l| (l["vertices"].as_u64().unwrap(), l["triangles"].as_u64().unwrap()))
         })
         .collect();
-    assert_eq!(three_counts(&files), expected, "three.js's counts against the index");
-}
-
-/// Vertices and triangles three.js builds from each file.
-fn three_counts(files: &[PathBuf]) -> Vec<(u64, u64)> {
-    let dir = repo().join("tests").join("gltf-validator");
-    let output = Command::new("node")
-        .arg(dir.join("load_three.mjs"))
-        .args(files)
-        .current_dir(&dir)
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run `node` ({e}); install Node.js 18 or later"));
-    assert!(output.status.success(), "three.js failed:\n{}", String::from_utf8_lossy(&output.stderr));
-    String::from_utf8(output.stdout)
-        .unwrap()
-        .lines()
-        .map(|l| {
-            let v: Value = serde_json::from_str(l).unwrap();
-            let meshes = v["meshes"].as_array().unwrap();
-            let sum = |key: &str| meshes.iter().map(|m| m[key].as_u64().unwrap()).sum::<u64>();
-            (sum("vertices"), sum("triangles"))
-        })
-        .collect()
+    assert_eq!(
+        load_in_three(&files).iter().map(three_counts).collect::<Vec<_>>(),
+        expected,
+        "three.js's counts against the index"
+    );
 }
 
 #[test]
