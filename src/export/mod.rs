@@ -6,6 +6,7 @@ mod glb;
 mod heightmap_png;
 mod heightmap_r16;
 mod hypsometric;
+mod interior;
 mod mesh_glbs;
 mod normalmap_png;
 mod npy;
@@ -33,6 +34,7 @@ pub use glb::{write_glb, write_glb_in_frame, GlbForm, MAX_U16_INDEXED_VERTICES};
 pub use heightmap_png::heightmap_png16;
 pub use heightmap_r16::{heightmap_r16, r16_summary};
 pub use hypsometric::Tint;
+pub use interior::{render_inside_png, InsideView};
 pub use mesh_glbs::{
     mesh_glbs, MeshSettings, DEFAULT_LODS, LOD_FRACTION_RANGE, LOD_MEMORY_FACTOR, MAX_LODS, SUGGESTED_LODS,
 };
@@ -40,6 +42,7 @@ pub use normalmap_png::normalmap_png;
 pub use npy::{heightfield_npy, read_heightfield_npy};
 pub use preview_png::preview_png;
 pub use render::{render_png, render_png_framed, View};
+pub use scale_bar::metres_text;
 pub use splatmap_png::splatmap_png;
 pub use tiles::{tile_artifacts, TileGrid, MAX_TILES_PER_SIDE};
 

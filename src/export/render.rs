@@ -29,7 +29,7 @@ pub struct View {
 /// Share of the picture's width and height left empty on each side around the scene's bounds.
 const MARGIN: f32 = 0.08;
 /// Rows rendered together by one task; each band owns its z-buffer.
-const BAND_ROWS: usize = 16;
+pub(super) const BAND_ROWS: usize = 16;
 /// Sky colour at the top and bottom rows, sRGB.
 const SKY_TOP: [u8; 3] = [118, 158, 206];
 const SKY_BOTTOM: [u8; 3] = [224, 231, 238];
@@ -215,15 +215,15 @@ impl Frame {
 }
 
 /// Every node's triangles in one list, with per-vertex linear albedo.
-struct Geometry {
-    positions: Vec<[f32; 3]>,
-    normals: Vec<[f32; 3]>,
-    albedo: Vec<[f32; 3]>,
-    indices: Vec<u32>,
+pub(super) struct Geometry {
+    pub(super) positions: Vec<[f32; 3]>,
+    pub(super) normals: Vec<[f32; 3]>,
+    pub(super) albedo: Vec<[f32; 3]>,
+    pub(super) indices: Vec<u32>,
 }
 
 impl Geometry {
-    fn gather(scene: &Scene) -> Self {
+    pub(super) fn gather(scene: &Scene) -> Self {
         let mut g = Geometry { positions: Vec::new(), normals: Vec::new(), albedo: Vec::new(), indices: Vec::new() };
         for node in &scene.nodes {
             let mesh = &node.mesh;
@@ -261,7 +261,7 @@ impl Geometry {
 }
 
 /// Triangle numbers overlapping each band of rows, in triangle order.
-fn bin_triangles(indices: &[u32], screen: &[[f32; 3]], w: usize, h: usize) -> Vec<Vec<u32>> {
+pub(super) fn bin_triangles(indices: &[u32], screen: &[[f32; 3]], w: usize, h: usize) -> Vec<Vec<u32>> {
     let mut bands = vec![Vec::new(); h.div_ceil(BAND_ROWS)];
     for (t, tri) in indices.chunks_exact(3).enumerate() {
         let [a, b, c] = [0, 1, 2].map(|k| screen[tri[k] as usize]);
@@ -285,16 +285,16 @@ fn bin_triangles(indices: &[u32], screen: &[[f32; 3]], w: usize, h: usize) -> Ve
 
 /// The nearest triangle at a pixel and the barycentric weights of its second and third
 /// vertices there.
-struct Hit {
-    triangle: u32,
-    weights: [f32; 2],
+pub(super) struct Hit {
+    pub(super) triangle: u32,
+    pub(super) weights: [f32; 2],
     /// Whether the triangle is seen from its back (clockwise on screen).
-    back_facing: bool,
+    pub(super) back_facing: bool,
 }
 
 /// Z-buffered visibility for rows `y0..y0 + rows`: pixel centres inside or on a triangle's
 /// edges, the nearest depth winning and the earlier triangle winning ties.
-fn rasterize_band(
+pub(super) fn rasterize_band(
     triangles: &[u32],
     indices: &[u32],
     screen: &[[f32; 3]],
@@ -505,10 +505,10 @@ fn sky_rows(h: usize) -> Vec<[u8; 3]> {
         .collect()
 }
 
-const LUT_SIZE: usize = 4096;
+pub(super) const LUT_SIZE: usize = 4096;
 
 /// sRGB bytes of linear values `i / (LUT_SIZE - 1)`, finer than a byte's steps in the darks.
-fn linear_to_srgb_table() -> &'static [u8; LUT_SIZE] {
+pub(super) fn linear_to_srgb_table() -> &'static [u8; LUT_SIZE] {
     static TABLE: OnceLock<[u8; LUT_SIZE]> = OnceLock::new();
     TABLE.get_or_init(|| {
         std::array::from_fn(|i| {
@@ -519,7 +519,7 @@ fn linear_to_srgb_table() -> &'static [u8; LUT_SIZE] {
     })
 }
 
-fn encode_png(rgb: &[u8], w: u32, h: u32) -> Vec<u8> {
+pub(super) fn encode_png(rgb: &[u8], w: u32, h: u32) -> Vec<u8> {
     let mut png_bytes = Vec::new();
     let mut encoder = png::Encoder::new(&mut png_bytes, w, h);
     encoder.set_color(png::ColorType::Rgb);
@@ -532,15 +532,15 @@ fn encode_png(rgb: &[u8], w: u32, h: u32) -> Vec<u8> {
     png_bytes
 }
 
-fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
+pub(super) fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+pub(super) fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
-fn normalize(v: [f32; 3]) -> [f32; 3] {
+pub(super) fn normalize(v: [f32; 3]) -> [f32; 3] {
     let len = dot(v, v).sqrt();
     if len > 0.0 && len.is_finite() {
         v.map(|c| c / len)

@@ -5,17 +5,44 @@ use rayon::prelude::*;
 use serde_json::{json, Value};
 
 use super::chamber::ChamberShape;
+use super::params::Chamber;
 use super::params::{GrowCaveParams, Mineral};
 use super::sequence::{CaveSequence, RecordedSite};
 use super::speleothem_mesh::{column_mesh, speleothem_mesh};
-use crate::export::{mesh_glbs, render_png, Artifact, MeshSettings, View};
+use crate::export::{mesh_glbs, metres_text, render_inside_png, Artifact, InsideView, MeshSettings};
 use crate::mesh::{heightfield_mesh, MaterialKind, Mesh, Scene, SceneNode, DEFAULT_MAX_SIDE_SAMPLES};
 use crate::stop::{Stop, Stopped};
 
 /// Limestone walls.
 const ROCK_SRGB: [u8; 3] = [120, 108, 96];
-const PREVIEW: View = View { width_px: 1024, height_px: 768, azimuth_deg: 30.0, elevation_deg: 12.0 };
-const SNAPSHOT: View = View { width_px: 256, height_px: 192, azimuth_deg: 30.0, elevation_deg: 12.0 };
+/// Pictures' sizes in pixels: the preview's and a live snapshot's.
+const PREVIEW_PX: (u32, u32) = (1024, 768);
+const SNAPSHOT_PX: (u32, u32) = (256, 192);
+
+/// The view of a person standing inside the chamber near one corner (low x, high z), looking
+/// across it and a little down, with a lamp above and beside the head: the roof stays on, and
+/// what is lit is what a caver would see.
+fn inside_view(chamber: &Chamber, (width_px, height_px): (u32, u32)) -> InsideView {
+    let (w, d) = (chamber.width_m, chamber.depth_m);
+    let (lo, hi) = (chamber.floor.relief_m, chamber.height_m - chamber.roof.relief_m);
+    let free = hi - lo;
+    let eye = [0.015 * w, lo + 0.5 * free, 0.985 * d];
+    let target = [0.65 * w, lo + 0.2 * free, 0.3 * d];
+    // Above the eye and a little to its right (the view runs towards +x, −z).
+    let lamp = [eye[0] + 0.02 * w, eye[1] + 0.3 * free, eye[2] + 0.02 * d];
+    InsideView { width_px, height_px, eye, target, fov_deg: 70.0, lamp, lamp_reach_m: 0.5 * w.hypot(d) }
+}
+
+/// The chamber's size (width × depth × height) for the picture's corner.
+fn chamber_label(chamber: &Chamber) -> String {
+    // The corner font has digits, `x`, `m` and the point only.
+    format!("{} x {} x {} m", metres_text(chamber.width_m), metres_text(chamber.depth_m), metres_text(chamber.height_m))
+}
+
+/// The cave from inside, as [`inside_view`] stands.
+fn picture(params: &GrowCaveParams, scene: &Scene, size: (u32, u32), stop: Stop) -> Result<Vec<u8>, Stopped> {
+    render_inside_png(scene, &inside_view(&params.chamber, size), &chamber_label(&params.chamber), stop)
+}
 
 /// fv_c's mc: Table 1's colour mixed with calcareous white by the intensity.
 pub fn mineral_colour(mineral: Mineral, intensity: f32) -> [f32; 3] {
@@ -67,15 +94,10 @@ pub fn scene(params: &GrowCaveParams, sequence: &CaveSequence) -> Scene {
     Scene { nodes }
 }
 
-/// The scene without its roof, which would hide the cave from any outside view.
-fn cut_away(scene: &Scene) -> Scene {
-    Scene { nodes: scene.nodes.iter().filter(|n| n.name != "roof").cloned().collect() }
-}
-
 /// A small picture of the cave so far, for live progress.
 pub fn snapshot_png(params: &GrowCaveParams, sequence: &CaveSequence, stop: Stop) -> Result<Vec<u8>, Stopped> {
     stop.check()?;
-    render_png(&cut_away(&scene(params, sequence)), &SNAPSHOT, stop)
+    picture(params, &scene(params, sequence), SNAPSHOT_PX, stop)
 }
 
 #[derive(Default)]
@@ -113,7 +135,7 @@ pub fn build(
     let scene = scene(params, sequence);
     stop.check()?;
     let ((glbs, glb_figures), preview) =
-        rayon::join(|| mesh_glbs(&scene, mesh_settings), || render_png(&cut_away(&scene), &PREVIEW, stop));
+        rayon::join(|| mesh_glbs(&scene, mesh_settings), || picture(params, &scene, PREVIEW_PX, stop));
     let preview = preview?;
     let (mut stalactites, mut stalagmites, mut columns) = (Stats::default(), Stats::default(), Stats::default());
     for s in &sequence.sites {
