@@ -1,0 +1,108 @@
+//! Every example in `api/`, run by the real binary with three levels of detail in each
+//! compression form, and every glb loaded as a web client does: three.js's `GLTFLoader` with
+//! `MeshoptDecoder` must build the vertex and triangle counts the result states for each level,
+//! the Khronos validator must find no error, and every level must keep within its error bound.
+//! In the 32-bit form (positions compared as written) no mesh of any level has a zero-area
+//! triangle or two vertices at one position, which game engines' physics and lightmappers
+//! reject.
+//!
+//! Needs `npm ci --prefix tests/gltf-validator` first.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::cli::{load_in_three, repo, run_job, three_counts};
+use common::glb_topology::degenerate_nodes;
+use serde_json::{json, Value};
+
+fn examples() -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for kind in std::fs::read_dir(repo().join("api")).unwrap() {
+        let kind = kind.unwrap().path();
+        if !kind.is_dir() {
+            continue;
+        }
+        for example in std::fs::read_dir(&kind).unwrap() {
+            let path = example.unwrap().path();
+            if path.extension().is_some_and(|e| e == "json") {
+                out.push(path);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+const FORMS: [&str; 3] = ["none", "quantize", "meshopt"];
+
+/// Problems found in one example's meshes in every form, one line each.
+fn check(example: &Path, dir: &Path) -> Vec<String> {
+    FORMS.iter().flat_map(|form| check_form(example, form, dir)).collect()
+}
+
+fn check_form(example: &Path, form: &str, dir: &Path) -> Vec<String> {
+    let kind = example.parent().unwrap().file_name().unwrap().to_str().unwrap();
+    let name = format!("{kind}/{} {form}", example.file_stem().unwrap().to_str().unwrap());
+    let mut body: Value = serde_json::from_slice(&std::fs::read(example).unwrap()).unwrap();
+    body["compression"] = form.into();
+    body["lods"] = json!([0.002, 0.008, 0.032]);
+    let out = dir.join(name.replace(['/', ' '], "_"));
+    let Some(job) = run_job(kind, &body, &out) else { return vec![format!("{name}: the job failed")] };
+    let levels = job["result"]["glb"]["levels"].as_array().cloned().unwrap_or_default();
+    let mut problems = Vec::new();
+    if levels.len() != 4 {
+        problems.push(format!("{name}: {} levels in the result", levels.len()));
+    }
+    let files: Vec<PathBuf> = levels.iter().map(|l| out.join(l["file"].as_str().unwrap())).collect();
+    let loaded = load_in_three(&files);
+    for ((level, file), three) in levels.iter().zip(&files).zip(&loaded) {
+        let what = format!("{name} {}", level["file"].as_str().unwrap());
+        let (bound, deviation) = (level["error_bound_m"].as_f64().unwrap(), level["max_deviation_m"].as_f64().unwrap());
+        if deviation > bound {
+            problems.push(format!("{what}: deviation {deviation} m over the bound {bound} m"));
+        }
+        let counts = (level["vertices"].as_u64().unwrap(), level["triangles"].as_u64().unwrap());
+        if three_counts(three) != counts {
+            problems.push(format!("{what}: three.js built {:?}, the result states {counts:?}", three_counts(three)));
+        }
+        if three["validator_errors"] != 0 {
+            problems.push(format!("{what}: validator errors {}: {}", three["validator_errors"], three["first_errors"]));
+        }
+        if form == "none" {
+            for (node, zero_area, shared) in degenerate_nodes(&std::fs::read(file).unwrap()) {
+                if (zero_area, shared) != (0, 0) {
+                    problems.push(format!(
+                        "{what} node {node}: {zero_area} zero-area triangles, {shared} shared positions"
+                    ));
+                }
+            }
+        }
+    }
+    // Coarser levels have no more triangles (a simple shape may reach its fewest early), and
+    // the first has fewer than the full mesh.
+    let triangles: Vec<u64> = levels.iter().map(|l| l["triangles"].as_u64().unwrap()).collect();
+    if triangles.windows(2).any(|p| p[1] > p[0]) || triangles.len() > 1 && triangles[1] >= triangles[0] {
+        problems.push(format!("{name}: triangles per level {triangles:?}"));
+    }
+    let _ = std::fs::remove_dir_all(&out);
+    problems
+}
+
+#[test]
+fn every_examples_meshes_load_validate_and_are_clean_in_every_form_and_level() {
+    let examples = examples();
+    assert!(examples.len() >= 25, "{} examples", examples.len());
+    let dir = tempfile::tempdir().unwrap();
+    // Two at a time: each job uses every core for part of its run.
+    let problems: Vec<String> = examples
+        .chunks(2)
+        .flat_map(|pair| {
+            std::thread::scope(|s| {
+                let handles: Vec<_> = pair.iter().map(|e| s.spawn(|| check(e, dir.path()))).collect();
+                handles.into_iter().flat_map(|h| h.join().unwrap()).collect::<Vec<_>>()
+            })
+        })
+        .collect();
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
