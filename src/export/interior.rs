@@ -43,7 +43,7 @@ pub fn render_inside_png(scene: &Scene, view: &InsideView, label: &str, stop: St
     let up = cross(right, forward);
     let focal = 0.5 * h as f32 / (0.5 * view.fov_deg.to_radians()).tan();
     let near = (NEAR_SHARE * view.lamp_reach_m).max(1e-3);
-    let clipped = clip_near(&Geometry::gather(scene), view.eye, forward, near);
+    let clipped = clip_near(Geometry::gather(scene), view.eye, forward, near);
     stop.check()?;
     // Pixel x, y and −1/z: nearer is smaller, and 1/z is linear across the screen.
     let depth_of = |p: [f32; 3]| dot(std::array::from_fn(|k| p[k] - view.eye[k]), forward);
@@ -108,43 +108,49 @@ fn shade(g: &Geometry, depths: &[f32], hit: &Hit, view: &InsideView) -> [f32; 3]
 }
 
 /// The triangles of `g` cut at the plane `near` in front of `eye` along `forward`: what lies
-/// behind it is dropped, a triangle crossing it becomes one or two (every vertex its own, with
-/// position, normal and albedo interpolated along the cut edges).
-fn clip_near(g: &Geometry, eye: [f32; 3], forward: [f32; 3], near: f32) -> Geometry {
-    let mut out = Geometry { positions: Vec::new(), normals: Vec::new(), albedo: Vec::new(), indices: Vec::new() };
-    let ahead = |i: usize| dot(std::array::from_fn(|k| g.positions[i][k] - eye[k]), forward) - near;
-    for tri in g.indices.chunks_exact(3) {
+/// behind it is dropped, a triangle crossing it becomes one or two whose new corners (position,
+/// normal and albedo interpolated along the cut edges) are appended; the others keep their
+/// vertices, so the geometry is not copied.
+fn clip_near(mut g: Geometry, eye: [f32; 3], forward: [f32; 3], near: f32) -> Geometry {
+    let ahead: Vec<f32> =
+        g.positions.iter().map(|p| dot(std::array::from_fn(|k| p[k] - eye[k]), forward) - near).collect();
+    let old_indices = std::mem::take(&mut g.indices);
+    let mut indices = Vec::with_capacity(old_indices.len());
+    for tri in old_indices.chunks_exact(3) {
         let corners = [tri[0] as usize, tri[1] as usize, tri[2] as usize];
-        let d = corners.map(ahead);
+        let d = corners.map(|i| ahead[i]);
+        if d.iter().all(|&v| v >= 0.0) {
+            indices.extend_from_slice(tri);
+            continue;
+        }
         if d.iter().all(|&v| v < 0.0) {
             continue;
         }
-        // Sutherland–Hodgman against one plane: vertices as (position, normal, albedo).
-        let vertex = |i: usize| (g.positions[i], g.normals[i], g.albedo[i]);
-        let mut polygon = Vec::with_capacity(4);
+        // Sutherland–Hodgman against one plane.
+        let mut polygon: Vec<u32> = Vec::with_capacity(4);
         for k in 0..3 {
             let (a, b) = (k, (k + 1) % 3);
             if d[a] >= 0.0 {
-                polygon.push(vertex(corners[a]));
+                polygon.push(corners[a] as u32);
             }
             if (d[a] >= 0.0) != (d[b] >= 0.0) {
                 let t = d[a] / (d[a] - d[b]);
-                let (va, vb) = (vertex(corners[a]), vertex(corners[b]));
-                let lerp = |x: [f32; 3], y: [f32; 3]| -> [f32; 3] { std::array::from_fn(|j| x[j] + t * (y[j] - x[j])) };
-                polygon.push((lerp(va.0, vb.0), lerp(va.1, vb.1), lerp(va.2, vb.2)));
+                let (ia, ib) = (corners[a], corners[b]);
+                let lerp =
+                    |v: &[[f32; 3]]| -> [f32; 3] { std::array::from_fn(|j| v[ia][j] + t * (v[ib][j] - v[ia][j])) };
+                let (p, n, c) = (lerp(&g.positions), lerp(&g.normals), lerp(&g.albedo));
+                polygon.push(g.positions.len() as u32);
+                g.positions.push(p);
+                g.normals.push(n);
+                g.albedo.push(c);
             }
         }
-        let base = out.positions.len() as u32;
-        for (p, n, a) in &polygon {
-            out.positions.push(*p);
-            out.normals.push(*n);
-            out.albedo.push(*a);
-        }
         for k in 1..polygon.len().saturating_sub(1) {
-            out.indices.extend([base, base + k as u32, base + k as u32 + 1]);
+            indices.extend([polygon[0], polygon[k], polygon[k + 1]]);
         }
     }
-    out
+    g.indices = indices;
+    g
 }
 
 #[cfg(test)]
