@@ -15,7 +15,7 @@ const RING_BYTES: u64 = 600;
 const SITE_BYTES: u64 = 450;
 /// Bytes per speleothem vertex at the final build: the tube, its glb (twice) and the render's
 /// copy, with the slack of growing buffers.
-const TUBE_VERTEX_BYTES: u64 = 280;
+const TUBE_VERTEX_BYTES: u64 = 220;
 /// Bytes per roof or floor sample: the grid, its mesh and their copies in glb and render.
 const SURFACE_SAMPLE_BYTES: u64 = 300;
 /// Bytes per glb node (a speleothem): its JSON and glTF structures.
