@@ -6,6 +6,7 @@ mod jobs;
 mod openapi;
 mod openapi_bounds;
 mod ops;
+mod playground;
 mod problem;
 
 use std::sync::Arc;
@@ -97,6 +98,9 @@ pub fn app(engine: Engine, config: HttpConfig) -> Router {
         .merge(operations)
         .route("/healthz", get(ops::healthz))
         .route("/readyz", get(ops::readyz))
+        .route("/", get(playground::index))
+        .route("/index.html", get(playground::index))
+        .route("/assets/{*path}", get(playground::asset))
         .fallback(ops::not_found)
         .method_not_allowed_fallback(ops::method_not_allowed)
         .layer(DefaultBodyLimit::max(max_body))

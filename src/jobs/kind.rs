@@ -282,10 +282,16 @@ fn sequence_artifact<Q: Serialize>(sequence: &Q) -> Result<Artifact, SimError> {
     Ok(Artifact::new("sequence.json", "application/json", bytes))
 }
 
-fn finish<Q: Serialize>(outcome: Outcome<Q>) -> Result<JobOutput, SimError> {
+/// The result gains `sequence_steps`, the steps a replay can stop after, so a client (the
+/// playground's timeline) knows the range of `until_step` without reading the sequence.
+fn finish<Q: Sequence>(outcome: Outcome<Q>) -> Result<JobOutput, SimError> {
     let mut artifacts = outcome.artifacts;
     artifacts.push(sequence_artifact(&outcome.sequence)?);
-    Ok(JobOutput { result: outcome.result, artifacts })
+    let mut result = outcome.result;
+    if let Value::Object(figures) = &mut result {
+        figures.insert("sequence_steps".into(), Value::from(outcome.sequence.steps()));
+    }
+    Ok(JobOutput { result, artifacts })
 }
 
 fn stored_params<T: DeserializeOwned>(params: &Value) -> Result<T, SimError> {

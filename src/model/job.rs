@@ -75,7 +75,8 @@ pub struct Job {
     /// The parameters with every default filled in, `seed` included.
     #[schema(value_type = Object)]
     pub request: Value,
-    /// Kind-specific summary figures once the job has succeeded.
+    /// Kind-specific summary figures once the job has succeeded, and in every kind
+    /// `sequence_steps`: the steps of the recorded sequence (the largest `until_step` a replay takes).
     #[schema(value_type = Option<Object>)]
     pub result: Option<Value>,
     pub artifacts: Vec<ArtifactMeta>,

@@ -1,0 +1,268 @@
+// A job: progress from its event stream with each live snapshot, cancel; once it has succeeded,
+// the mesh in 3D, the maps, the result figures, downloads, and a timeline over its sequence.
+
+import { ApiError, Job, Progress, apiKey, arrayBuffer, artifact, blobUrl, humanBytes, jobs } from '../api';
+import { followJob } from '../sse';
+import { Viewer } from '../viewer';
+import { el, flatten, hasHeightfield, statusBadge } from '../ui';
+import { button } from './list';
+
+const ENDED = ['succeeded', 'failed', 'cancelled'];
+
+export async function jobPage(host: HTMLElement, id: string, kindNames: string[], signal: AbortSignal): Promise<void> {
+  let job: Job;
+  try {
+    job = await jobs.get(id);
+  } catch (e) {
+    host.append(el('h1', {}, ['Job not found']), el('p', {}, [e instanceof ApiError ? e.message : String(e)]));
+    return;
+  }
+  const title = el('h1', {}, [`${job.kind}: ${job.label || job.id}`]);
+  const badge = el('span', { id: 'job-status' }, [statusBadge(job.status)]);
+  const bar = el('progress', { id: 'job-progress', max: '1', value: '0', 'aria-label': 'Progress' }) as HTMLProgressElement;
+  const pct = el('span', { id: 'job-percent' });
+  const stage = el('span', { id: 'job-stage', class: 'muted' });
+  const conn = el('small', { class: 'muted', id: 'job-stream' });
+  const cancel = button('Cancel', async () => {
+    try {
+      await jobs.cancel(id);
+    } catch (e) {
+      stage.textContent = String(e);
+    }
+  });
+  const live = el('figure', { class: 'live', hidden: '' }, [
+    el('img', { id: 'live-snapshot', alt: 'Live snapshot of the job as it runs' }),
+    el('figcaption', {}, ['Live snapshot']),
+  ]);
+  const progressBox = el('section', { class: 'progress', 'aria-labelledby': 'progress-h' }, [
+    el('h2', { id: 'progress-h' }, ['Progress']),
+    el('div', { class: 'bar-row' }, [bar, pct, cancel]),
+    el('div', { 'aria-live': 'polite' }, [stage]),
+    conn,
+    live,
+  ]);
+  const resultBox = el('div', { class: 'result' });
+  host.append(
+    title,
+    el('p', { class: 'meta' }, [badge, ` ${job.id} · created ${new Date(job.created_at).toLocaleString()}`, job.replay_of ? ` · replay of ` : '', job.replay_of ? el('a', { href: `#/jobs/${job.replay_of}` }, [job.replay_of]) : '']),
+    progressBox,
+    resultBox,
+  );
+
+  const showProgress = (p: Progress): void => {
+    bar.value = p.fraction;
+    pct.textContent = `${Math.round(p.fraction * 100)} %`;
+    stage.textContent = `${p.stage}${p.steps ? ` — step ${p.step} of ${p.steps}` : ''}${p.message ? `: ${p.message}` : ''}`;
+  };
+  const showStatus = (s: string): void => {
+    badge.replaceChildren(statusBadge(s));
+    cancel.hidden = ENDED.includes(s);
+  };
+  showProgress(job.progress);
+  showStatus(job.status);
+
+  const ended = (j: Job): void => {
+    job = j;
+    showStatus(j.status);
+    showProgress(j.progress);
+    if (j.status === 'succeeded') {
+      bar.value = 1;
+      pct.textContent = '100 %';
+      void result(resultBox, j, kindNames, signal);
+    } else if (j.error) {
+      resultBox.append(el('p', { class: 'error', role: 'alert' }, [`${j.error.title ?? 'Failed'}: ${j.error.detail ?? ''}`]));
+    }
+  };
+  if (ENDED.includes(job.status)) {
+    ended(job);
+    return;
+  }
+  const img = live.querySelector('img') as HTMLImageElement;
+  await followJob(id, {
+    signal,
+    onConnect: (last) => (conn.textContent = last === undefined ? 'following the event stream' : `reconnected after event ${last}`),
+    onEvent: (e) => {
+      if (e.event === 'progress') {
+        const p = JSON.parse(e.data) as Progress;
+        showProgress(p);
+        if (p.snapshot) {
+          blobUrl(p.snapshot, false).then((u) => {
+            const old = img.src;
+            img.src = u;
+            live.hidden = false;
+            img.dataset.count = String(Number(img.dataset.count ?? 0) + 1);
+            if (old.startsWith('blob:')) URL.revokeObjectURL(old);
+          }, () => {});
+        }
+      } else if (e.event === 'status') {
+        showStatus(JSON.parse(e.data) as string);
+      } else if (e.event === 'done') {
+        ended(JSON.parse(e.data) as Job);
+      }
+    },
+  });
+}
+
+/** A succeeded job: the viewer, the maps, the figures, the downloads, the timeline. */
+async function result(host: HTMLElement, job: Job, kindNames: string[], signal: AbortSignal): Promise<void> {
+  const viewerHost = el('div', { class: 'viewer', id: 'viewer' });
+  const controls = el('div', { class: 'viewer-controls', role: 'group', 'aria-label': 'View' });
+  const viewSection = el('section', { 'aria-labelledby': 'view-h' }, [el('h2', { id: 'view-h' }, ['Mesh']), viewerHost, controls]);
+  const timeline = el('section', { class: 'timeline', 'aria-labelledby': 'timeline-h' });
+  const maps = el('section', { 'aria-labelledby': 'maps-h' }, [el('h2', { id: 'maps-h' }, ['Pictures and maps'])]);
+  const figures = el('section', { 'aria-labelledby': 'figures-h' }, [el('h2', { id: 'figures-h' }, ['Result'])]);
+  const downloads = el('section', { 'aria-labelledby': 'downloads-h' }, [el('h2', { id: 'downloads-h' }, ['Downloads'])]);
+  host.append(viewSection, timeline, maps, figures, downloads);
+
+  const viewer = new Viewer(viewerHost);
+  signal.addEventListener('abort', () => viewer.dispose());
+  if (viewer.failure) viewerHost.append(el('p', { class: 'muted' }, [viewer.failure]));
+  const seaLevel = typeof job.request.sea_level === 'number' ? (job.request.sea_level as number) : null;
+
+  // Levels of detail: the full mesh and each mesh_lodN.glb.
+  const levels = job.artifacts.filter((a) => /^mesh(_lod\d+)?\.glb$/.test(a.name)).sort((a, b) => a.name.localeCompare(b.name));
+  const lodSel = el('select', { id: 'lod' }) as HTMLSelectElement;
+  for (const a of levels) lodSel.append(el('option', { value: a.name }, [`${a.name === 'mesh.glb' ? 'full' : a.name.replace(/^mesh_|\.glb$/g, '')} (${humanBytes(a.bytes)})`]));
+  const load = async (j: Job, name: string): Promise<void> => {
+    const a = artifact(j, name) ?? artifact(j, 'mesh.glb');
+    if (!a) return;
+    viewerHost.setAttribute('aria-busy', 'true');
+    try {
+      await viewer.show(await arrayBuffer(a.href), seaLevel);
+      viewerHost.dataset.shown = `${j.id}/${a.name}`;
+    } finally {
+      viewerHost.removeAttribute('aria-busy');
+    }
+  };
+  lodSel.addEventListener('change', () => void load(shownJob, lodSel.value));
+  let shownJob = job;
+
+  const check = (id: string, label: string, checked: boolean, f: (v: boolean) => void): HTMLElement => {
+    const cb = el('input', { type: 'checkbox', id }) as HTMLInputElement;
+    cb.checked = checked;
+    cb.addEventListener('change', () => f(cb.checked));
+    return el('label', { for: id }, [cb, ` ${label}`]);
+  };
+  const slider = (id: string, label: string, min: number, max: number, value: number, f: (v: number) => void): HTMLElement[] => {
+    const s = el('input', { type: 'range', id, min: String(min), max: String(max), value: String(value) }) as HTMLInputElement;
+    s.addEventListener('input', () => f(Number(s.value)));
+    return [el('label', { for: id }, [label]), s];
+  };
+  controls.append(
+    check('wireframe', 'wireframe', false, (v) => viewer.set({ wireframe: v })),
+    check('vertex-colors', 'vertex colours', true, (v) => viewer.set({ vertexColors: v })),
+    ...(seaLevel !== null ? [check('sea', `sea plane (${seaLevel} m)`, true, (v) => viewer.set({ sea: v }))] : []),
+    ...slider('sun-azimuth', 'sun azimuth', 0, 359, 315, (v) => viewer.set({ sunAzimuth: v })),
+    ...slider('sun-elevation', 'sun elevation', 2, 90, 45, (v) => viewer.set({ sunElevation: v })),
+    ...(levels.length > 1 ? [el('label', { for: 'lod' }, ['level of detail']), lodSel] : []),
+  );
+  const first = load(job, 'mesh.glb');
+
+  // The maps and pictures beside the mesh.
+  const grid = el('div', { class: 'maps' });
+  maps.append(grid);
+  const pictures = (j: Job): void => {
+    grid.replaceChildren();
+    for (const a of j.artifacts.filter((a) => a.media_type === 'image/png' && !a.name.includes('/'))) {
+      const img = el('img', { alt: `${a.name} of job ${j.label || j.id}`, 'data-name': a.name }) as HTMLImageElement;
+      blobUrl(a.href).then((u) => (img.src = u), () => {});
+      grid.append(el('figure', {}, [img, el('figcaption', {}, [`${a.name} · ${humanBytes(a.bytes)}`])]));
+    }
+  };
+  pictures(job);
+
+  // The figures as a table.
+  const rows = flatten(job.result ?? {});
+  figures.append(
+    el('table', { class: 'figures' }, [
+      el('tbody', {}, rows.map(([k, v]) => el('tr', {}, [el('th', { scope: 'row' }, [k]), el('td', {}, [v])]))),
+    ]),
+  );
+
+  // Downloads, with sizes; with a key, through fetch (a plain link cannot carry it).
+  const list = el('ul', { class: 'downloads' });
+  for (const a of job.artifacts) {
+    const link = el('a', { href: a.href, download: a.name.replaceAll('/', '_') }, [a.name]);
+    link.addEventListener('click', async (ev) => {
+      if (!apiKey()) return;
+      ev.preventDefault();
+      const tmp = el('a', { href: await blobUrl(a.href), download: a.name.replaceAll('/', '_') });
+      tmp.click();
+    });
+    list.append(el('li', {}, [link, el('small', { class: 'muted' }, [` ${humanBytes(a.bytes)} · ${a.media_type} · sha256 ${a.sha256.slice(0, 12)}…`])]));
+  }
+  downloads.append(list);
+
+  // Start another job from this result.
+  if (hasHeightfield(job)) {
+    const targets = kindNames.filter((k) => ['bulldoze', 'deform-terrain', 'carve-coast'].includes(k));
+    host.append(
+      el('section', { 'aria-labelledby': 'compose-h' }, [
+        el('h2', { id: 'compose-h' }, ['Use this terrain']),
+        el('p', {}, targets.map((k) => el('a', { class: 'button', href: `#/new/${k}?terrain=${job.id}` }, [`${k} on it`]))),
+      ]),
+    );
+  }
+
+  const steps = typeof job.result?.sequence_steps === 'number' ? (job.result.sequence_steps as number) : 0;
+  if (steps > 0 && !job.replay_of) timelineSection(timeline, job, steps, async (j) => {
+    shownJob = j;
+    await load(j, lodSel.value || 'mesh.glb');
+    pictures(j);
+  }, signal);
+  await first;
+}
+
+/** A slider over the recorded sequence: each position is a replay up to that step (cached). */
+function timelineSection(host: HTMLElement, job: Job, steps: number, show: (j: Job) => Promise<void>, signal: AbortSignal): void {
+  const s = el('input', { type: 'range', id: 'timeline', min: '0', max: String(steps), value: String(steps), step: '1' }) as HTMLInputElement;
+  const label = el('output', { for: 'timeline', id: 'timeline-step' }, [`step ${steps} of ${steps} (the result)`]);
+  const note = el('small', { class: 'muted', 'aria-live': 'polite', id: 'timeline-note' });
+  host.append(
+    el('h2', { id: 'timeline-h' }, ['Timeline']),
+    el('p', { class: 'muted' }, ['Each position replays the recorded sequence up to that step: nothing is searched or sampled again.']),
+    el('div', { class: 'timeline-row' }, [el('label', { for: 'timeline' }, ['step']), s, label]),
+    note,
+  );
+  const cache = new Map<number, Promise<Job>>([[steps, Promise.resolve(job)]]);
+  let timer = 0;
+  let wanted = steps;
+  const replayTo = (k: number): Promise<Job> => {
+    let p = cache.get(k);
+    if (!p) {
+      p = (async () => {
+        let j = await jobs.replay(job.id, k);
+        while (!['succeeded', 'failed', 'cancelled'].includes(j.status) && !signal.aborted) {
+          await new Promise((r) => setTimeout(r, 400));
+          j = await jobs.get(j.id);
+        }
+        if (j.status !== 'succeeded') throw new Error(`the replay to step ${k} ${j.status}`);
+        return j;
+      })();
+      cache.set(k, p);
+      p.catch(() => cache.delete(k));
+    }
+    return p;
+  };
+  s.addEventListener('input', () => {
+    const k = Number(s.value);
+    wanted = k;
+    label.textContent = `step ${k} of ${steps}${k === steps ? ' (the result)' : ''}`;
+    clearTimeout(timer);
+    timer = window.setTimeout(async () => {
+      note.textContent = cache.has(k) ? '' : `replaying to step ${k}…`;
+      host.setAttribute('aria-busy', 'true');
+      try {
+        const j = await replayTo(k);
+        if (wanted !== k || signal.aborted) return;
+        await show(j);
+        note.textContent = k === steps ? 'the result' : `step ${k}: replay job ${j.id}`;
+        host.dataset.shownStep = String(k);
+      } catch (e) {
+        note.textContent = e instanceof ApiError ? `${e.problem.status}: ${e.message}` : String(e);
+      } finally {
+        host.removeAttribute('aria-busy');
+      }
+    }, 350);
+  });
+}

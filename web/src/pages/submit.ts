@@ -1,0 +1,90 @@
+// A kind's page: presets from api/, a form built from the kind's schema, a raw-JSON view, and
+// the terrain-source picker that lets a job start from an earlier one's result.
+
+import { ApiError, Job, jobs } from '../api';
+import { SchemaForm } from '../form';
+import { presets } from '../presets';
+import { Doc, Resolver, kinds, requestSchema } from '../schema';
+import { el, hasHeightfield, thumbnail } from '../ui';
+import { button } from './list';
+
+export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URLSearchParams): void {
+  const info = kinds(doc).find((k) => k.kind === kind);
+  if (!info) {
+    host.append(el('h1', {}, ['No such kind']), el('p', {}, [`The server runs no kind named “${kind}”.`]));
+    return;
+  }
+  const r = new Resolver(doc);
+  const schema = requestSchema(doc, kind);
+  const list = presets(kind);
+  const startTerrain = query.get('terrain');
+  const initial = (p: number): unknown => {
+    const body = p >= 0 ? structuredClone(list[p].body) : (r.initial(schema) as Record<string, unknown>);
+    if (startTerrain && 'terrain' in (r.deref(schema).properties ?? {})) body.terrain = { job: startTerrain };
+    return body;
+  };
+
+  const presetSel = el('select', { id: 'preset' }) as HTMLSelectElement;
+  list.forEach((p, i) => presetSel.append(el('option', { value: String(i) }, [p.name])));
+  presetSel.append(el('option', { value: '-1' }, ['defaults only']));
+  const formHost = el('div', { class: 'form' });
+  const status = el('p', { class: 'muted', role: 'status', 'aria-live': 'polite' });
+  const form = new SchemaForm(r, schema, initial(list.length ? 0 : -1), formHost, { jobPicker: (_f, current, pick) => picker(current, pick) });
+  presetSel.addEventListener('change', () => form.setValue(initial(Number(presetSel.value))));
+
+  const submit = el('button', { type: 'submit', class: 'primary' }, [`Run ${kind}`]) as HTMLButtonElement;
+  const f = el('form', { novalidate: '', 'aria-label': `New ${kind} job` }, [
+    el('div', { class: 'preset-row' }, [el('label', { for: 'preset' }, ['Preset (from api/)']), presetSel]),
+    formHost,
+    el('div', { class: 'actions' }, [submit, status]),
+  ]);
+  f.addEventListener('submit', async (ev) => {
+    ev.preventDefault();
+    const body = form.value();
+    if (form.validate().length) {
+      status.textContent = 'Some fields are out of bounds: see the messages beside them.';
+      return;
+    }
+    submit.disabled = true;
+    status.textContent = 'Submitting…';
+    try {
+      const job: Job = await jobs.submit(kind, body);
+      location.hash = `#/jobs/${job.id}`;
+    } catch (e) {
+      if (e instanceof ApiError) {
+        const p = e.problem;
+        status.textContent = `${p.status} ${p.title ?? ''}: ${p.detail ?? ''}`;
+        form.showErrors(p.errors ?? [], p.detail);
+      } else status.textContent = String(e);
+    } finally {
+      submit.disabled = false;
+    }
+  });
+  host.append(el('h1', {}, [kind]), el('p', { class: 'lead' }, [info.description || info.summary]), f);
+}
+
+/** Thumbnails of earlier results that a terrain source can name; one click picks one. */
+function picker(current: unknown, pick: (id: string) => void): HTMLElement {
+  const box = el('div', { class: 'picker', role: 'group', 'aria-label': 'Start from an earlier job' }, [
+    el('span', { class: 'name' }, ['…or start from an earlier result:']),
+  ]);
+  const grid = el('div', { class: 'picker-grid' });
+  box.append(grid);
+  jobs
+    .list({ status: 'succeeded', limit: 50 })
+    .then((page) => {
+      const usable = page.items.filter((j) => hasHeightfield(j) && !j.replay_of).slice(0, 16);
+      if (!usable.length) grid.append(el('small', { class: 'muted' }, ['No finished heightfield yet.']));
+      for (const j of usable) {
+        const name = `${j.kind}: ${j.label || j.id}`;
+        const b = button('', () => pick(j.id), 'pick');
+        b.setAttribute('aria-pressed', String(current === j.id));
+        b.setAttribute('aria-label', `Use ${name}`);
+        b.dataset.job = j.id;
+        b.append(thumbnail(j, ''), el('span', {}, [name]));
+        grid.append(b);
+      }
+    })
+    .catch((e) => grid.append(el('small', { class: 'error' }, [String(e)])));
+  return box;
+}
