@@ -28,6 +28,14 @@ dialog.addEventListener('close', () => {
 });
 
 async function route(): Promise<void> {
+  try {
+    await show();
+  } catch (e) {
+    main.replaceChildren(el('p', { class: 'error', role: 'alert' }, [`The playground could not load this page: ${(e as Error).message ?? e}`]));
+  }
+}
+
+async function show(): Promise<void> {
   current.abort();
   current = new AbortController();
   const signal = current.signal;
@@ -61,4 +69,4 @@ window.addEventListener('hashchange', () => {
   void route();
   main.focus({ preventScroll: true });
 });
-route().catch((e) => main.replaceChildren(el('p', { class: 'error', role: 'alert' }, [`The playground could not start: ${e}`])));
+void route();

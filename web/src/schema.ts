@@ -2,6 +2,8 @@
 // checks the schema states (bounds, lengths, patterns, required fields, one-of choices), so a
 // request is checked before it is sent.
 
+import { getJson } from './api';
+
 export type Schema = Record<string, any>;
 export type Path = (string | number)[];
 
@@ -12,11 +14,10 @@ export interface Doc {
 
 let docPromise: Promise<Doc> | null = null;
 
+/** The document (fetched once; again after a failure, e.g. once a key has been given). */
 export function openapi(): Promise<Doc> {
-  docPromise ??= fetch('/openapi.json').then((r) => {
-    if (!r.ok) throw new Error(`GET /openapi.json: HTTP ${r.status}`);
-    return r.json();
-  });
+  docPromise ??= getJson<Doc>('/openapi.json');
+  docPromise.catch(() => (docPromise = null));
   return docPromise;
 }
 

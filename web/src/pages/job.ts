@@ -70,7 +70,16 @@ export async function jobPage(host: HTMLElement, id: string, kindNames: string[]
       pct.textContent = '100 %';
       void result(resultBox, j, kindNames, signal);
     } else if (j.error) {
-      resultBox.append(el('p', { class: 'error', role: 'alert' }, [`${j.error.title ?? 'Failed'}: ${j.error.detail ?? ''}`]));
+      const fields = (j.error.errors ?? []).map((e) => el('li', {}, [el('code', {}, [e.field]), `: ${e.message}`]));
+      resultBox.append(
+        el('div', { class: 'error general', role: 'alert', id: 'job-error' }, [
+          `${j.error.title ?? 'Failed'}: ${j.error.detail ?? ''}`,
+          ...(fields.length ? [el('ul', {}, fields)] : []),
+        ]),
+      );
+    }
+    if (!j.replay_of) {
+      resultBox.append(el('p', {}, [el('a', { class: 'button', href: `#/new/${j.kind}?from=${j.id}` }, ['Edit as a new job'])]));
     }
   };
   if (ENDED.includes(job.status)) {

@@ -31,6 +31,18 @@ export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URL
   const status = el('p', { class: 'muted', role: 'status', 'aria-live': 'polite' });
   const form = new SchemaForm(r, schema, initial(list.length ? 0 : -1), formHost, { jobPicker: (_f, current, pick) => picker(current, pick) });
   presetSel.addEventListener('change', () => form.setValue(initial(Number(presetSel.value))));
+  // "Edit as a new job": the form starts from an earlier job's request (defaults filled in).
+  const from = query.get('from');
+  if (from) {
+    jobs.get(from).then(
+      (j) => {
+        presetSel.append(el('option', { value: '-2' }, [`from job ${j.label || j.id}`]));
+        presetSel.value = '-2';
+        form.setValue(j.request);
+      },
+      (e) => (status.textContent = `Could not read job ${from}: ${e}`),
+    );
+  }
 
   const submit = el('button', { type: 'submit', class: 'primary' }, [`Run ${kind}`]) as HTMLButtonElement;
   const f = el('form', { novalidate: '', 'aria-label': `New ${kind} job` }, [

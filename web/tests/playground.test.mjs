@@ -1,0 +1,165 @@
+// End-to-end: the playground in headless Chromium against a real server started here.
+import assert from 'node:assert/strict';
+import { after, before, test } from 'node:test';
+import { canvasStats, frameDifference, launch, newPage, record, runPreset, shot, startServer, waitForResult } from './harness.mjs';
+
+let server;
+let browser;
+
+before(async () => {
+  server = await startServer();
+  browser = await launch();
+});
+
+after(async () => {
+  await browser?.close();
+  server?.stop();
+});
+
+/** Every value the progress bar showed, sampled in the page. */
+async function watchProgress(page) {
+  await page.addInitScript(() => {
+    window.__progress = [];
+    setInterval(() => {
+      const bar = document.querySelector('#job-progress');
+      if (bar && window.__progress[window.__progress.length - 1] !== bar.value) window.__progress.push(bar.value);
+    }, 20);
+  });
+}
+
+test('first paint and the shipped page', async () => {
+  const page = await newPage(browser, server.url);
+  await page.goto('/');
+  await page.waitForSelector('table.jobs, main p.muted[role=status]');
+  await page.waitForFunction(() => document.querySelector('nav#nav a[href="#/new/bulldoze"]'));
+  const timing = await page.evaluate(() => {
+    const paint = Object.fromEntries(performance.getEntriesByType('paint').map((e) => [e.name, e.startTime]));
+    const nav = performance.getEntriesByType('navigation')[0];
+    const transferred = performance.getEntriesByType('resource').reduce((s, r) => s + (r.transferSize || 0), nav.transferSize || 0);
+    return { ...paint, dom_content_loaded: nav.domContentLoadedEventEnd, jobs_list_shown: performance.now(), transferred };
+  });
+  record('first-paint', timing);
+  assert.ok(timing['first-contentful-paint'] > 0, JSON.stringify(timing));
+  assert.deepEqual(page.errors, []);
+});
+
+test('a bulldoze job from its preset: progress to 100 %, a drawn 3D frame, and the timeline', async () => {
+  const page = await newPage(browser, server.url);
+  await watchProgress(page);
+  const id = await runPreset(page, 'bulldoze', 'ziggurat');
+  await waitForResult(page);
+  assert.equal(await page.locator('#job-percent').textContent(), '100 %');
+  assert.equal(await page.locator('#job-progress').evaluate((b) => b.value), 1);
+  assert.match(await page.locator('#job-status').textContent(), /succeeded/);
+  const seen = await page.evaluate(() => window.__progress);
+  assert.equal(seen[seen.length - 1], 1, `progress values ${seen}`);
+
+  // A drawn frame: a terrain lit by the sun, not a flat background.
+  const full = await canvasStats(page);
+  assert.ok(full.variance > 100, `luminance variance ${full.variance}`);
+  await shot(page, 'bulldoze-job');
+  await page.locator('#viewer canvas').screenshot({ path: `${process.env.LANDFORM_E2E_OUT ?? '../target/playground-e2e'}/bulldoze-canvas.png` });
+
+  // The timeline: step 0 of the ziggurat is the mound before the spiral is cut.
+  const steps = Number(await page.locator('#timeline').getAttribute('max'));
+  assert.ok(steps > 10, `steps ${steps}`);
+  await page.locator('#timeline').fill('0');
+  await page.waitForFunction(() => document.querySelector('.timeline')?.dataset.shownStep === '0', null, { timeout: 60000 });
+  await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+  const early = await canvasStats(page);
+  const moved = frameDifference(full, early);
+  assert.ok(moved > 1.0, `frame difference between step ${steps} and step 0: ${moved}`);
+  const shown = await page.locator('#viewer').getAttribute('data-shown');
+  assert.ok(!shown.startsWith(id), `the viewer shows a replay, not ${shown}`);
+  // The replay is the original's operations up to step 0, made by the server.
+  const replay = await (await fetch(`${server.url}/v1/jobs/${shown.split('/')[0]}`)).json();
+  assert.equal(replay.replay_of, id);
+  assert.equal(replay.replay_until_step, 0);
+  await shot(page, 'bulldoze-timeline-step-0');
+
+  // Back to the end: the cached result, the first frame again.
+  await page.locator('#timeline').fill(String(steps));
+  await page.waitForFunction((s) => document.querySelector('.timeline')?.dataset.shownStep === String(s), steps, { timeout: 60000 });
+  await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+  const back = await canvasStats(page);
+  assert.ok(frameDifference(full, back) < 0.5, `back at the end: ${frameDifference(full, back)}`);
+  assert.deepEqual(page.errors, []);
+});
+
+test('composition: carve-coast on a deform-terrain result picked from the thumbnails', async () => {
+  const page = await newPage(browser, server.url);
+  const island = await runPreset(page, 'deform-terrain', 'star-island');
+  await waitForResult(page);
+  await page.goto('/#/new/carve-coast');
+  await page.selectOption('#preset', { label: 'small-island-one-pass' });
+  const pick = page.locator(`button.pick[data-job="${island}"]`);
+  await pick.waitFor();
+  await pick.click();
+  await page.locator(`button.pick[data-job="${island}"][aria-pressed="true"]`).waitFor();
+  // The star island stands 27–95 m high: the sea goes to 50 m, set in the form.
+  await page.locator('[data-path="sea_level"] input').fill('50');
+  const raw = JSON.parse(await page.locator('textarea.raw').inputValue());
+  assert.deepEqual(raw.terrain, { job: island });
+  assert.equal(raw.sea_level, 50);
+  await page.click('button[type=submit].primary');
+  await page.waitForURL(/#\/jobs\/[0-9a-f-]{36}$/);
+  const coast = page.url().split('/').pop();
+  await waitForResult(page);
+  const job = await (await fetch(`${server.url}/v1/jobs/${coast}`)).json();
+  assert.equal(job.status, 'succeeded');
+  assert.deepEqual(job.request.terrain, { job: island });
+  assert.ok(await page.locator('#sea').isChecked(), 'the sea plane is offered');
+  const stats = await canvasStats(page);
+  assert.ok(stats.variance > 100, `variance ${stats.variance}`);
+  await shot(page, 'carve-coast-on-deform-terrain');
+  assert.deepEqual(page.errors, []);
+});
+
+test('bad fields: the schema bound is checked before sending, the server 422 is shown beside its field', async () => {
+  const page = await newPage(browser, server.url);
+  const posts = [];
+  page.on('request', (r) => r.method() === 'POST' && posts.push(r.url()));
+  await page.goto('/#/new/grow-cave');
+  await page.selectOption('#preset', { label: 'columns' });
+  const field = page.locator('[data-path="stalactite_radius_m"]');
+  const input = field.locator('input');
+  // Beyond the schema's maximum: refused in the page, nothing sent.
+  await input.fill('20000');
+  await page.click('button[type=submit].primary');
+  await field.locator('.error').waitFor();
+  assert.match(await field.locator('.error').textContent(), /at most 10000/);
+  assert.equal(await input.getAttribute('aria-invalid'), 'true');
+  assert.deepEqual(posts, []);
+  // Within the schema's bound but taller than the chamber: the server's 422 names the field.
+  await input.fill('9000');
+  await page.click('button[type=submit].primary');
+  await page.waitForFunction(() => /422/.test(document.querySelector('.actions [role=status]')?.textContent ?? ''));
+  assert.equal(posts.length, 1);
+  const message = await field.locator('.error').textContent();
+  assert.match(message, /height/i, message);
+  assert.ok(await field.locator('.error').isVisible());
+  assert.ok(page.url().endsWith('#/new/grow-cave'), 'still on the form');
+  await shot(page, 'grow-cave-422');
+});
+
+test('every kind: a finished job on its page', async () => {
+  const page = await newPage(browser, server.url);
+  const presets = { 'weather-column': 'goblin-cap', 'grow-cave': 'columns', 'deform-terrain': 'tileable', 'carve-coast': 'small-island-one-pass', bulldoze: 'hillside-road' };
+  for (const [kind, preset] of Object.entries(presets)) {
+    await runPreset(page, kind, preset);
+    await waitForResult(page);
+    const stats = await canvasStats(page);
+    assert.ok(stats.variance > 50, `${kind}: variance ${stats.variance}`);
+    await page.waitForFunction(() => [...document.querySelectorAll('.maps img')].every((i) => i.complete && i.naturalWidth > 0));
+    await shot(page, `kind-${kind}`);
+  }
+  // The list: newest first, every kind there, with thumbnails.
+  await page.goto('/#/jobs');
+  await page.waitForSelector('table.jobs tbody tr');
+  const kinds = await page.locator('table.jobs tbody tr td:nth-child(2)').allTextContents();
+  for (const k of Object.keys(presets)) assert.ok(kinds.includes(k), `${k} in ${kinds}`);
+  await page.selectOption('#filter-kind', 'grow-cave');
+  await page.waitForFunction(() => [...document.querySelectorAll('table.jobs tbody tr td:nth-child(2)')].every((td) => td.textContent === 'grow-cave'));
+  await shot(page, 'job-list');
+  assert.deepEqual(page.errors, []);
+});
