@@ -6,6 +6,8 @@ COPY src ./src
 COPY benches ./benches
 # Embedded in the binary at compile time (refinery's PostgreSQL migrations).
 COPY migrations ./migrations
+# The playground's built bundle (committed; no Node in the image), embedded by rust-embed.
+COPY web/dist ./web/dist
 # The load generator is a workspace member: its manifest and sources must be there for Cargo to
 # read the workspace, though only the service is built.
 COPY loadtests/Cargo.toml ./loadtests/Cargo.toml

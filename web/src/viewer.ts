@@ -7,6 +7,7 @@ import {
   Color,
   DirectionalLight,
   DoubleSide,
+  FrontSide,
   HemisphereLight,
   Material,
   Mesh,
@@ -111,8 +112,9 @@ export class Viewer {
         mat.wireframe = this.opts.wireframe;
         const hasColors = Boolean(m.geometry.getAttribute('color'));
         mat.vertexColors = hasColors && this.opts.vertexColors;
-        // Chambers are seen from inside: draw both faces.
-        mat.side = DoubleSide;
+        // Front faces only: a closed chamber (normals inward) seen from outside shows its inside
+        // through the near walls, a cut-away view; a terrain is seen from above as before.
+        mat.side = FrontSide;
         mat.needsUpdate = true;
       }
     });

@@ -1,8 +1,10 @@
 // End-to-end: the playground in headless Chromium against a real server started here.
 import assert from 'node:assert/strict';
+import { createRequire } from 'node:module';
 import { after, before, test } from 'node:test';
 import { canvasStats, frameDifference, launch, newPage, record, runPreset, shot, startServer, waitForResult } from './harness.mjs';
 
+const axePath = createRequire(import.meta.url).resolve('axe-core/axe.min.js');
 let server;
 let browser;
 
@@ -162,4 +164,67 @@ test('every kind: a finished job on its page', async () => {
   await page.waitForFunction(() => [...document.querySelectorAll('table.jobs tbody tr td:nth-child(2)')].every((td) => td.textContent === 'grow-cave'));
   await shot(page, 'job-list');
   assert.deepEqual(page.errors, []);
+});
+
+test('a dropped event stream is resumed with Last-Event-ID', async () => {
+  const page = await newPage(browser, server.url);
+  const resumed = [];
+  let cut = null;
+  // The first stream is cut after its first two events (no `done`): the page must reconnect and
+  // say which event it saw last.
+  await page.route('**/v1/jobs/*/events', async (route) => {
+    if (cut === null) {
+      const res = await route.fetch();
+      const events = (await res.text()).split('\n\n').filter((e) => /^id:/m.test(e));
+      const kept = events.slice(0, 2);
+      cut = /^id: ?(\S+)/m.exec(kept[kept.length - 1])[1];
+      await route.fulfill({ status: 200, headers: { 'content-type': 'text/event-stream' }, body: `${kept.join('\n\n')}\n\n` });
+    } else {
+      resumed.push(route.request().headers()['last-event-id'] ?? null);
+      await route.continue();
+    }
+  });
+  await runPreset(page, 'weather-column', 'gumdrop');
+  await waitForResult(page);
+  assert.ok(cut !== null);
+  assert.deepEqual(resumed.slice(0, 1), [cut]);
+  assert.match(await page.locator('#job-stream').textContent(), new RegExp(`reconnected after event ${cut}`));
+  assert.deepEqual(page.errors, []);
+});
+
+test('accessibility: no serious or critical axe-core violations on the form, job and list pages', async () => {
+  // The page's CSP refuses injected scripts; the audit needs one.
+  const page = await newPage(browser, server.url, { bypassCSP: true });
+  const audit = async (name) => {
+    await page.addScriptTag({ path: axePath });
+    const result = await page.evaluate(() => window.axe.run(document, { resultTypes: ['violations'] }));
+    const bad = result.violations.filter((v) => v.impact === 'serious' || v.impact === 'critical');
+    record(`axe-${name}`, result.violations.map((v) => ({ id: v.id, impact: v.impact, nodes: v.nodes.length })));
+    assert.deepEqual(bad.map((v) => `${v.id}: ${v.nodes.map((n) => n.target.join(' ')).slice(0, 3).join(', ')}`), [], name);
+  };
+  await page.goto('/#/new/bulldoze');
+  await page.waitForSelector('form[aria-label="New bulldoze job"]');
+  await audit('bulldoze-form');
+  await runPreset(page, 'grow-cave', 'columns');
+  await waitForResult(page);
+  await audit('grow-cave-job');
+  await page.goto('/#/jobs');
+  await page.waitForSelector('table.jobs tbody tr');
+  await audit('job-list');
+  // The dark scheme too (the page follows prefers-color-scheme).
+  await page.emulateMedia({ colorScheme: 'dark' });
+  await audit('job-list-dark');
+  await page.goto('/#/new/carve-coast');
+  await page.waitForSelector('form[aria-label="New carve-coast job"]');
+  await audit('carve-coast-form-dark');
+  await page.emulateMedia({ colorScheme: 'light' });
+  // Keyboard: the form's fields and the submit button are reached with Tab alone.
+  await page.goto('/#/new/weather-column');
+  await page.waitForSelector('form[aria-label="New weather-column job"]');
+  const reached = new Set();
+  for (let i = 0; i < 400 && !reached.has('submit'); i++) {
+    await page.keyboard.press('Tab');
+    reached.add(await page.evaluate(() => (document.activeElement?.type === 'submit' ? 'submit' : document.activeElement?.tagName)));
+  }
+  assert.ok(reached.has('submit') && reached.has('INPUT') && reached.has('SELECT'), [...reached].join());
 });

@@ -48,7 +48,9 @@ export function listPage(host: HTMLElement, kindNames: string[], signal: AbortSi
     const hidden = page.items.length - items.length;
     note.textContent = items.length ? (hidden ? `${hidden} replay(s) on this page hidden.` : '') : 'No jobs here yet. Start one from a kind above.';
     table.replaceChildren(
-      el('thead', {}, [el('tr', {}, ['', 'Kind', 'Label', 'Status', 'Age', ''].map((h) => el('th', { scope: 'col' }, [h])))]),
+      el('thead', {}, [
+        el('tr', {}, ['Preview', 'Kind', 'Label', 'Status', 'Age', 'Actions'].map((h, i) => el('th', { scope: 'col' }, [i === 0 || i === 5 ? el('span', { class: 'sr-only' }, [h]) : h]))),
+      ]),
       el('tbody', {}, items.map((j) => row(j, load))),
     );
     pager.replaceChildren();
