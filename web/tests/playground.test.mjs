@@ -160,9 +160,11 @@ test('every kind: a finished job on its page', async () => {
   await page.waitForSelector('table.jobs tbody tr');
   const kinds = await page.locator('table.jobs tbody tr td:nth-child(2)').allTextContents();
   for (const k of Object.keys(presets)) assert.ok(kinds.includes(k), `${k} in ${kinds}`);
+  await page.waitForFunction(() => [...document.querySelectorAll('table.jobs img.thumb:not(.empty)')].every((i) => i.complete && i.naturalWidth > 0));
+  await shot(page, 'job-list');
   await page.selectOption('#filter-kind', 'grow-cave');
   await page.waitForFunction(() => [...document.querySelectorAll('table.jobs tbody tr td:nth-child(2)')].every((td) => td.textContent === 'grow-cave'));
-  await shot(page, 'job-list');
+  await shot(page, 'job-list-grow-cave');
   assert.deepEqual(page.errors, []);
 });
 
@@ -227,4 +229,21 @@ test('accessibility: no serious or critical axe-core violations on the form, job
     reached.add(await page.evaluate(() => (document.activeElement?.type === 'submit' ? 'submit' : document.activeElement?.tagName)));
   }
   assert.ok(reached.has('submit') && reached.has('INPUT') && reached.has('SELECT'), [...reached].join());
+});
+
+test('live snapshots appear as the job runs, and cancel stops it', async () => {
+  const page = await newPage(browser, server.url);
+  const id = await runPreset(page, 'deform-terrain', 's-road');
+  await page.waitForFunction(() => {
+    const img = document.querySelector('#live-snapshot');
+    return Number(img?.dataset.count ?? 0) >= 1 && img.complete && img.naturalWidth > 0;
+  }, null, { timeout: 60000 });
+  assert.match(await page.locator('#job-status').textContent(), /running/);
+  await shot(page, 'deform-terrain-live-snapshot');
+  await page.getByRole('button', { name: 'Cancel' }).click();
+  await page.waitForFunction(() => /cancelled/.test(document.querySelector('#job-status')?.textContent ?? ''), null, { timeout: 30000 });
+  const job = await (await fetch(`${server.url}/v1/jobs/${id}`)).json();
+  assert.equal(job.status, 'cancelled');
+  assert.ok(await page.locator('#job-error').isVisible());
+  assert.deepEqual(page.errors, []);
 });

@@ -104,7 +104,7 @@ export async function jobPage(host: HTMLElement, id: string, kindNames: string[]
           }, () => {});
         }
       } else if (e.event === 'status') {
-        showStatus(JSON.parse(e.data) as string);
+        showStatus((JSON.parse(e.data) as { status: string }).status);
       } else if (e.event === 'done') {
         ended(JSON.parse(e.data) as Job);
       }
