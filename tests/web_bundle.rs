@@ -75,8 +75,7 @@ async fn the_server_serves_the_page_and_every_asset_it_names() {
     assert_eq!(html, std::fs::read_to_string(repo().join("web/dist/index.html")).unwrap());
     // Every script and stylesheet the page names is served, byte for byte the committed file,
     // with a long cache life (their names carry their content's hash), and 304 on its ETag.
-    let names: Vec<&str> =
-        html.split(['"', '\'']).filter(|s| s.starts_with("/assets/")).collect();
+    let names: Vec<&str> = html.split(['"', '\'']).filter(|s| s.starts_with("/assets/")).collect();
     assert!(names.iter().any(|n| n.ends_with(".js")) && names.iter().any(|n| n.ends_with(".css")), "{names:?}");
     for name in names {
         let res = server.client.get(server.url(name)).send().await.unwrap();

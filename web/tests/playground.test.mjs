@@ -141,6 +141,13 @@ test('bad fields: the schema bound is checked before sending, the server 422 is 
   assert.match(message, /height/i, message);
   assert.ok(await field.locator('.error').isVisible());
   assert.ok(page.url().endsWith('#/new/grow-cave'), 'still on the form');
+  // The raw JSON drives the form too.
+  await page.locator('.raw-box summary').click();
+  const raw = JSON.parse(await page.locator('textarea.raw').inputValue());
+  assert.equal(raw.stalactite_radius_m, 9000);
+  raw.rings = 7;
+  await page.locator('textarea.raw').fill(JSON.stringify(raw, null, 2));
+  await page.waitForFunction(() => document.querySelector('[data-path="rings"] input')?.value === '7');
   await shot(page, 'grow-cave-422');
 });
 
@@ -165,6 +172,16 @@ test('every kind: a finished job on its page', async () => {
   await page.selectOption('#filter-kind', 'grow-cave');
   await page.waitForFunction(() => [...document.querySelectorAll('table.jobs tbody tr td:nth-child(2)')].every((td) => td.textContent === 'grow-cave'));
   await shot(page, 'job-list-grow-cave');
+  // First meaningful paint with a populated list: a fresh tab (cold cache) until the rows, and
+  // until every thumbnail has drawn.
+  const fresh = await newPage(browser, server.url);
+  await fresh.goto('/');
+  await fresh.waitForSelector('table.jobs tbody tr');
+  const rows = await fresh.evaluate(() => performance.now());
+  await fresh.waitForFunction(() => [...document.querySelectorAll('table.jobs img.thumb:not(.empty)')].every((i) => i.complete && i.naturalWidth > 0));
+  const thumbs = await fresh.evaluate(() => performance.now());
+  const fcp = await fresh.evaluate(() => performance.getEntriesByName('first-contentful-paint')[0]?.startTime);
+  record('first-paint-populated', { first_contentful_paint: fcp, rows_shown: rows, thumbnails_drawn: thumbs, jobs: kinds.length });
   assert.deepEqual(page.errors, []);
 });
 
