@@ -29,7 +29,10 @@ fn accepted(seed: u64, pass: u32, column: usize, k: usize, probability: f32) -> 
 }
 
 /// Every steep surface crossing within the elevation range, on each heightfield column,
-/// scanning down at `step_m` (seed: `GetCoastalErosionSeeds`, on the carved surface).
+/// scanning down at `step_m` (seed: `GetCoastalErosionSeeds`), on the surface the passes so far
+/// left and the warp shaped: a column is scanned wherever that surface can cross the range —
+/// its original height near the range, or a carved sphere within reach (caves dug under ground
+/// higher than the range are seeded again).
 pub fn seeds(
     implicit: &Implicit,
     params: &CarveCoastParams,
@@ -41,7 +44,7 @@ pub fn seeds(
     let e = &params.erosion;
     let hf = implicit.hf;
     let (lo, hi) = (params.sea_level + e.seed_elevation_range[0], params.sea_level + e.seed_elevation_range[1]);
-    let reach = e.radius_range[1] * 2.0;
+    let reach = e.radius_range[1] * 2.0 + implicit.warp_reach();
     let min_slope_cos = e.seed_min_slope.to_radians().cos();
     let per_row: Vec<Vec<SeedPoint>> = (0..hf.rows)
         .into_par_iter()
@@ -52,14 +55,13 @@ pub fn seeds(
             }
             for col in 0..hf.cols {
                 let h = hf.get(col, row);
-                if h < lo - reach || h > hi + reach {
-                    continue;
-                }
                 let p = hf.position(col, row);
                 let (x, z) = (p.x, p.z);
-                let near = implicit.index.near(x, z);
+                if (h < lo - reach || h > hi + reach) && !carved_near(implicit, x, z) {
+                    continue;
+                }
                 let mut y = hi;
-                let mut above = implicit.distance_with([x, y, z], near);
+                let mut above = implicit.distance([x, y, z]);
                 let mut k = 0;
                 while y > lo {
                     let y2 = (y - step_m).max(lo);
@@ -67,7 +69,7 @@ pub fn seeds(
                         // A step below the float spacing at this height makes no progress.
                         break;
                     }
-                    let below = implicit.distance_with([x, y2, z], near);
+                    let below = implicit.distance([x, y2, z]);
                     if above > 0.0 && below <= 0.0 {
                         let t = above / (above - below);
                         let point = [x, y + (y2 - y) * t, z];
@@ -89,6 +91,19 @@ pub fn seeds(
         .collect();
     stop.check()?;
     Ok(per_row.concat())
+}
+
+/// Whether a carved sphere can reach the world column at (x, z): its horizontal bounds within
+/// the warp's reach of it. Every sphere's centre lies within the elevation range.
+fn carved_near(implicit: &Implicit, x: f32, z: f32) -> bool {
+    let reach = implicit.warp_reach();
+    let mut any = false;
+    implicit.index.visit(x, z, reach, |i| {
+        let s = implicit.spheres[i as usize];
+        let [cx, _, cz] = s.centre();
+        any |= (cx - x).abs() <= s.radius() + reach && (cz - z).abs() <= s.radius() + reach;
+    });
+    any
 }
 
 fn uniform(rng: &mut ChaCha8Rng, r: [f32; 2]) -> f32 {
@@ -158,7 +173,13 @@ pub fn erosion_pass(
                 let i = c * SEEDS_PER_CHUNK + j;
                 let mut rng = ChaCha8Rng::seed_from_u64(seed);
                 rng.set_stream(((pass as u64) << 40) | i as u64);
-                grow_from_seed(s, e, y_range, pass, &mut rng)
+                // Grown in the world, placed in the warped domain the field is read in.
+                let mut grown = grow_from_seed(s, e, y_range, pass, &mut rng);
+                for sphere in &mut grown {
+                    let [x, y, z] = implicit.warp(sphere.centre());
+                    sphere.0[..3].copy_from_slice(&[x, y, z]);
+                }
+                grown
             })
             .collect();
         out.extend(grown.into_iter().flatten());

@@ -6,7 +6,7 @@ use std::collections::VecDeque;
 
 use rayon::prelude::*;
 
-use super::implicit::Implicit;
+use super::implicit::{max_gradient, Implicit};
 use crate::terrain::Heightfield;
 
 /// The sampling grid: sample (x, y, z) at `(x·v, bottom + y·v, z·v)`, index x + nx·(z + nz·y).
@@ -54,17 +54,7 @@ pub struct Bands {
 pub fn bands(implicit: &Implicit, grid: &Grid, warp_amplitude_m: f32, dense: bool) -> Bands {
     let hf = implicit.hf;
     let v = grid.voxel_m;
-    let g_max = (0..hf.rows)
-        .into_par_iter()
-        .map(|r| {
-            (0..hf.cols)
-                .map(|c| {
-                    let (gx, gz) = hf.gradient(c, r);
-                    (gx * gx + gz * gz).sqrt()
-                })
-                .fold(0.0f32, f32::max)
-        })
-        .reduce(|| 0.0, f32::max);
+    let g_max = max_gradient(hf);
     let warp_pad = warp_amplitude_m * g_max * g_max.max(1.0);
     let pad = 2.0 * v + warp_pad;
     let reach = v + warp_amplitude_m * g_max;
@@ -85,14 +75,16 @@ pub fn bands(implicit: &Implicit, grid: &Grid, warp_amplitude_m: f32, dense: boo
                 }
                 lo -= pad;
                 hi += pad;
-                for &i in implicit.index.near(px, pz) {
+                // Spheres live in the warped domain: a world column sees those within the warp's
+                // reach of it.
+                implicit.index.visit(px, pz, reach, |i| {
                     let s = implicit.spheres[i as usize];
                     let [cx, cy, cz] = s.centre();
-                    if (cx - px).abs() <= s.radius() + v && (cz - pz).abs() <= s.radius() + v {
+                    if (cx - px).abs() <= s.radius() + reach && (cz - pz).abs() <= s.radius() + reach {
                         lo = lo.min(cy - s.radius() - 2.0 * v);
                         hi = hi.max(cy + s.radius() + 2.0 * v);
                     }
-                }
+                });
                 let to_j = |y: f32| ((y - grid.bottom_y) / v).clamp(0.0, grid.ny as f32);
                 (to_j(lo).floor() as u32, (to_j(hi).ceil() as u32 + 1).min(grid.ny as u32))
             })

@@ -27,7 +27,9 @@ impl Sphere {
     }
 }
 
-/// Spheres binned on a horizontal grid, so a point tests only the spheres that can reach it.
+/// Spheres binned on a horizontal grid by their horizontal bounds, so a point tests only the
+/// spheres that can reach it. A query names how far it must see ([`SphereIndex::visit`]): every
+/// bin that box overlaps is visited, so no sphere within that reach is missed at a bin's edge.
 pub struct SphereIndex {
     cell_m: f32,
     cols: usize,
@@ -42,14 +44,11 @@ impl SphereIndex {
         let cell_m = (2.0 * max_r).max(width_m.max(depth_m) / 1024.0);
         let cols = (width_m / cell_m).ceil() as usize + 1;
         let rows = (depth_m / cell_m).ceil() as usize + 1;
+        let mut index = Self { cell_m, cols, rows, offsets: vec![0; cols * rows + 1], items: Vec::new() };
         let mut pairs: Vec<(u32, u32)> = Vec::new();
         for (i, s) in spheres.iter().enumerate() {
             let [x, _, z] = s.centre();
-            let r = s.radius();
-            let c0 = ((x - r) / cell_m).floor().max(0.0) as usize;
-            let c1 = (((x + r) / cell_m).floor().max(0.0) as usize).min(cols - 1);
-            let r0 = ((z - r) / cell_m).floor().max(0.0) as usize;
-            let r1 = (((z + r) / cell_m).floor().max(0.0) as usize).min(rows - 1);
+            let (c0, c1, r0, r1) = index.bins(x, z, s.radius());
             for row in r0..=r1 {
                 for col in c0..=c1 {
                     pairs.push(((row * cols + col) as u32, i as u32));
@@ -57,41 +56,71 @@ impl SphereIndex {
             }
         }
         pairs.sort_unstable();
-        let mut offsets = vec![0u32; cols * rows + 1];
         for &(cell, _) in &pairs {
-            offsets[cell as usize + 1] += 1;
+            index.offsets[cell as usize + 1] += 1;
         }
-        for k in 1..offsets.len() {
-            offsets[k] += offsets[k - 1];
+        for k in 1..index.offsets.len() {
+            index.offsets[k] += index.offsets[k - 1];
         }
-        Self { cell_m, cols, rows, offsets, items: pairs.into_iter().map(|(_, i)| i).collect() }
+        index.items = pairs.into_iter().map(|(_, i)| i).collect();
+        index
     }
 
-    /// Indices of the spheres whose horizontal bounds touch the bin of (x, z).
-    pub fn near(&self, x: f32, z: f32) -> &[u32] {
-        let col = ((x / self.cell_m).floor().max(0.0) as usize).min(self.cols - 1);
-        let row = ((z / self.cell_m).floor().max(0.0) as usize).min(self.rows - 1);
-        let cell = row * self.cols + col;
-        &self.items[self.offsets[cell] as usize..self.offsets[cell + 1] as usize]
+    /// The bins (first and last column, first and last row) a square of half-side `reach`
+    /// around (x, z) overlaps.
+    fn bins(&self, x: f32, z: f32, reach: f32) -> (usize, usize, usize, usize) {
+        let bin = |v: f32, n: usize| ((v / self.cell_m).floor().max(0.0) as usize).min(n - 1);
+        (bin(x - reach, self.cols), bin(x + reach, self.cols), bin(z - reach, self.rows), bin(z + reach, self.rows))
+    }
+
+    /// Calls `f` with every sphere whose horizontal bounds come within `reach` of (x, z) (and
+    /// perhaps others; a sphere in several visited bins is seen once per bin).
+    pub fn visit(&self, x: f32, z: f32, reach: f32, mut f: impl FnMut(u32)) {
+        let (c0, c1, r0, r1) = self.bins(x, z, reach);
+        for row in r0..=r1 {
+            for col in c0..=c1 {
+                let cell = row * self.cols + col;
+                for &i in &self.items[self.offsets[cell] as usize..self.offsets[cell + 1] as usize] {
+                    f(i);
+                }
+            }
+        }
     }
 }
 
-/// The implicit terrain: heightfield distance, minus the spheres, warped, within the
-/// footprint (the sampler adds the bottom).
+/// The implicit terrain (seed: `Warp` applied to the point before the whole function): the
+/// heightfield's distance carved by the spheres, both read at the warped point, within the
+/// footprint (the sampler adds the bottom). Spheres live in the warped domain: a sphere grown
+/// from a point p of the warped surface is centred at `warp(p)`.
 pub struct Implicit<'a> {
     pub hf: &'a Heightfield,
     pub spheres: &'a [Sphere],
     pub index: SphereIndex,
     warp: Option<(f32, f32, Perlin)>,
+    /// The field is exact where it is within this of zero (and right in sign everywhere).
+    exact_m: f32,
+    /// The furthest the warp moves a point horizontally, metres.
+    warp_reach_m: f32,
 }
 
 impl<'a> Implicit<'a> {
-    pub fn new(hf: &'a Heightfield, spheres: &'a [Sphere], warp: Option<&Warp>, seed: u64) -> Self {
+    /// `exact_m`: within this distance of the surface the field equals the full function over
+    /// every sphere (a sampler passes a couple of voxels).
+    pub fn new(hf: &'a Heightfield, spheres: &'a [Sphere], warp: Option<&Warp>, seed: u64, exact_m: f32) -> Self {
         let index = SphereIndex::new(spheres, hf.width_m(), hf.depth_m());
         let warp = warp
             .filter(|w| w.amplitude_m > 0.0)
             .map(|w| (w.amplitude_m, w.frequency_per_m, Perlin::new(seed as u32 ^ 0x5741_5250)));
-        Self { hf, spheres, index, warp }
+        let warp_reach_m = match &warp {
+            None => 0.0,
+            Some((amplitude, _, _)) => amplitude * max_gradient(hf),
+        };
+        Self { hf, spheres, index, warp, exact_m, warp_reach_m }
+    }
+
+    /// The furthest the warp moves a point horizontally, metres (0 without warp).
+    pub fn warp_reach(&self) -> f32 {
+        self.warp_reach_m
     }
 
     /// Central-difference gradient of the heightfield at (x, z), metres per metre.
@@ -115,28 +144,43 @@ impl<'a> Implicit<'a> {
         }
     }
 
-    /// The heightfield's approximate signed distance: height difference scaled by the slope, so
-    /// it stays a distance bound on steep ground.
-    pub fn terrain_distance(&self, p: [f32; 3]) -> f32 {
-        let q = self.warp(p);
+    /// The heightfield's approximate signed distance at a point of the warped domain: height
+    /// difference scaled by the slope, so it stays a distance bound on steep ground.
+    pub(super) fn terrain_distance_at(&self, q: [f32; 3]) -> f32 {
         let (gx, gz) = self.gradient(q[0], q[2]);
         (q[1] - self.hf.sample(q[0], q[2])) / (1.0 + gx * gx + gz * gz).sqrt()
     }
 
-    /// Distance to the nearest carved sphere's surface (negative inside one), from `near`.
-    pub fn sphere_distance(&self, p: [f32; 3], near: &[u32]) -> f32 {
-        near.iter().map(|&i| self.spheres[i as usize].distance(p)).fold(f32::INFINITY, f32::min)
+    /// Distance to the nearest carved sphere's surface at a point of the warped domain
+    /// (negative inside one); exact within `exact_m`; beyond it never smaller than the true
+    /// distance (spheres further than that may be left out), so the field's sign stays right.
+    pub(super) fn sphere_distance_at(&self, q: [f32; 3]) -> f32 {
+        let mut d = f32::INFINITY;
+        self.index.visit(q[0], q[2], self.exact_m, |i| d = d.min(self.spheres[i as usize].distance(q)));
+        d
     }
 
-    /// The full implicit function at `p`, with the spheres that can reach it.
-    pub fn distance_with(&self, p: [f32; 3], near: &[u32]) -> f32 {
-        let carved = self.terrain_distance(p).max(-self.sphere_distance(p, near));
+    /// Distance from world point `p` to the carved spheres' surfaces, read at its warped point.
+    pub fn sphere_distance(&self, p: [f32; 3]) -> f32 {
+        self.sphere_distance_at(self.warp(p))
+    }
+
+    /// The full implicit function at world point `p`: positive in air.
+    pub fn distance(&self, p: [f32; 3]) -> f32 {
+        let q = self.warp(p);
+        let carved = self.terrain_distance_at(q).max(-self.sphere_distance_at(q));
         let walls = (-p[0]).max(p[0] - self.hf.width_m()).max(-p[2]).max(p[2] - self.hf.depth_m());
         carved.max(walls)
     }
 
-    pub fn distance(&self, p: [f32; 3]) -> f32 {
-        self.distance_with(p, self.index.near(p[0], p[2]))
+    /// The same over every sphere, without the index: the reference the index is tested by.
+    #[cfg(test)]
+    pub fn distance_brute(&self, p: [f32; 3]) -> f32 {
+        let q = self.warp(p);
+        let s = self.spheres.iter().map(|s| s.distance(q)).fold(f32::INFINITY, f32::min);
+        let carved = self.terrain_distance_at(q).max(-s);
+        let walls = (-p[0]).max(p[0] - self.hf.width_m()).max(-p[2]).max(p[2] - self.hf.depth_m());
+        carved.max(walls)
     }
 
     /// Unit gradient of the implicit function (the outward normal) by central differences.
@@ -150,4 +194,20 @@ impl<'a> Implicit<'a> {
             [0.0, 1.0, 0.0]
         }
     }
+}
+
+/// The steepest slope of the heightfield (central differences), metres per metre.
+pub fn max_gradient(hf: &Heightfield) -> f32 {
+    use rayon::prelude::*;
+    (0..hf.rows)
+        .into_par_iter()
+        .map(|r| {
+            (0..hf.cols)
+                .map(|c| {
+                    let (gx, gz) = hf.gradient(c, r);
+                    (gx * gx + gz * gz).sqrt()
+                })
+                .fold(0.0f32, f32::max)
+        })
+        .reduce(|| 0.0, f32::max)
 }

@@ -26,6 +26,10 @@ pub use sequence::CoastSequence;
 
 pub struct CarveCoast;
 
+/// The field is exact within this many voxels of the surface: the mesher interpolates between
+/// neighbouring samples and the normals take central differences half a voxel either side.
+const EXACT_VOXELS: f32 = 2.0;
+
 impl Simulation for CarveCoast {
     const KIND: &'static str = "carve-coast";
     const SUMMARY: &'static str =
@@ -50,7 +54,7 @@ impl Simulation for CarveCoast {
         let total = params.passes as u64 + 1;
         let spheres = carve(params, &hf, seed, voxel_m, ctx.stop(), &mut |pass, spheres| {
             ctx.check_cancelled()?;
-            let implicit = Implicit::new(&hf, spheres, params.warp.as_ref(), seed);
+            let implicit = Implicit::new(&hf, spheres, params.warp.as_ref(), seed, 8.0 * voxel_m);
             let message = format!("pass {pass}: {} spheres carved", spheres.len());
             ctx.report_with_snapshot("carving", pass as u64, total, message, || {
                 outputs::snapshot_png(&implicit, params, voxel_m, ctx.stop())
@@ -116,10 +120,11 @@ pub fn carve(
     let mut spheres: Vec<Sphere> = Vec::new();
     for pass in 1..=params.passes {
         let new = {
-            // Seeds are found on the surface carved so far, unwarped.
-            let implicit = Implicit::new(hf, &spheres, None, seed);
+            // Seeds are found on the surface carved so far, warped as the result will be.
+            let step = voxel_m.min(hf.cell_size_m);
+            let implicit = Implicit::new(hf, &spheres, params.warp.as_ref(), seed, 2.0 * step);
             let room = MAX_SPHERES - spheres.len();
-            erosion::erosion_pass(&implicit, params, seed, pass, voxel_m.min(hf.cell_size_m), room, stop)?
+            erosion::erosion_pass(&implicit, params, seed, pass, step, room, stop)?
         };
         spheres.extend(new);
         on_pass(pass, &spheres)?;
@@ -134,7 +139,7 @@ fn finish(
     voxel_m: f32,
     ctx: &RunContext,
 ) -> Result<Outcome<CoastSequence>, SimError> {
-    let implicit = Implicit::new(hf, &sequence.spheres, params.warp.as_ref(), sequence.seed);
+    let implicit = Implicit::new(hf, &sequence.spheres, params.warp.as_ref(), sequence.seed, EXACT_VOXELS * voxel_m);
     let total = params.passes as u64 + 1;
     let mut on_chunk = |done, of| {
         ctx.check_cancelled()?;
@@ -155,7 +160,7 @@ pub fn meshing_seconds(params: &CarveCoastParams, seed: u64, dense: bool) -> Res
     let hf = crate::terrain::generate_fractal(f);
     let voxel_m = params.voxel_size_m.unwrap_or(hf.cell_size_m);
     let spheres = carve(params, &hf, seed, voxel_m, Stop::NEVER, &mut |_, _| Ok(()))?;
-    let implicit = Implicit::new(&hf, &spheres, params.warp.as_ref(), seed);
+    let implicit = Implicit::new(&hf, &spheres, params.warp.as_ref(), seed, EXACT_VOXELS * voxel_m);
     let started = std::time::Instant::now();
     let sampled = outputs::sample(&implicit, params, voxel_m, dense, &mut |_, _| Ok(()))?;
     let mesh = outputs::surface(&sampled, Stop::NEVER)?;

@@ -81,7 +81,7 @@ fn colour(mesh: &mut Mesh, implicit: &Implicit, sea_level: f32, voxel_m: f32) {
         .par_iter()
         .zip(mesh.normals.par_iter())
         .map(|(p, n)| {
-            let carved = implicit.sphere_distance(*p, implicit.index.near(p[0], p[2])).abs() < voxel_m;
+            let carved = implicit.sphere_distance(*p).abs() < voxel_m;
             if carved || n[1] < steep {
                 ROCK
             } else if p[1] < sea_level + BEACH_M {

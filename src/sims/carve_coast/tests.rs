@@ -45,7 +45,7 @@ fn without_carving_or_warp_every_column_crosses_once_at_the_heightfield() {
     let hf = terrain(&p);
     let spheres = carve(&p, &hf, 1, 1.0, Stop::NEVER, &mut |_, _| Ok(())).unwrap();
     assert!(spheres.is_empty());
-    let implicit = Implicit::new(&hf, &spheres, None, 1);
+    let implicit = Implicit::new(&hf, &spheres, None, 1, 2.0);
     let s = sample(&implicit, &p, 1.0, false, &mut no_progress).unwrap();
     let (crossings, top) = columns(&s.values, &s.grid);
     let g = s.grid;
@@ -80,13 +80,13 @@ fn carving_makes_overhangs_only_around_sea_level() {
     let spheres = carve(&p, &hf, 2, 1.0, Stop::NEVER, &mut |_, _| Ok(())).unwrap();
     assert!(spheres.len() > 20, "{} spheres", spheres.len());
     assert!(spheres.iter().any(|s| s.pass() == 2), "the second pass seeds on the carved surface");
-    let implicit = Implicit::new(&hf, &spheres, None, 2);
+    let implicit = Implicit::new(&hf, &spheres, None, 2, 2.0);
     let (result, _) =
         build(&implicit, &p, &spheres, 1.0, &mut no_progress, Stop::NEVER, &MeshSettings::default()).unwrap();
     assert!(result["overhangs"]["with_overhang"].as_u64().unwrap() > 0, "{result}");
     assert_eq!(result["mesh"]["closed"], true);
     // Compare carved and uncarved fields sample by sample.
-    let plain = Implicit::new(&hf, &[], None, 2);
+    let plain = Implicit::new(&hf, &[], None, 2, 2.0);
     let grid = grid_for(&hf, 1.0, 1.0);
     let dense = bands(&implicit, &grid, 0.0, true);
     let mut a = vec![0f32; grid.len()];
@@ -119,7 +119,7 @@ fn floating_fragments_are_removed() {
     let spheres = [Sphere([16.0, 6.0, 16.0, 4.5], 1)];
     let mut p = island(33, 0.0);
     p.sea_level = 1.0;
-    let implicit = Implicit::new(&hf, &spheres, None, 1);
+    let implicit = Implicit::new(&hf, &spheres, None, 1, 2.0);
     let (kept, _) = build(
         &implicit,
         &CarveCoastParams { remove_fragments: false, ..p.clone() },
@@ -143,7 +143,7 @@ fn warp_makes_strata_on_cliffs() {
     let mut p = island(65, 0.0);
     p.warp = Some(params::Warp { amplitude_m: 2.5, frequency_per_m: 0.3 });
     let hf = terrain(&p);
-    let implicit = Implicit::new(&hf, &[], p.warp.as_ref(), 4);
+    let implicit = Implicit::new(&hf, &[], p.warp.as_ref(), 4, 2.0);
     let (result, _) = build(&implicit, &p, &[], 1.0, &mut no_progress, Stop::NEVER, &MeshSettings::default()).unwrap();
     assert_eq!(result["mesh"]["closed"], true, "{result}");
     assert_eq!(result["pieces"], 1, "{result}");
@@ -174,7 +174,7 @@ fn replay_until_k_carves_only_the_first_k_spheres() {
     let part = CarveCoast::replay(&p, &full.sequence, Some(k), &t.ctx()).unwrap();
     let hf = terrain(&p);
     let first = &full.sequence.spheres[..k as usize];
-    let implicit = Implicit::new(&hf, first, None, 5);
+    let implicit = Implicit::new(&hf, first, None, 5, 2.0);
     let (result, artifacts) =
         build(&implicit, &p, first, 1.0, &mut no_progress, Stop::NEVER, &MeshSettings::default()).unwrap();
     assert_eq!(part.result, result);
@@ -193,4 +193,180 @@ fn one_and_two_threads_give_identical_artifacts() {
     let (one, two) = (run(1), run(2));
     assert_eq!(hashes(&one), hashes(&two));
     assert_eq!(one.sequence, two.sequence);
+}
+
+/// Random spheres on a terrain, and points around them, many on the index's bin edges.
+fn spheres_and_points(hf: &Heightfield, n: usize, seed: u64) -> (Vec<Sphere>, Vec<[f32; 3]>) {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let (w, d) = (hf.width_m(), hf.depth_m());
+    let spheres: Vec<Sphere> = (0..n)
+        .map(|_| {
+            let (x, z) = (rng.random_range(0.0..w), rng.random_range(0.0..d));
+            let y = hf.sample(x, z) + rng.random_range(-2.0..1.0f32);
+            Sphere([x, y, z, rng.random_range(0.3..4.0f32)], 1)
+        })
+        .collect();
+    let cell = 8.0; // the index's bins: twice the largest radius
+    let points = (0..20_000)
+        .map(|k| {
+            let mut x = rng.random_range(0.0..w);
+            let mut z = rng.random_range(0.0..d);
+            if k % 2 == 0 {
+                // Just either side of a bin edge.
+                x = (x / cell).round() * cell + rng.random_range(-0.05..0.05f32);
+                z = (z / cell).round() * cell + rng.random_range(-0.05..0.05f32);
+            }
+            [
+                x.clamp(0.0, w),
+                hf.sample(x.clamp(0.0, w), z.clamp(0.0, d)) + rng.random_range(-4.0..3.0f32),
+                z.clamp(0.0, d),
+            ]
+        })
+        .collect();
+    (spheres, points)
+}
+
+#[test]
+fn the_sphere_index_misses_no_sphere_that_reaches_a_point_near_the_surface() {
+    let p = island(65, 0.0);
+    let hf = terrain(&p);
+    for (seed, warp) in [(1, None), (2, Some(params::Warp { amplitude_m: 2.0, frequency_per_m: 0.4 }))] {
+        let (spheres, points) = spheres_and_points(&hf, 300, seed);
+        let exact = 1.5;
+        let implicit = Implicit::new(&hf, &spheres, warp.as_ref(), 3, exact);
+        let (mut near, mut checked) = (0, 0);
+        for q in points {
+            let (indexed, brute) = (implicit.distance(q), implicit.distance_brute(q));
+            // The sign everywhere; the value itself wherever the surface is within `exact`.
+            assert_eq!(indexed > 0.0, brute > 0.0, "sign at {q:?}: {indexed} vs {brute}");
+            if brute.abs() <= exact {
+                assert_eq!(indexed, brute, "at {q:?}");
+                near += 1;
+            }
+            checked += 1;
+        }
+        assert!(near > checked / 10, "{near} of {checked} points near the surface");
+    }
+}
+
+/// A cliff: sea floor at −6 m, a ramp up to a plateau 30 m high (far above the seeding range
+/// of −3 to 8 m), along X.
+fn cliff() -> Heightfield {
+    let mut hf = Heightfield::flat(72, 40, 1.0, 0.0);
+    for row in 0..hf.rows {
+        for col in 0..hf.cols {
+            let x = col as f32;
+            let h = if x < 20.0 {
+                -6.0
+            } else if x < 27.0 {
+                -6.0 + (x - 20.0) / 7.0 * 36.0
+            } else {
+                30.0
+            };
+            hf.set(col, row, h);
+        }
+    }
+    hf
+}
+
+fn cliff_params(passes: u32, warp: Option<params::Warp>) -> CarveCoastParams {
+    let mut p = params(json!({
+        "terrain": {"fractal": {"size": 9}},
+        "sea_level": 0.0,
+        "erosion": {"seed_acceptance_probability": 0.3, "radius_range": [1.5, 3.0], "growth_step_range": [3, 5]},
+        "passes": passes,
+    }));
+    p.warp = warp;
+    p
+}
+
+#[test]
+fn later_passes_seed_caves_under_ground_higher_than_the_range_and_deepen_them() {
+    let hf = cliff();
+    let p = cliff_params(4, None);
+    let spheres = carve(&p, &hf, 9, 1.0, Stop::NEVER, &mut |_, _| Ok(())).unwrap();
+    let e = &p.erosion;
+    let (hi, reach) = (p.sea_level + e.seed_elevation_range[1], e.radius_range[1] * 2.0);
+    // Seeds of passes 2 and later on columns whose original ground stands above the range by
+    // more than the old scan's reach: only a scan of the carved surface finds them.
+    let mut under_high_ground = 0;
+    for pass in 2..=p.passes {
+        let before: Vec<Sphere> = spheres.iter().copied().filter(|s| s.pass() < pass).collect();
+        let implicit = Implicit::new(&hf, &before, None, 9, 2.0);
+        let found = erosion::seeds(&implicit, &p, 9, pass, 1.0, Stop::NEVER).unwrap();
+        under_high_ground += found.iter().filter(|s| hf.sample(s.point[0], s.point[2]) > hi + reach).count();
+    }
+    assert!(under_high_ground > 0, "no seed under the plateau after the first pass");
+    // The caves reach further inland pass by pass: the deepest sphere's inland edge (x + r).
+    let inland = |upto: u32| {
+        spheres.iter().filter(|s| s.pass() <= upto).map(|s| s.centre()[0] + s.radius()).fold(0.0f32, f32::max)
+    };
+    let (first, last) = (inland(1), inland(p.passes));
+    assert!(last > first + 4.0, "inland reach after pass 1: {first} m, after pass {}: {last} m", p.passes);
+}
+
+/// The spheres whose every point lies in rock of the final field without them: carved where no
+/// air reaches, so filled back as air pockets.
+fn buried(implicit: &Implicit, spheres: &[Sphere]) -> usize {
+    let dirs: Vec<[f32; 3]> = (-1..=1)
+        .flat_map(|x| (-1..=1).flat_map(move |y| (-1..=1).map(move |z| [x as f32, y as f32, z as f32])))
+        .collect();
+    (0..spheres.len())
+        .filter(|&i| {
+            let s = spheres[i];
+            let c = s.centre();
+            dirs.iter().all(|d| {
+                let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1.0);
+                let q = [0, 1, 2].map(|k| c[k] + d[k] / len * s.radius() * 0.999);
+                let others = spheres
+                    .iter()
+                    .enumerate()
+                    .filter(|&(j, _)| j != i)
+                    .map(|(_, t)| t.distance(q))
+                    .fold(f32::INFINITY, f32::min);
+                implicit.terrain_distance_at(q).max(-others) < 0.0
+            })
+        })
+        .count()
+}
+
+#[test]
+fn warped_cliffs_are_carved_where_the_warped_surface_is() {
+    let warp = params::Warp { amplitude_m: 3.0, frequency_per_m: 0.35 };
+    let hf = cliff();
+    let p = cliff_params(2, Some(warp.clone()));
+    let r_min = p.erosion.radius_range[0];
+    let spheres = carve(&p, &hf, 4, 1.0, Stop::NEVER, &mut |_, _| Ok(())).unwrap();
+    let implicit = Implicit::new(&hf, &spheres, p.warp.as_ref(), 4, 2.0);
+    assert!(spheres.len() > 50);
+    // No sphere lies wholly in rock of the field it carves, read where the field reads it.
+    let buried = buried(&implicit, &spheres);
+    assert_eq!(buried, 0, "{buried} of {} spheres buried in rock on the warped cliff", spheres.len());
+    // Every first-pass seed lies on the warped surface (within the scan's step of 1 m, less
+    // than the smallest radius), and its sphere is centred where the field reads that point,
+    // so it straddles the surface.
+    let uncarved = Implicit::new(&hf, &[], Some(&warp), 4, 2.0);
+    let seeds = erosion::seeds(&uncarved, &p, 4, 1, 1.0, Stop::NEVER).unwrap();
+    assert!(seeds.len() > 10);
+    // (Within 2 m of the box's walls the field may be the wall's, not the terrain's: those
+    // seeds are left out.)
+    let inside = |s: &&erosion::SeedPoint| {
+        let [x, _, z] = s.point;
+        x.min(z).min(hf.width_m() - x).min(hf.depth_m() - z) >= 2.0
+    };
+    for s in seeds.iter().filter(inside) {
+        let c = uncarved.warp(s.point);
+        assert!(uncarved.distance(s.point).abs() <= 1.0, "seed off the warped surface");
+        assert!(spheres.iter().any(|t| t.centre() == c), "no sphere centred at the seed's warped point");
+        assert!(uncarved.terrain_distance_at(c).abs() <= 1.0);
+    }
+    // The old way, measured: seeds on the unwarped surface, spheres left unwarped, lie off the
+    // warped surface by more than the smallest radius (missing the rock, or buried) this often.
+    let flat = Implicit::new(&hf, &[], None, 4, 2.0);
+    let old = erosion::seeds(&flat, &p, 4, 1, 1.0, Stop::NEVER).unwrap();
+    let old: Vec<_> = old.iter().filter(inside).collect();
+    let off = old.iter().filter(|s| uncarved.distance(s.point).abs() > r_min).count();
+    eprintln!("unwarped seeding: {off} of {} seeds lie more than {r_min} m off the warped surface", old.len());
+    assert!(off * 5 > old.len(), "the warp moves the cliff too little for this test to mean anything");
 }

@@ -174,7 +174,9 @@ pub struct LayerNoise {
     // 0.95 = MAX_NOISE_AMPLITUDE
     #[schema(minimum = 0.0, maximum = 0.95)]
     pub amplitude: f32,
-    /// Cycles per metre.
+    /// Cycles per metre; at most half a cycle per voxel (0.5 / `voxel_size_m`), the finest
+    /// noise the voxels resolve. The noise is sampled on a rotated, offset lattice, so no voxel
+    /// grid lines up with the noise's own lattice (where gradient noise is zero).
     #[serde(default)]
     #[schema(minimum = 0.0, maximum = 1e4)]
     pub frequency_per_m: f32,
@@ -363,9 +365,21 @@ impl Validate for WeatherColumnParams {
                     if layer.resistance.is_finite() && layer.resistance > 1e6 {
                         v.error("resistance", "must be at most 1000000");
                     }
+                    let voxel = self.voxel_size_m;
                     v.field("noise", |v| {
                         v.in_range("amplitude", layer.noise.amplitude as f64, 0.0, MAX_NOISE_AMPLITUDE as f64);
                         v.in_range("frequency_per_m", layer.noise.frequency_per_m as f64, 0.0, 1e4);
+                        // Finer noise than the voxels resolve only aliases (and at whole cycles
+                        // per voxel it would vanish at every voxel centre).
+                        let finest = 0.5 / voxel;
+                        if voxel.is_finite() && voxel > 0.0 && layer.noise.frequency_per_m > finest {
+                            v.error(
+                                "frequency_per_m",
+                                format!(
+                                    "must be at most {finest} cycles per metre: half a cycle per voxel of {voxel} m is the finest noise the voxels resolve"
+                                ),
+                            );
+                        }
                     });
                     v.field("bubble", |v| validate_bubble(&layer.bubble, v));
                 });

@@ -42,8 +42,7 @@ impl ResistanceField {
         if l.amplitude == 0.0 || l.frequency_per_m == 0.0 {
             return l.resistance;
         }
-        let f = l.frequency_per_m;
-        let n = l.noise.get([p[0] as f64 * f, p[1] as f64 * f, p[2] as f64 * f]).clamp(-1.0, 1.0) as f32;
+        let n = l.noise.get(lattice(p, l.frequency_per_m)).clamp(-1.0, 1.0) as f32;
         l.resistance * (1.0 + l.amplitude * n)
     }
 
@@ -59,6 +58,21 @@ impl ResistanceField {
         let hi = self.layers.iter().map(|l| l.resistance * (1.0 + l.amplitude)).fold(0.0, f32::max);
         (lo, hi)
     }
+}
+
+/// Where a point in metres reads the noise: scaled by the frequency, turned by a fixed rotation
+/// (1 radian about (1, 2, 3)/√14) and offset by golden-ratio fractions. Gradient noise is zero
+/// at its integer lattice; unrotated, a frequency of whole cycles per voxel put every voxel
+/// centre there and silently removed all in-layer variation.
+fn lattice(p: [f32; 3], frequency: f64) -> [f64; 3] {
+    const R: [[f64; 3]; 3] = [
+        [0.573_137_855_448_987, -0.609_006_642_137_393, 0.548_291_809_608_600],
+        [0.740_348_840_460_782, 0.671_644_504_191_528, -0.027_879_282_947_946],
+        [-0.351_278_512_123_517, 0.421_905_877_918_112, 0.835_822_252_095_764],
+    ];
+    const OFFSET: [f64; 3] = [0.381_966_011_250_105, 0.618_033_988_749_895, 0.236_067_977_499_790];
+    let q = p.map(|c| c as f64 * frequency);
+    [0, 1, 2].map(|i| R[i][0] * q[0] + R[i][1] * q[1] + R[i][2] * q[2] + OFFSET[i])
 }
 
 /// A 32-bit noise seed per (job seed, layer): splitmix64 of the pair.

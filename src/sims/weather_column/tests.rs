@@ -322,3 +322,96 @@ fn a_large_grids_snapshot_sees_blocks_and_keeps_a_one_voxel_spire() {
     let differ = nothing.chunks(3).zip(something.chunks(3)).filter(|(a, b)| a != b).count();
     assert!(differ > 100, "the one-voxel spire shows in the snapshot: {differ} pixels differ");
 }
+
+/// Spread (standard deviation, voxels) of the rock's voxels along X, Y and Z.
+fn spread(rock: &Rock) -> [f64; 3] {
+    let cells = rock_cells(rock);
+    let n = cells.len() as f64;
+    let coords = |c: &(usize, usize, usize)| [c.0 as f64, c.1 as f64, c.2 as f64];
+    let mean = cells.iter().map(coords).fold([0.0; 3], |a, c| [a[0] + c[0], a[1] + c[1], a[2] + c[2]]).map(|v| v / n);
+    let var = cells.iter().map(coords).fold([0.0; 3], |a, c| [0, 1, 2].map(|k| a[k] + (c[k] - mean[k]).powi(2)));
+    var.map(|v| (v / n).sqrt())
+}
+
+#[test]
+fn a_cube_weathers_toward_the_shape_of_an_ellipsoid_bubble() {
+    // The paper: a cube weathers into roughly the shape of its bubble. A cube's spread is the
+    // same along every axis; the bubble long along one axis leaves the rock long along it.
+    for (radii, long) in [([2.0, 2.0, 7.0], 2), ([7.0, 2.0, 2.0], 0)] {
+        let p = floating_cube(30, json!({"ellipsoid": {"radii": radii}}), 0.3, "synchronized");
+        let (rock, history) = weather(&p, 1);
+        let s = spread(&rock);
+        eprintln!(
+            "bubble radii {radii:?}: {:.3} left after {} steps, spread {s:.2?}",
+            remaining(&rock),
+            history.steps()
+        );
+        for k in 0..3 {
+            if k != long {
+                assert!(s[long] > 1.1 * s[k], "bubble {radii:?}: spread {s:?}, axis {long} not the longest");
+            }
+        }
+    }
+}
+
+#[test]
+fn the_papers_linear_ratio_run_until_the_rock_is_small_rounds_it_partly() {
+    // Exponent 1 (the paper's ratio), on until a tenth of the cube is left: how round?
+    let p = WeatherColumnParams {
+        ratio_exponent: 1.0,
+        ..floating_cube(30, json!({"sphere": {"radius": 4.0}}), 0.1, "synchronized")
+    };
+    let (cube, _) = weather(&WeatherColumnParams { steps: 1, ..p.clone() }, 1);
+    let (_, cube_cv) = roundness(&cube);
+    let (rock, history) = weather(&p, 1);
+    let (mean, cv) = roundness(&rock);
+    eprintln!(
+        "linear ratio: cube cv {cube_cv:.4}; {:.3} left after {} steps: mean {mean:.2} voxels, cv {cv:.4}",
+        remaining(&rock),
+        history.steps()
+    );
+    assert!(remaining(&rock) <= 0.1 + 0.01);
+    // It rounds: the spread of surface distances falls well below the cube's …
+    assert!(cv < 0.6 * cube_cv, "cv {cv} against the cube's {cube_cv}");
+    // … but not to the digital sphere the exponent-8 ratio reaches at half the volume (3.5 %).
+    assert!(cv > 0.035, "cv {cv}");
+}
+
+#[test]
+fn in_layer_noise_never_vanishes_at_the_voxel_centres() {
+    use super::resistance::ResistanceField;
+    let s = 0.1f32;
+    // Every frequency the voxels resolve, up to half a cycle per voxel: no voxel centre reads
+    // exactly zero noise, and the noise spreads the resistance.
+    for k in 1..=10 {
+        let f = k as f32 * 0.05 / s;
+        let p = params(json!({
+            "grid": {"x": 24, "y": 24, "z": 24},
+            "voxel_size_m": s,
+            "column": {"profile": {"box": {}}, "floating": true},
+            "layers": [{"top_m": 1000.0, "resistance": 2.0, "noise": {"amplitude": 0.5, "frequency_per_m": f}}],
+        }));
+        let field = ResistanceField::new(&p, 3);
+        let values: Vec<f32> = (0..24)
+            .flat_map(|x| (0..24).flat_map(move |y| (0..24).map(move |z| (x, y, z))))
+            .map(|(x, y, z)| field.at_voxel(0, x, y, z))
+            .collect();
+        let zeros = values.iter().filter(|&&r| r == 2.0).count();
+        let mean = values.iter().sum::<f32>() / values.len() as f32;
+        let sd = (values.iter().map(|r| (r - mean).powi(2)).sum::<f32>() / values.len() as f32).sqrt();
+        assert_eq!(zeros, 0, "{f} cycles/m: {zeros} voxels with no noise");
+        assert!(sd > 0.05, "{f} cycles/m: resistance spread {sd}");
+    }
+    // Whole cycles per voxel (where unrotated noise vanished at every centre) are refused.
+    let body: WeatherColumnParams = serde_json::from_value(json!({
+        "grid": {"x": 8, "y": 8, "z": 8},
+        "voxel_size_m": s,
+        "column": {"profile": {"box": {}}, "floating": true},
+        "layers": [{"top_m": 1000.0, "noise": {"amplitude": 0.5, "frequency_per_m": 1.0 / s}}],
+    }))
+    .unwrap();
+    let mut v = Validator::new();
+    body.validate(&mut v, &Limits::default());
+    assert_eq!(v.errors.len(), 1, "{:?}", v.errors);
+    assert_eq!(v.errors[0].field, "layers[0].noise.frequency_per_m");
+}
