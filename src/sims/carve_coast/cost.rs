@@ -32,7 +32,7 @@ pub fn estimate(params: &CarveCoastParams, terrain: &dyn TerrainLookup) -> Resul
         cell as f32,
         span as f32,
         voxel as f32,
-        e.radius_range[1],
+        params.max_radius(),
         params.warp_amplitude(),
     );
     let side = |n: u64| ((n.saturating_sub(1)) as f64 * cell / voxel).floor() + 1.0;

@@ -93,15 +93,14 @@ pub fn seeds(
     Ok(per_row.concat())
 }
 
-/// Whether a carved sphere can reach the world column at (x, z): its horizontal bounds within
-/// the warp's reach of it. Every sphere's centre lies within the elevation range.
+/// Whether a carving can reach the world column at (x, z): its horizontal bounds within the
+/// warp's reach of it.
 fn carved_near(implicit: &Implicit, x: f32, z: f32) -> bool {
     let reach = implicit.warp_reach();
     let mut any = false;
     implicit.index.visit(x, z, reach, |i| {
-        let s = implicit.spheres[i as usize];
-        let [cx, _, cz] = s.centre();
-        any |= (cx - x).abs() <= s.radius() + reach && (cz - z).abs() <= s.radius() + reach;
+        let (a, b) = implicit.spheres[i as usize].bounds();
+        any |= x >= a[0] - reach && x <= b[0] + reach && z >= a[2] - reach && z <= b[2] + reach;
     });
     any
 }

@@ -78,11 +78,10 @@ pub fn bands(implicit: &Implicit, grid: &Grid, warp_amplitude_m: f32, dense: boo
                 // Spheres live in the warped domain: a world column sees those within the warp's
                 // reach of it.
                 implicit.index.visit(px, pz, reach, |i| {
-                    let s = implicit.spheres[i as usize];
-                    let [cx, cy, cz] = s.centre();
-                    if (cx - px).abs() <= s.radius() + reach && (cz - pz).abs() <= s.radius() + reach {
-                        lo = lo.min(cy - s.radius() - 2.0 * v);
-                        hi = hi.max(cy + s.radius() + 2.0 * v);
+                    let (a, b) = implicit.spheres[i as usize].bounds();
+                    if px >= a[0] - reach && px <= b[0] + reach && pz >= a[2] - reach && pz <= b[2] + reach {
+                        lo = lo.min(a[1] - 2.0 * v);
+                        hi = hi.max(b[1] + 2.0 * v);
                     }
                 });
                 let to_j = |y: f32| ((y - grid.bottom_y) / v).clamp(0.0, grid.ny as f32);

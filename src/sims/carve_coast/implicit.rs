@@ -27,10 +27,81 @@ impl Sphere {
     }
 }
 
-/// Spheres binned on a horizontal grid by their horizontal bounds, so a point tests only the
+/// An authored capsule: `[ax, ay, az, bx, by, bz, radius]` (a segment swept by a sphere) and
+/// its pass, metres.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Capsule(pub [f32; 7], pub u32);
+
+impl Capsule {
+    pub fn ends(&self) -> ([f32; 3], [f32; 3]) {
+        let c = self.0;
+        ([c[0], c[1], c[2]], [c[3], c[4], c[5]])
+    }
+    pub fn distance(&self, p: [f32; 3]) -> f32 {
+        let (a, b) = self.ends();
+        let ab = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let ap = [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
+        let len2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
+        let t = if len2 > 0.0 { ((ap[0] * ab[0] + ap[1] * ab[1] + ap[2] * ab[2]) / len2).clamp(0.0, 1.0) } else { 0.0 };
+        let d = [ap[0] - ab[0] * t, ap[1] - ab[1] * t, ap[2] - ab[2] * t];
+        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() - self.0[6]
+    }
+}
+
+/// One carving of the sequence: a sphere (eroded or authored) or an authored capsule. Stored as
+/// `[[x, y, z, r], pass]` or `[[ax, ay, az, bx, by, bz, r], pass]`, so sequences written before
+/// capsules existed read the same.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Carving {
+    Sphere(Sphere),
+    Capsule(Capsule),
+}
+
+impl Carving {
+    pub fn pass(&self) -> u32 {
+        match self {
+            Carving::Sphere(s) => s.pass(),
+            Carving::Capsule(c) => c.1,
+        }
+    }
+    pub fn radius(&self) -> f32 {
+        match self {
+            Carving::Sphere(s) => s.radius(),
+            Carving::Capsule(c) => c.0[6],
+        }
+    }
+    /// The sphere's centre, or the capsule's middle.
+    pub fn centre(&self) -> [f32; 3] {
+        match self {
+            Carving::Sphere(s) => s.centre(),
+            Carving::Capsule(c) => {
+                let (a, b) = c.ends();
+                [0, 1, 2].map(|k| (a[k] + b[k]) / 2.0)
+            }
+        }
+    }
+    pub fn distance(&self, p: [f32; 3]) -> f32 {
+        match self {
+            Carving::Sphere(s) => s.distance(p),
+            Carving::Capsule(c) => c.distance(p),
+        }
+    }
+    /// The box it carves within: (least, greatest) corner.
+    pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
+        let r = self.radius();
+        let (a, b) = match self {
+            Carving::Sphere(s) => (s.centre(), s.centre()),
+            Carving::Capsule(c) => c.ends(),
+        };
+        ([0, 1, 2].map(|k| a[k].min(b[k]) - r), [0, 1, 2].map(|k| a[k].max(b[k]) + r))
+    }
+}
+
+/// Carvings binned on a horizontal grid by their horizontal bounds, so a point tests only the
 /// spheres that can reach it. A query names how far it must see ([`SphereIndex::visit`]): every
 /// bin that box overlaps is visited, so no sphere within that reach is missed at a bin's edge.
-pub struct SphereIndex {
+pub struct CarvingIndex {
     cell_m: f32,
     cols: usize,
     rows: usize,
@@ -38,17 +109,19 @@ pub struct SphereIndex {
     items: Vec<u32>,
 }
 
-impl SphereIndex {
-    pub fn new(spheres: &[Sphere], width_m: f32, depth_m: f32) -> Self {
-        let max_r = spheres.iter().map(Sphere::radius).fold(1.0f32, f32::max);
+impl CarvingIndex {
+    pub fn new(spheres: &[Carving], width_m: f32, depth_m: f32) -> Self {
+        // Bins twice the largest sphere's radius (capsules span several bins).
+        let max_r = spheres.iter().map(Carving::radius).fold(1.0f32, f32::max);
         let cell_m = (2.0 * max_r).max(width_m.max(depth_m) / 1024.0);
         let cols = (width_m / cell_m).ceil() as usize + 1;
         let rows = (depth_m / cell_m).ceil() as usize + 1;
         let mut index = Self { cell_m, cols, rows, offsets: vec![0; cols * rows + 1], items: Vec::new() };
         let mut pairs: Vec<(u32, u32)> = Vec::new();
         for (i, s) in spheres.iter().enumerate() {
-            let [x, _, z] = s.centre();
-            let (c0, c1, r0, r1) = index.bins(x, z, s.radius());
+            let (lo, hi) = s.bounds();
+            let (c0, _, r0, _) = index.bins(lo[0], lo[2], 0.0);
+            let (_, c1, _, r1) = index.bins(hi[0], hi[2], 0.0);
             for row in r0..=r1 {
                 for col in c0..=c1 {
                     pairs.push(((row * cols + col) as u32, i as u32));
@@ -73,7 +146,7 @@ impl SphereIndex {
         (bin(x - reach, self.cols), bin(x + reach, self.cols), bin(z - reach, self.rows), bin(z + reach, self.rows))
     }
 
-    /// Calls `f` with every sphere whose horizontal bounds come within `reach` of (x, z) (and
+    /// Calls `f` with every carving whose horizontal bounds come within `reach` of (x, z) (and
     /// perhaps others; a sphere in several visited bins is seen once per bin).
     pub fn visit(&self, x: f32, z: f32, reach: f32, mut f: impl FnMut(u32)) {
         let (c0, c1, r0, r1) = self.bins(x, z, reach);
@@ -94,8 +167,8 @@ impl SphereIndex {
 /// from a point p of the warped surface is centred at `warp(p)`.
 pub struct Implicit<'a> {
     pub hf: &'a Heightfield,
-    pub spheres: &'a [Sphere],
-    pub index: SphereIndex,
+    pub spheres: &'a [Carving],
+    pub index: CarvingIndex,
     warp: Option<(f32, f32, Perlin)>,
     /// The field is exact where it is within this of zero (and right in sign everywhere).
     exact_m: f32,
@@ -106,8 +179,8 @@ pub struct Implicit<'a> {
 impl<'a> Implicit<'a> {
     /// `exact_m`: within this distance of the surface the field equals the full function over
     /// every sphere (a sampler passes a couple of voxels).
-    pub fn new(hf: &'a Heightfield, spheres: &'a [Sphere], warp: Option<&Warp>, seed: u64, exact_m: f32) -> Self {
-        let index = SphereIndex::new(spheres, hf.width_m(), hf.depth_m());
+    pub fn new(hf: &'a Heightfield, spheres: &'a [Carving], warp: Option<&Warp>, seed: u64, exact_m: f32) -> Self {
+        let index = CarvingIndex::new(spheres, hf.width_m(), hf.depth_m());
         let warp = warp
             .filter(|w| w.amplitude_m > 0.0)
             .map(|w| (w.amplitude_m, w.frequency_per_m, Perlin::new(seed as u32 ^ 0x5741_5250)));

@@ -3,6 +3,7 @@
 //! near sea level are subtracted from it; an optional warp adds strata; the result is meshed
 //! in a narrow band around the surface into a closed solid.
 
+mod caves;
 mod cost;
 mod erosion;
 mod field;
@@ -19,9 +20,9 @@ use crate::terrain::{Heightfield, TerrainSource};
 use crate::validate::Limits;
 
 use crate::stop::Stop;
-use implicit::{Implicit, Sphere};
+use implicit::{Capsule, Carving, Implicit, Sphere};
 pub use params::CarveCoastParams;
-use params::{estimate_voxels, MAX_SPHERES};
+use params::{estimate_voxels, AuthoredCarving, When, MAX_SPHERES};
 pub use sequence::CoastSequence;
 
 pub struct CarveCoast;
@@ -93,7 +94,7 @@ fn checked_voxel(params: &CarveCoastParams, hf: &Heightfield, limits: &Limits) -
         hf.cell_size_m,
         hi - lo,
         voxel_m,
-        params.erosion.radius_range[1],
+        params.max_radius(),
         params.warp_amplitude(),
     );
     if voxels > limits.max_voxels {
@@ -106,9 +107,30 @@ fn checked_voxel(params: &CarveCoastParams, hf: &Heightfield, limits: &Limits) -
 }
 
 /// Hears of each finished pass with the spheres so far; may stop the run.
-pub type OnPass<'a> = dyn FnMut(u32, &[Sphere]) -> Result<(), SimError> + 'a;
+pub type OnPass<'a> = dyn FnMut(u32, &[Carving]) -> Result<(), SimError> + 'a;
 
-/// All passes of erosion; `on_pass(pass, spheres so far)` after each.
+/// The authored carvings made `when`, in the warped domain (their points mapped as a seed's
+/// are), as pass `pass`.
+fn authored(params: &CarveCoastParams, warped: &Implicit, when: When, pass: u32) -> Vec<Carving> {
+    params
+        .carve
+        .iter()
+        .filter(|c| c.when() == when)
+        .map(|c| match c {
+            AuthoredCarving::Sphere { centre, radius_m, .. } => {
+                let [x, y, z] = warped.warp(*centre);
+                Carving::Sphere(Sphere([x, y, z, *radius_m], pass))
+            }
+            AuthoredCarving::Capsule { from, to, radius_m, .. } => {
+                let (a, b) = (warped.warp(*from), warped.warp(*to));
+                Carving::Capsule(Capsule([a[0], a[1], a[2], b[0], b[1], b[2], *radius_m], pass))
+            }
+        })
+        .collect()
+}
+
+/// The authored carvings made before the passes, all passes of erosion, then the authored
+/// carvings made after them; `on_pass(pass, carvings so far)` after each pass.
 pub fn carve(
     params: &CarveCoastParams,
     hf: &Heightfield,
@@ -116,19 +138,21 @@ pub fn carve(
     voxel_m: f32,
     stop: Stop,
     on_pass: &mut OnPass,
-) -> Result<Vec<Sphere>, SimError> {
-    let mut spheres: Vec<Sphere> = Vec::new();
+) -> Result<Vec<Carving>, SimError> {
+    let warp_only = Implicit::new(hf, &[], params.warp.as_ref(), seed, 0.0);
+    let mut spheres = authored(params, &warp_only, When::Before, 0);
     for pass in 1..=params.passes {
         let new = {
             // Seeds are found on the surface carved so far, warped as the result will be.
             let step = voxel_m.min(hf.cell_size_m);
             let implicit = Implicit::new(hf, &spheres, params.warp.as_ref(), seed, 2.0 * step);
-            let room = MAX_SPHERES - spheres.len();
+            let room = MAX_SPHERES.saturating_sub(spheres.len());
             erosion::erosion_pass(&implicit, params, seed, pass, step, room, stop)?
         };
-        spheres.extend(new);
+        spheres.extend(new.into_iter().map(Carving::Sphere));
         on_pass(pass, &spheres)?;
     }
+    spheres.extend(authored(params, &warp_only, When::After, params.passes + 1));
     Ok(spheres)
 }
 

@@ -5,8 +5,9 @@
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
+use super::caves;
 use super::field::{bands, columns, grid_for, remove_fragments, sample_planes, Grid};
-use super::implicit::{Implicit, Sphere};
+use super::implicit::{Carving, Implicit};
 use super::params::CarveCoastParams;
 use crate::export::{
     heightfield_npy, heightmap_png16, mesh_glbs, render_png, render_png_framed, Artifact, MeshSettings, View,
@@ -246,7 +247,7 @@ pub fn snapshot_png(
 pub fn build(
     implicit: &Implicit,
     params: &CarveCoastParams,
-    spheres: &[Sphere],
+    spheres: &[Carving],
     voxel_m: f32,
     on_chunk: &mut dyn FnMut(usize, usize) -> Result<(), SimError>,
     stop: Stop,
@@ -256,6 +257,7 @@ pub fn build(
     stop.check()?;
     let (crossings, top) = columns(&sampled.values, &sampled.grid);
     let mut mesh = surface(&sampled, stop)?;
+    let caves = caves::count(&sampled.values, &sampled.grid, &top, params.sea_level);
     drop(sampled.values);
     colour(&mut mesh, implicit, params.sea_level, voxel_m);
     let closed = mesh.is_closed();
@@ -276,9 +278,12 @@ pub fn build(
         }
     }
     let mut per_pass = vec![0u64; params.passes as usize];
+    let (mut authored_before, mut authored_after) = (0u64, 0u64);
     for s in spheres {
-        if let Some(n) = per_pass.get_mut(s.pass() as usize - 1) {
-            *n += 1;
+        match s.pass() {
+            0 => authored_before += 1,
+            p if p > params.passes => authored_after += 1,
+            p => per_pass[p as usize - 1] += 1,
         }
     }
     let (view, focus) = match close_up(&mesh, params.sea_level, voxel_m) {
@@ -299,9 +304,14 @@ pub fn build(
     let (z_min, z_max) = top.min_max();
     let result = json!({
         "spheres": { "total": spheres.len(), "per_pass": per_pass },
+        "authored": { "before": authored_before, "after": authored_after },
         "overhangs": { "shoreline_columns": shore, "with_overhang": overhung,
                        "share": if shore == 0 { 0.0 } else { overhung as f64 / shore as f64 } },
+        // Arches: the solid's genus (each arch or tunnel through the rock adds one).
         "through_holes": genus,
+        "arches": genus,
+        "sea_caves": caves.sea_caves,
+        "covered_passages": caves.passages,
         "pieces": pieces,
         "fragments_removed": sampled.fragments,
         "air_pockets_filled": sampled.pockets,

@@ -94,6 +94,63 @@ pub struct Warp {
     pub frequency_per_m: f32,
 }
 
+/// Most authored carvings in one request.
+pub const MAX_AUTHORED: usize = 1000;
+
+/// When an authored carving is made: before the erosion passes (their seeds then see it and
+/// erode it further) or after them (as placed).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum When {
+    Before,
+    #[default]
+    After,
+}
+
+/// A carving a person places (the seed's manual carving: an arch, a sea cave, a blowhole).
+/// Coordinates are metres on the terrain: x along its columns, z along its rows, y up (the
+/// terrain's heights); with `warp` they are carved where the warped terrain is.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum AuthoredCarving {
+    /// A sphere of air.
+    Sphere {
+        #[schema(min_items = 3, max_items = 3, minimum = -1e6, maximum = 1e6)]
+        centre: [f32; 3],
+        /// Metres, greater than 0 and at most 1000.
+        #[schema(exclusive_minimum = 0.0, maximum = 1000.0)]
+        radius_m: f32,
+        #[serde(default)]
+        when: When,
+    },
+    /// A capsule of air: the segment `from`–`to` swept by a sphere of `radius_m` (a tunnel, an
+    /// arch's opening, a blowhole's shaft).
+    Capsule {
+        #[schema(min_items = 3, max_items = 3, minimum = -1e6, maximum = 1e6)]
+        from: [f32; 3],
+        #[schema(min_items = 3, max_items = 3, minimum = -1e6, maximum = 1e6)]
+        to: [f32; 3],
+        /// Metres, greater than 0 and at most 1000.
+        #[schema(exclusive_minimum = 0.0, maximum = 1000.0)]
+        radius_m: f32,
+        #[serde(default)]
+        when: When,
+    },
+}
+
+impl AuthoredCarving {
+    pub fn radius(&self) -> f32 {
+        match self {
+            AuthoredCarving::Sphere { radius_m, .. } | AuthoredCarving::Capsule { radius_m, .. } => *radius_m,
+        }
+    }
+    pub fn when(&self) -> When {
+        match self {
+            AuthoredCarving::Sphere { when, .. } | AuthoredCarving::Capsule { when, .. } => *when,
+        }
+    }
+}
+
 /// `POST /v1/jobs/carve-coast`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
@@ -116,6 +173,10 @@ pub struct CarveCoastParams {
     pub passes: u32,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub warp: Option<Warp>,
+    /// Carvings placed by hand, before or after the erosion passes, in order (at most 1000).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schema(max_items = 1000)]
+    pub carve: Vec<AuthoredCarving>,
     /// Remove rock that floats free of the ground after carving and warping.
     #[serde(default = "default_true")]
     #[schema(default = true)]
@@ -154,15 +215,7 @@ impl Validate for CarveCoastParams {
         {
             if size > 0.0 && size.is_finite() {
                 let relief = relief * if self.island() { 1.2 } else { 1.0 };
-                let voxels = estimate_voxels(
-                    cols,
-                    rows,
-                    cell,
-                    relief,
-                    size,
-                    self.erosion.radius_range[1],
-                    self.warp_amplitude(),
-                );
+                let voxels = estimate_voxels(cols, rows, cell, relief, size, self.max_radius(), self.warp_amplitude());
                 if voxels > limits.max_voxels {
                     v.too_large(
                         "voxel_size_m",
@@ -189,6 +242,30 @@ impl Validate for CarveCoastParams {
         } else if self.passes > MAX_PASSES {
             v.error("passes", format!("must be at most {MAX_PASSES} (got {})", self.passes));
         }
+        if self.carve.len() > MAX_AUTHORED {
+            v.too_large("carve", format!("must hold at most {MAX_AUTHORED} carvings (got {})", self.carve.len()));
+        }
+        v.field("carve", |v| {
+            for (i, c) in self.carve.iter().enumerate().take(MAX_AUTHORED) {
+                v.index(i, |v| {
+                    let (name, points): (&str, Vec<(&str, [f32; 3])>) = match c {
+                        AuthoredCarving::Sphere { centre, .. } => ("sphere", vec![("centre", *centre)]),
+                        AuthoredCarving::Capsule { from, to, .. } => ("capsule", vec![("from", *from), ("to", *to)]),
+                    };
+                    v.field(name, |v| {
+                        for (leaf, p) in points {
+                            if !p.iter().all(|c| c.is_finite() && c.abs() <= 1e6) {
+                                v.error(leaf, "must be three finite numbers within ±1000000 m");
+                            }
+                        }
+                        let r = c.radius();
+                        if !(r.is_finite() && r > 0.0 && r <= MAX_RADIUS_M) {
+                            v.error("radius_m", format!("must be greater than 0 and at most {MAX_RADIUS_M}"));
+                        }
+                    });
+                });
+            }
+        });
         if let Some(w) = &self.warp {
             v.field("warp", |v| {
                 v.in_range("amplitude_m", w.amplitude_m as f64, 0.0, 1e4);
@@ -209,6 +286,15 @@ impl CarveCoastParams {
 
     fn island(&self) -> bool {
         matches!(&self.terrain, TerrainSource::Fractal(f) if f.island)
+    }
+
+    /// The largest radius any carving may have: eroded or authored.
+    pub fn max_radius(&self) -> f32 {
+        self.carve
+            .iter()
+            .map(AuthoredCarving::radius)
+            .filter(|r| r.is_finite())
+            .fold(self.erosion.radius_range[1], f32::max)
     }
 
     /// How far the warp can push a point, metres per unit of gradient.

@@ -1,17 +1,20 @@
-//! The recorded sequence: the carved spheres in order (centre, radius, pass). The terrain
+//! The recorded sequence: the carvings in order (authored before, eroded spheres, authored
+//! after). The terrain
 //! source and warp are in the request; replay until k carves the first k spheres.
 
 use serde::{Deserialize, Serialize};
 
-use super::implicit::Sphere;
+use super::implicit::Carving;
 use crate::jobs::Sequence;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CoastSequence {
     /// Seeds the warp's noise.
     pub seed: u64,
-    /// `[[x, y, z, radius], pass]`, metres, in carving order.
-    pub spheres: Vec<Sphere>,
+    /// In carving order: spheres `[[x, y, z, radius], pass]` and authored capsules
+    /// `[[ax, ay, az, bx, by, bz, radius], pass]`, metres, in the warped domain the field is
+    /// read in. Authored carvings made before the erosion are pass 0, after it `passes + 1`.
+    pub spheres: Vec<Carving>,
 }
 
 impl Sequence for CoastSequence {

@@ -5,6 +5,7 @@ use crate::export::MeshSettings;
 use serde_json::{json, Value};
 
 use super::field::{bands, columns, grid_for, sample_planes};
+use super::implicit::Capsule;
 use super::outputs::{build, sample, surface, topology};
 use super::*;
 use crate::sims::test_support::TestContext;
@@ -116,7 +117,7 @@ fn floating_fragments_are_removed() {
             1.0,
             |x, z| if (x - 16.0).abs() <= 2.0 && (z - 16.0).abs() <= 2.0 { 20.0 } else { 0.0 },
         );
-    let spheres = [Sphere([16.0, 6.0, 16.0, 4.5], 1)];
+    let spheres = [Carving::Sphere(Sphere([16.0, 6.0, 16.0, 4.5], 1))];
     let mut p = island(33, 0.0);
     p.sea_level = 1.0;
     let implicit = Implicit::new(&hf, &spheres, None, 1, 2.0);
@@ -195,16 +196,27 @@ fn one_and_two_threads_give_identical_artifacts() {
     assert_eq!(one.sequence, two.sequence);
 }
 
-/// Random spheres on a terrain, and points around them, many on the index's bin edges.
-fn spheres_and_points(hf: &Heightfield, n: usize, seed: u64) -> (Vec<Sphere>, Vec<[f32; 3]>) {
+/// Random carvings (spheres, and every fifth a capsule) on a terrain, and points around them,
+/// many on the index's bin edges.
+fn spheres_and_points(hf: &Heightfield, n: usize, seed: u64) -> (Vec<Carving>, Vec<[f32; 3]>) {
     use rand::{Rng, SeedableRng};
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let (w, d) = (hf.width_m(), hf.depth_m());
-    let spheres: Vec<Sphere> = (0..n)
-        .map(|_| {
+    let spheres: Vec<Carving> = (0..n)
+        .map(|k| {
             let (x, z) = (rng.random_range(0.0..w), rng.random_range(0.0..d));
             let y = hf.sample(x, z) + rng.random_range(-2.0..1.0f32);
-            Sphere([x, y, z, rng.random_range(0.3..4.0f32)], 1)
+            let r = rng.random_range(0.3..4.0f32);
+            if k % 5 == 0 {
+                let to = [
+                    x + rng.random_range(-12.0..12.0f32),
+                    y + rng.random_range(-2.0..2.0f32),
+                    z + rng.random_range(-12.0..12.0f32),
+                ];
+                Carving::Capsule(Capsule([x, y, z, to[0], to[1], to[2], r], 1))
+            } else {
+                Carving::Sphere(Sphere([x, y, z, r], 1))
+            }
         })
         .collect();
     let cell = 8.0; // the index's bins: twice the largest radius
@@ -292,7 +304,7 @@ fn later_passes_seed_caves_under_ground_higher_than_the_range_and_deepen_them() 
     // more than the old scan's reach: only a scan of the carved surface finds them.
     let mut under_high_ground = 0;
     for pass in 2..=p.passes {
-        let before: Vec<Sphere> = spheres.iter().copied().filter(|s| s.pass() < pass).collect();
+        let before: Vec<Carving> = spheres.iter().copied().filter(|s| s.pass() < pass).collect();
         let implicit = Implicit::new(&hf, &before, None, 9, 2.0);
         let found = erosion::seeds(&implicit, &p, 9, pass, 1.0, Stop::NEVER).unwrap();
         under_high_ground += found.iter().filter(|s| hf.sample(s.point[0], s.point[2]) > hi + reach).count();
@@ -308,7 +320,7 @@ fn later_passes_seed_caves_under_ground_higher_than_the_range_and_deepen_them() 
 
 /// The spheres whose every point lies in rock of the final field without them: carved where no
 /// air reaches, so filled back as air pockets.
-fn buried(implicit: &Implicit, spheres: &[Sphere]) -> usize {
+fn buried(implicit: &Implicit, spheres: &[Carving]) -> usize {
     let dirs: Vec<[f32; 3]> = (-1..=1)
         .flat_map(|x| (-1..=1).flat_map(move |y| (-1..=1).map(move |z| [x as f32, y as f32, z as f32])))
         .collect();
@@ -369,4 +381,92 @@ fn warped_cliffs_are_carved_where_the_warped_surface_is() {
     let off = old.iter().filter(|s| uncarved.distance(s.point).abs() > r_min).count();
     eprintln!("unwarped seeding: {off} of {} seeds lie more than {r_min} m off the warped surface", old.len());
     assert!(off * 5 > old.len(), "the warp moves the cliff too little for this test to mean anything");
+}
+
+/// Carve `p` on `hf` and measure the result.
+fn carve_and_measure(p: &CarveCoastParams, hf: &Heightfield) -> (Vec<Carving>, Value) {
+    let carvings = carve(p, hf, 5, 1.0, Stop::NEVER, &mut |_, _| Ok(())).unwrap();
+    let implicit = Implicit::new(hf, &carvings, p.warp.as_ref(), 5, 2.0);
+    let (result, _) =
+        build(&implicit, p, &carvings, 1.0, &mut no_progress, Stop::NEVER, &MeshSettings::default()).unwrap();
+    assert_eq!(result["mesh"]["closed"], true, "{result}");
+    (carvings, result)
+}
+
+fn authored_params(carve: Value) -> CarveCoastParams {
+    params(json!({
+        "terrain": {"fractal": {"size": 9}},
+        "sea_level": 0.0,
+        "erosion": {"seed_acceptance_probability": 0.0},
+        "passes": 1,
+        "carve": carve,
+    }))
+}
+
+#[test]
+fn an_authored_capsule_through_a_headland_makes_an_arch() {
+    // A ridge 8 m wide and 15 m high standing out of a sea floor at −6 m, along X.
+    let hf = Heightfield::from_fn(72, 40, 1.0, |x, z| {
+        if (z - 20.0).abs() <= 4.0 && (8.0..64.0).contains(&x) {
+            15.0
+        } else {
+            -6.0
+        }
+    });
+    let (_, plain) = carve_and_measure(&authored_params(json!([])), &hf);
+    assert_eq!((plain["arches"].as_i64(), plain["sea_caves"].as_u64()), (Some(0), Some(0)), "{plain}");
+    // A tunnel across it at the waterline: rock stays above it, so the ridge becomes an arch.
+    let tunnel = json!([{"capsule": {"from": [36.0, 1.5, 10.0], "to": [36.0, 1.5, 30.0], "radius_m": 2.5}}]);
+    let (carvings, arch) = carve_and_measure(&authored_params(tunnel), &hf);
+    assert_eq!(carvings.len(), 1);
+    eprintln!("arch: arches {} sea caves {} passages {}", arch["arches"], arch["sea_caves"], arch["covered_passages"]);
+    assert_eq!(arch["arches"], 1, "{arch}");
+    assert_eq!(arch["pieces"], 1, "{arch}");
+    assert_eq!(arch["sea_caves"], 0, "{arch}");
+    assert!(arch["covered_passages"].as_u64().unwrap() >= 1, "{arch}");
+    assert_eq!(arch["authored"], json!({"before": 0, "after": 1}));
+}
+
+#[test]
+fn an_authored_tunnel_into_a_cliff_is_a_sea_cave() {
+    let hf = cliff();
+    let (_, plain) = carve_and_measure(&authored_params(json!([])), &hf);
+    assert_eq!((plain["arches"].as_i64(), plain["sea_caves"].as_u64()), (Some(0), Some(0)), "{plain}");
+    // From the sea in front of the cliff 13 m into the plateau, at the waterline; and a sphere
+    // high on the cliff face, a notch, not a cave at sea level.
+    let carve = json!([
+        {"capsule": {"from": [18.0, 1.0, 20.0], "to": [40.0, 1.0, 20.0], "radius_m": 2.0}},
+        {"sphere": {"centre": [25.0, 22.0, 8.0], "radius_m": 2.5}},
+    ]);
+    let (_, cave) = carve_and_measure(&authored_params(carve), &hf);
+    eprintln!("cave: arches {} sea caves {} passages {}", cave["arches"], cave["sea_caves"], cave["covered_passages"]);
+    assert_eq!(cave["sea_caves"], 1, "{cave}");
+    assert_eq!(cave["arches"], 0, "{cave}");
+    assert_eq!(cave["covered_passages"], 0, "{cave}");
+}
+
+#[test]
+fn authored_carvings_before_the_passes_are_eroded_after_them_are_not() {
+    let hf = cliff();
+    let erode = |shapes: Value| {
+        let mut p = cliff_params(2, None);
+        p.carve = serde_json::from_value(shapes).unwrap();
+        carve(&p, &hf, 5, 1.0, Stop::NEVER, &mut |_, _| Ok(())).unwrap()
+    };
+    let shape = |when: &str| json!([{"capsule": {"from": [18.0, 1.0, 12.0], "to": [38.0, 1.0, 28.0], "radius_m": 2.0, "when": when}}]);
+    let none = erode(json!([]));
+    let after = erode(shape("after"));
+    let before = erode(shape("before"));
+    // After: the same erosion, the capsule last (pass passes + 1).
+    assert_eq!(after[..after.len() - 1], none[..]);
+    assert!(matches!(after.last(), Some(Carving::Capsule(c)) if c.1 == 3));
+    // Before: the capsule first (pass 0), and the passes seed on the walls it opened.
+    assert!(matches!(before.first(), Some(Carving::Capsule(c)) if c.1 == 0));
+    assert_ne!(before[1..], none[..]);
+    let inside = |s: &&Carving| s.pass() == 1 && s.centre()[0] > 30.0 && (s.centre()[2] - 20.0).abs() < 8.0;
+    let (deep_before, deep_none) = (before.iter().filter(inside).count(), none.iter().filter(inside).count());
+    assert!(
+        deep_before > deep_none,
+        "first-pass spheres deep in the cliff: {deep_before} with the tunnel, {deep_none} without"
+    );
 }
