@@ -80,6 +80,44 @@ pub enum Profile {
     /// The paper's input: a grayscale PNG stretched over the grid's footprint (image row 0 at
     /// z = 0, column 0 at x = 0); dark pixels (below mid-grey) are no rock.
     JointMap(ImageUpload),
+    /// A joint map generated from a seed (the paper's Figure 6 input, for a whole valley): two
+    /// orthogonal sets of vertical joints cut the footprint into blocks, each of which weathers
+    /// into its own goblin.
+    Joints(JointSystem),
+}
+
+fn default_jitter() -> f32 {
+    0.3
+}
+
+/// Two orthogonal joint sets: joints across X (planes of constant x) every `spacing_m[0]` and
+/// across Z every `spacing_m[1]`, each moved from its regular place by up to ± `jitter` / 2 of
+/// the spacing and wandering sideways by up to `wander_m` along its length; `width_m` open.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct JointSystem {
+    /// Metres between neighbouring joints of each set `[along X, along Z]`; each more than
+    /// `width_m` and at least 4 voxels.
+    #[schema(min_items = 2, max_items = 2, exclusive_minimum = 0.0, maximum = 1e4)]
+    pub spacing_m: [f32; 2],
+    /// Open width of every joint, metres: at least one voxel (`voxel_size_m`), so that every
+    /// joint cuts the rock.
+    #[schema(exclusive_minimum = 0.0, maximum = 1e4)]
+    pub width_m: f32,
+    /// How far a joint may sit from its regular place, as a share of the spacing: each joint is
+    /// moved by a uniform draw in ± jitter / 2. In [0, 0.9].
+    #[serde(default = "default_jitter")]
+    #[schema(default = 0.3, minimum = 0.0, maximum = 0.9)]
+    pub jitter: f32,
+    /// Sideways wander along each joint, metres (a sine of random phase, three spacings long);
+    /// 0 keeps joints straight. At most a quarter of the smaller spacing.
+    #[serde(default)]
+    #[schema(default = 0.0, minimum = 0.0, maximum = 2.5e3)]
+    pub wander_m: f32,
+    /// Seed of the joints' places (the same seed, the same valley).
+    #[serde(default)]
+    #[schema(default = 0, minimum = 0)]
+    pub seed: u64,
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
@@ -334,7 +372,9 @@ impl Validate for WeatherColumnParams {
                     v.error("height_m", "is less than one voxel");
                 }
             }
-            v.field("profile", |v| validate_profile(&self.column.profile, v, limits, width_m, depth_m));
+            v.field("profile", |v| {
+                validate_profile(&self.column.profile, v, limits, width_m, depth_m, self.voxel_size_m)
+            });
         });
         if self.layers.is_empty() {
             v.error("layers", "needs at least one layer");
@@ -423,7 +463,7 @@ fn validate_bubble(bubble: &Bubble, v: &mut Validator) {
     }
 }
 
-fn validate_profile(profile: &Profile, v: &mut Validator, limits: &Limits, width_m: f32, depth_m: f32) {
+fn validate_profile(profile: &Profile, v: &mut Validator, limits: &Limits, width_m: f32, depth_m: f32, voxel: f32) {
     match profile {
         Profile::Box(b) => v.field("box", |v| {
             for (leaf, value, extent) in [("width_m", b.width_m, width_m), ("depth_m", b.depth_m, depth_m)] {
@@ -451,6 +491,28 @@ fn validate_profile(profile: &Profile, v: &mut Validator, limits: &Limits, width
             }
             if let Some(i) = p.points_m.iter().position(|q| !q.iter().all(|c| c.is_finite())) {
                 v.error(&format!("points_m[{i}]"), "must be finite numbers");
+            }
+        }),
+        Profile::Joints(j) => v.field("joints", |v| {
+            let min_spacing = 4.0 * voxel;
+            for (i, spacing) in j.spacing_m.iter().enumerate() {
+                let leaf = format!("spacing_m[{i}]");
+                if !(spacing.is_finite() && *spacing >= min_spacing && *spacing <= 1e4) {
+                    v.error(&leaf, format!("must be at least 4 voxels ({min_spacing} m) and at most 10000 m"));
+                } else if *spacing <= j.width_m {
+                    v.error(&leaf, format!("must be more than the joints' width ({} m)", j.width_m));
+                }
+            }
+            if !(j.width_m.is_finite() && j.width_m >= voxel && j.width_m <= 1e4) {
+                v.error("width_m", format!("must be at least one voxel ({voxel} m), or a joint cuts no voxel centre"));
+            }
+            v.in_range("jitter", j.jitter as f64, 0.0, 0.9);
+            let smaller = j.spacing_m[0].min(j.spacing_m[1]);
+            if !(j.wander_m.is_finite() && j.wander_m >= 0.0 && j.wander_m <= smaller / 4.0) {
+                v.error(
+                    "wander_m",
+                    format!("must be between 0 and a quarter of the smaller spacing ({} m)", smaller / 4.0),
+                );
             }
         }),
         Profile::JointMap(image) => v.field("joint_map", |v| {

@@ -2,7 +2,7 @@
 //! (paper section 4: "the rock begins as a column with vertical straight sides").
 
 use super::grid::{Grid, NEVER_ROCK, ROCK};
-use super::params::{Profile, WeatherColumnParams};
+use super::params::{JointSystem, Profile, WeatherColumnParams};
 use crate::jobs::SimError;
 
 /// Pixels at or above this grey (of 255) are rock; darker ones are joints (no rock).
@@ -42,6 +42,10 @@ pub fn footprint(
                 inside_polygon(&p.points_m, px, pz)
             });
         }
+        Profile::Joints(j) => {
+            let joints = JointLines::new(j, nx as f32 * s, nz as f32 * s);
+            fill(&mut out, nx, |x, z| !joints.open((x as f32 + 0.5) * s, (z as f32 + 0.5) * s));
+        }
         Profile::JointMap(_) => {
             let png = joint_map_png.ok_or_else(|| SimError::Failed("the joint map was not read".into()))?;
             let map = decode_joint_map(png).map_err(|message| SimError::Invalid {
@@ -62,6 +66,58 @@ pub fn footprint(
         });
     }
     Ok(out)
+}
+
+/// The joints of a [`JointSystem`] over a footprint `width` × `depth` metres (from its corner).
+pub struct JointLines {
+    /// Per set (across X, across Z): each joint's regular-plus-jitter place and wander phase.
+    sets: [Vec<(f32, f32)>; 2],
+    half_width: f32,
+    wander: f32,
+    /// Wander wavelength per set, metres.
+    wavelength: [f32; 2],
+}
+
+impl JointLines {
+    pub fn new(j: &JointSystem, width: f32, depth: f32) -> Self {
+        let set = |k: u64, spacing: f32, extent: f32| -> Vec<(f32, f32)> {
+            // Joints from one spacing before the footprint to one after, so jitter leaves no
+            // edge uncut.
+            let n = (extent / spacing).ceil() as i64 + 1;
+            (-1..=n)
+                .map(|i| {
+                    let u = unit(j.seed, k, (i + 1) as u64 * 2);
+                    let phase = unit(j.seed, k, (i + 1) as u64 * 2 + 1) * std::f32::consts::TAU;
+                    ((i as f32 + 0.5) * spacing + (u - 0.5) * j.jitter * spacing, phase)
+                })
+                .collect()
+        };
+        Self {
+            sets: [set(0, j.spacing_m[0], width), set(1, j.spacing_m[1], depth)],
+            half_width: j.width_m / 2.0,
+            wander: j.wander_m,
+            wavelength: [3.0 * j.spacing_m[0], 3.0 * j.spacing_m[1]],
+        }
+    }
+
+    /// Whether (x, z) lies in an open joint.
+    pub fn open(&self, x: f32, z: f32) -> bool {
+        let near = |set: &[(f32, f32)], along: f32, across: f32, wavelength: f32| {
+            set.iter().any(|&(at, phase)| {
+                let centre = at + self.wander * (std::f32::consts::TAU * along / wavelength + phase).sin();
+                (across - centre).abs() < self.half_width
+            })
+        };
+        near(&self.sets[0], z, x, self.wavelength[0]) || near(&self.sets[1], x, z, self.wavelength[1])
+    }
+}
+
+/// A uniform number in [0, 1) from (seed, set, index): splitmix64.
+fn unit(seed: u64, set: u64, index: u64) -> f32 {
+    let mut z = seed ^ set.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index.wrapping_mul(0xD1B5_4A32_D192_ED03);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
 }
 
 fn fill(out: &mut [bool], nx: usize, f: impl Fn(usize, usize) -> bool) {

@@ -415,3 +415,165 @@ fn in_layer_noise_never_vanishes_at_the_voxel_centres() {
     assert_eq!(v.errors.len(), 1, "{:?}", v.errors);
     assert_eq!(v.errors[0].field, "layers[0].noise.frequency_per_m");
 }
+
+/// 4-connected pieces of a footprint (`x + nx·z`), and their sizes.
+fn footprint_pieces(cells: &[bool], nx: usize) -> Vec<usize> {
+    let nz = cells.len() / nx;
+    let mut seen = vec![false; cells.len()];
+    let mut sizes = Vec::new();
+    for start in 0..cells.len() {
+        if !cells[start] || seen[start] {
+            continue;
+        }
+        let (mut stack, mut size) = (vec![start], 0);
+        seen[start] = true;
+        while let Some(i) = stack.pop() {
+            size += 1;
+            let (x, z) = (i % nx, i / nx);
+            let mut push = |j: usize| {
+                if cells[j] && !seen[j] {
+                    seen[j] = true;
+                    stack.push(j);
+                }
+            };
+            if x > 0 {
+                push(i - 1);
+            }
+            if x + 1 < nx {
+                push(i + 1);
+            }
+            if z > 0 {
+                push(i - nx);
+            }
+            if z + 1 < nz {
+                push(i + nx);
+            }
+        }
+        sizes.push(size);
+    }
+    sizes
+}
+
+fn joints_params(jitter: f32, wander: f32) -> WeatherColumnParams {
+    params(json!({
+        "grid": {"x": 120, "y": 10, "z": 80},
+        "voxel_size_m": 0.1,
+        "column": {"profile": {"joints": {"spacing_m": [2.0, 2.0], "width_m": 0.25, "jitter": jitter, "wander_m": wander, "seed": 5}}},
+        "layers": [{"top_m": 1.0}],
+    }))
+}
+
+#[test]
+fn a_generated_joint_system_cuts_the_footprint_into_blocks() {
+    // Straight, regular joints: across X at 1, 3, …, 11 m of a 12 m footprint and across Z at
+    // 1, 3, 5, 7 m of 8 m: 7 × 5 blocks, each joint two voxel centres wide (|c − 1.0| < 0.125
+    // holds for the centres 0.95 and 1.05, not 0.85 or 1.15).
+    let p = joints_params(0.0, 0.0);
+    let grid = Grid::new(&p);
+    let cells = super::shape::footprint(&p, &grid, None).unwrap();
+    let pieces = footprint_pieces(&cells, grid.nx);
+    assert_eq!(pieces.len(), 35);
+    let row: Vec<bool> = (0..grid.nx).map(|x| cells[x + grid.nx * 15]).collect();
+    let gaps: Vec<usize> = row.split(|&r| r).filter(|g| !g.is_empty()).map(<[bool]>::len).collect();
+    assert_eq!(gaps, vec![2; 6], "{row:?}");
+    // Interior blocks: 18 × 18 voxel centres between joints 2 m apart.
+    assert_eq!(pieces.iter().filter(|&&n| n == 18 * 18).count(), 5 * 3);
+    // Jittered and wandering joints still cut it into as many blocks, of varied sizes, and the
+    // same seed gives the same valley.
+    let q = joints_params(0.35, 0.25);
+    let jittered = super::shape::footprint(&q, &grid, None).unwrap();
+    let pieces = footprint_pieces(&jittered, grid.nx);
+    assert_eq!(pieces.len(), 35);
+    assert!(pieces.iter().min() < pieces.iter().max());
+    assert_eq!(jittered, super::shape::footprint(&q, &grid, None).unwrap());
+    let mut other = q.clone();
+    if let params::Profile::Joints(j) = &mut other.column.profile {
+        j.seed = 6;
+    }
+    assert_ne!(jittered, super::shape::footprint(&other, &grid, None).unwrap());
+}
+
+#[test]
+fn joints_finer_than_a_voxel_or_wider_than_their_spacing_are_refused() {
+    for (joints, field) in [
+        (json!({"spacing_m": [2.0, 2.0], "width_m": 0.05}), "column.profile.joints.width_m"),
+        (json!({"spacing_m": [0.2, 2.0], "width_m": 0.1}), "column.profile.joints.spacing_m[0]"),
+        (json!({"spacing_m": [2.0, 1.0], "width_m": 1.5}), "column.profile.joints.spacing_m[1]"),
+        (json!({"spacing_m": [2.0, 2.0], "width_m": 0.2, "wander_m": 0.6}), "column.profile.joints.wander_m"),
+    ] {
+        let body: WeatherColumnParams = serde_json::from_value(json!({
+            "grid": {"x": 40, "y": 10, "z": 40},
+            "voxel_size_m": 0.1,
+            "column": {"profile": {"joints": joints}},
+            "layers": [{"top_m": 1.0}],
+        }))
+        .unwrap();
+        let mut v = Validator::new();
+        body.validate(&mut v, &Limits::default());
+        assert_eq!(v.errors.iter().map(|e| e.field.as_str()).collect::<Vec<_>>(), vec![field]);
+    }
+}
+
+#[test]
+fn a_valley_of_goblins_weathers_in_one_job_one_goblin_per_block() {
+    let p = params(json!({
+        "grid": {"x": 84, "y": 40, "z": 64},
+        "voxel_size_m": 0.1,
+        "column": {"profile": {"joints": {"spacing_m": [2.0, 2.0], "width_m": 0.4, "jitter": 0.35, "wander_m": 0.2, "seed": 4}}, "height_m": 3.6},
+        "layers": [
+            {"top_m": 2.4, "resistance": 0.5, "noise": {"amplitude": 0.3, "frequency_per_m": 1.2}, "bubble": {"sphere": {"radius": 3}}},
+            {"top_m": 3.6, "resistance": 3.0, "bubble": {"gumdrop": {"radius": 3}}},
+        ],
+        "rate": 0.3,
+        "ratio_exponent": 3,
+        "steps": 80,
+        "stop_at_fraction": 0.5,
+        "mesh": {"smoothing_iterations": 0},
+    }));
+    let grid = Grid::new(&p);
+    let pieces = footprint_pieces(&super::shape::footprint(&p, &grid, None).unwrap(), grid.nx);
+    let blocks = pieces.len();
+    // Blocks of at least a square metre (jitter leaves slivers at the footprint's edge).
+    let big = pieces.iter().filter(|&&n| n >= 100).count();
+    let (rock, history) = weather(&p, 2);
+    // Rock pieces standing on the ground (6-connected through rock): one per block at most
+    // (joints hold no rock), and every block of a square metre or more still has its goblin.
+    let g = &rock.grid;
+    let mut seen = vec![false; g.len()];
+    let mut grounded = 0;
+    for start in (0..g.plane()).filter(|&k| rock.state[k] == ROCK) {
+        if seen[start] {
+            continue;
+        }
+        grounded += 1;
+        let mut stack = vec![start];
+        seen[start] = true;
+        while let Some(i) = stack.pop() {
+            let (x, y, z) = g.coords(i);
+            for (dx, dy, dz) in [(1i64, 0i64, 0i64), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)] {
+                let (nx, ny, nz) = (x as i64 + dx, y as i64 + dy, z as i64 + dz);
+                let inside = nx >= 0
+                    && ny >= 0
+                    && nz >= 0
+                    && (nx as usize) < g.nx
+                    && (ny as usize) < g.ny
+                    && (nz as usize) < g.nz;
+                if inside {
+                    let j = g.index(nx as usize, ny as usize, nz as usize);
+                    if !seen[j] && rock.state[j] == ROCK {
+                        seen[j] = true;
+                        stack.push(j);
+                    }
+                }
+            }
+        }
+    }
+    eprintln!(
+        "valley: {blocks} blocks ({big} of ≥ 1 m²), {grounded} goblins standing, {:.3} left after {} steps",
+        remaining(&rock),
+        history.steps()
+    );
+    assert!(big >= 12, "{big} blocks");
+    assert!((big..=blocks).contains(&grounded), "{grounded} goblins from {blocks} blocks, {big} large");
+    assert!(remaining(&rock) <= 0.5 + 0.02);
+}
