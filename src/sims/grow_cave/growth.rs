@@ -111,6 +111,17 @@ impl SiteGrowth {
         self.floor_y_m + self.stalagmite.iter().map(Ring::height).sum::<f32>()
     }
 
+    /// Where the stalactite's tip hangs, (x, z): the drip site moved by every ring's wind shift.
+    /// Drops fall from here.
+    pub fn drip_point(&self) -> [f32; 2] {
+        axis_end(self.x_m, self.z_m, &self.stalactite)
+    }
+
+    /// Where the stalagmite's top stands, (x, z).
+    pub fn stalagmite_top_xz(&self) -> [f32; 2] {
+        axis_end(self.x_m, self.z_m, &self.stalagmite)
+    }
+
     pub fn growing(&self) -> bool {
         self.column_at.is_none() && !(self.stalactite_done && (self.stalagmite_done || self.stalagmite.is_empty()))
     }
@@ -125,6 +136,10 @@ impl SiteGrowth {
             ..self.clone()
         }
     }
+}
+
+fn axis_end(x: f32, z: f32, rings: &[Ring]) -> [f32; 2] {
+    rings.iter().fold([x, z], |[x, z], r| [x + r.shift()[0], z + r.shift()[1]])
 }
 
 /// Everything a pass needs besides the site: the request's numbers.
@@ -218,8 +233,16 @@ impl Grower<'_> {
         if drawn.level == 2 && !site.stalagmite_done {
             let list = manual.map(|m| m.stalagmite.as_slice());
             let row = stalagmite_row(drawn.drip, drawn.co2);
+            // The stalagmite grows where the drops land: under the stalactite's tip as it hangs
+            // now (the wind moves the drip point, not the stalagmite).
+            let (drip, top, before) = (site.drip_point(), site.stalagmite_top_xz(), site.stalagmite.len());
             let (rings, done) = (&mut site.stalagmite, &mut site.stalagmite_done);
             self.extend(rng, pass, rings, done, p.stalagmite_radius_m, list, row, drawn.co2, false);
+            if rings.len() > before {
+                let last = rings.last_mut().expect("a ring was added");
+                last.1[2] = drip[0] - top[0];
+                last.1[3] = drip[1] - top[1];
+            }
         }
         self.check_limits(site, pass);
     }
@@ -266,22 +289,24 @@ impl Grower<'_> {
         let tip = site.stalactite_tip_y();
         let top = site.stalagmite_top_y();
         if !site.stalagmite.is_empty() && !site.stalactite.is_empty() && tip <= top {
+            // They met during this pass (they never overlap after one): take the overlap from
+            // this pass's rings of both, in proportion to their steps, so they meet exactly and
+            // no ring of an earlier pass changes (a replay until k is a run of k passes).
             let overlap = top - tip;
-            let closed = |rings: &[Ring]| rings.last().is_some_and(|r| r.radius() < CLOSED_RADIUS_M);
-            if closed(&site.stalactite) || closed(&site.stalagmite) {
-                // A point touches: the stalagmite stops at the stalactite's tip, no column.
-                let last = site.stalagmite.last_mut().expect("a stalagmite");
-                last.1[1] = (last.1[1] - overlap).max(0.0);
-                site.stalagmite_done = true;
-                return;
-            }
-            // Trim the overlap from the two newest rings, half each, so they meet exactly.
-            for rings in [&mut site.stalactite, &mut site.stalagmite] {
-                if let Some(last) = rings.last_mut() {
-                    last.1[1] = (last.1[1] - overlap / 2.0).max(0.0);
+            let grown: f32 =
+                site.stalactite.iter().chain(&site.stalagmite).filter(|r| r.pass() == pass).map(Ring::height).sum();
+            if grown > 0.0 {
+                let keep = ((grown - overlap) / grown).max(0.0);
+                for r in site.stalactite.iter_mut().chain(site.stalagmite.iter_mut()).filter(|r| r.pass() == pass) {
+                    r.1[1] *= keep;
                 }
             }
-            site.column_at = Some(pass);
+            let closed = |rings: &[Ring]| rings.last().is_some_and(|r| r.radius() < CLOSED_RADIUS_M);
+            // A closed tip touching the other only touches: both stop, no column. Otherwise the
+            // two become one column.
+            if !(closed(&site.stalactite) || closed(&site.stalagmite)) {
+                site.column_at = Some(pass);
+            }
             site.stalactite_done = true;
             site.stalagmite_done = true;
             return;

@@ -34,8 +34,10 @@ fn place(site: &SiteGrowth, rings: &[Ring], down: bool) -> Vec<Placed> {
     let rc = rings.len() as f32;
     let mut out = Vec::with_capacity(rings.len() + 1);
     let first = rings[0];
+    // A stalagmite's first ring stands under the drip point (its recorded shift from the site).
+    let [fx, fz] = first.shift();
     out.push(Placed {
-        centre: [site.x_m, base_y - sign * first.radius().max(0.02), site.z_m],
+        centre: [site.x_m + fx, base_y - sign * first.radius().max(0.02), site.z_m + fz],
         radius: first.radius(),
         displacement: 0.0,
         shade: shade(1.0 / rc),

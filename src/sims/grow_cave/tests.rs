@@ -136,11 +136,14 @@ fn wind_moves_rings_along_its_direction_only() {
     let mut p = one_site("2", "standard", "normal", 20);
     p.wind = Some(serde_json::from_value(json!({"direction": [1.0, 0.0], "intensity": 0.6})).unwrap());
     let g = grown(&p, 4).sites[0].growth.clone();
-    for ring in g.stalactite[1..].iter().chain(&g.stalagmite[1..]) {
+    for ring in &g.stalactite[1..] {
         let [dx, dz] = ring.shift();
         assert!(dx > 0.0 && dz.abs() < 1e-6, "shift {dx}, {dz}");
         assert!((dx - 0.6 * ring.height()).abs() < 1e-5);
     }
+    // The stalagmite is not blown: it follows the drip point downwind.
+    assert!(g.stalagmite.iter().all(|r| r.shift()[0] >= 0.0 && r.shift()[1].abs() < 1e-6));
+    assert!(g.stalagmite_top_xz()[0] > g.x_m);
     // Random intensity per ring: never against the wind, sometimes calm.
     p.wind = Some(serde_json::from_value(json!({"direction": [0.0, -2.0]})).unwrap());
     let g = grown(&p, 4).sites[0].growth.clone();
@@ -283,4 +286,70 @@ fn each_pass_can_publish_a_live_snapshot_of_the_cave() {
     assert_eq!(snapshots.len() as u64, out.sequence.passes as u64, "one per pass");
     let (info, _) = crate::export::test_png::decode(snapshots.last().unwrap());
     assert_eq!((info.width, info.height), (256, 192));
+}
+
+/// A wet, windy cave of many sites in a low chamber: columns, touching tips, speleothems
+/// stopped at the roof or floor.
+fn windy_cave() -> GrowCaveParams {
+    params(json!({
+        "chamber": {"width_m": 6, "depth_m": 6, "height_m": 1.6, "roof": {"relief_m": 0.3}, "floor": {"relief_m": 0.2}},
+        "sites": {"scatter": {"count": 12, "min_spacing_m": 0.8}},
+        "conditions": {"pluviometric_index": "random", "drip_interval": "random", "co2": "random"},
+        "rings": 40,
+        "height_step_m": 0.05,
+        "wind": {"scale": 0.6},
+    }))
+}
+
+#[test]
+fn stalagmites_grow_under_the_drip_point_and_never_overlap_their_stalactite() {
+    let (mut columns, mut checked) = (0, 0);
+    for seed in 0..50 {
+        let p = windy_cave();
+        let seq = grown(&p, seed);
+        for site in &seq.sites {
+            let g = &site.growth;
+            columns += g.column_at.is_some() as usize;
+            for k in 1..=p.rings {
+                let then = g.until(k);
+                // Never past each other: the tip hangs at or above the stalagmite's top.
+                if !then.stalactite.is_empty() && !then.stalagmite.is_empty() {
+                    assert!(then.stalactite_tip_y() >= then.stalagmite_top_y() - 1e-4, "seed {seed}, pass {k}");
+                }
+                // A stalagmite ring grown in pass k stands under the drip point of pass k.
+                if then.stalagmite.last().is_some_and(|r| r.pass() == k) {
+                    let (drip, top) = (then.drip_point(), then.stalagmite_top_xz());
+                    assert!(
+                        (drip[0] - top[0]).abs() < 1e-4 && (drip[1] - top[1]).abs() < 1e-4,
+                        "seed {seed}, pass {k}: {drip:?} vs {top:?}"
+                    );
+                    checked += 1;
+                }
+            }
+            // Joined or touching, they meet exactly.
+            if g.column_at.is_some() {
+                assert!((g.stalactite_tip_y() - g.stalagmite_top_y()).abs() < 1e-4);
+            }
+        }
+    }
+    assert!(columns > 20 && checked > 500, "{columns} columns, {checked} stalagmite rings checked");
+}
+
+#[test]
+fn a_run_of_k_passes_is_the_first_k_passes_of_a_longer_run() {
+    for seed in 0..50 {
+        let p = windy_cave();
+        let full = grown(&p, seed);
+        for k in [1, 5, 12, 25] {
+            let short = grown(&GrowCaveParams { rings: k, ..p.clone() }, seed);
+            for (a, b) in short.sites.iter().zip(&full.sites) {
+                let cut = b.growth.until(k);
+                assert_eq!(
+                    serde_json::to_value(&a.growth).unwrap(),
+                    serde_json::to_value(&cut).unwrap(),
+                    "seed {seed}, k {k}"
+                );
+            }
+        }
+    }
 }
