@@ -35,17 +35,7 @@ pub fn count(values: &[f32], grid: &Grid, top: &Heightfield, sea_level: f32) -> 
             && air(i)
             && grid.y_m(j) < top.heights_m[i % plane] - 0.5 * v
     };
-    let neighbours = |i: usize| {
-        let (x, j, z) = xyz(i);
-        [
-            (x > 0).then(|| i - 1),
-            (x + 1 < grid.nx).then(|| i + 1),
-            (z > 0).then(|| i - grid.nx),
-            (z + 1 < grid.nz).then(|| i + grid.nx),
-            (j > 0).then(|| i - plane),
-            (j + 1 < grid.ny).then(|| i + plane),
-        ]
-    };
+    let neighbours = |i: usize| grid.neighbours(i);
     let mut seen = vec![0u64; grid.len().div_ceil(64)];
     let mut caves = Caves::default();
     for start in 0..grid.len() {

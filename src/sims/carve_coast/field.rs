@@ -29,6 +29,20 @@ impl Grid {
     pub fn y_m(&self, j: usize) -> f32 {
         self.bottom_y + j as f32 * self.voxel_m
     }
+
+    /// The six face neighbours of sample `i` inside the grid.
+    pub fn neighbours(&self, i: usize) -> [Option<usize>; 6] {
+        let plane = self.plane();
+        let (x, j, z) = (i % self.nx, i / plane, (i % plane) / self.nx);
+        [
+            (x > 0).then(|| i - 1),
+            (x + 1 < self.nx).then(|| i + 1),
+            (z > 0).then(|| i - self.nx),
+            (z + 1 < self.nz).then(|| i + self.nx),
+            (j > 0).then(|| i - plane),
+            (j + 1 < self.ny).then(|| i + plane),
+        ]
+    }
 }
 
 /// The box around the terrain: its footprint, from below its lowest point to above its highest
@@ -149,17 +163,7 @@ fn flood_unreached(values: &[f32], grid: &Grid, bands: &Bands, want_rock: bool) 
         let (k, j) = (i % plane, i / plane);
         (bands.lo[k] as usize..bands.hi[k] as usize).contains(&j)
     };
-    let neighbours = |i: usize| {
-        let (x, j, z) = (i % grid.nx, i / plane, (i % plane) / grid.nx);
-        [
-            (x > 0).then(|| i - 1),
-            (x + 1 < grid.nx).then(|| i + 1),
-            (z > 0).then(|| i - grid.nx),
-            (z + 1 < grid.nz).then(|| i + grid.nx),
-            (j > 0).then(|| i - plane),
-            (j + 1 < grid.ny).then(|| i + plane),
-        ]
-    };
+    let neighbours = |i: usize| grid.neighbours(i);
     let mut seen = vec![0u64; grid.len().div_ceil(64)];
     let mut mark = |i: usize| -> bool {
         let (w, b) = (i / 64, 1u64 << (i % 64));

@@ -119,16 +119,34 @@ impl CarvingIndex {
         let mut index = Self { cell_m, cols, rows, offsets: vec![0; cols * rows + 1], items: Vec::new() };
         let mut pairs: Vec<(u32, u32)> = Vec::new();
         for (i, s) in spheres.iter().enumerate() {
-            let (lo, hi) = s.bounds();
-            let (c0, _, r0, _) = index.bins(lo[0], lo[2], 0.0);
-            let (_, c1, _, r1) = index.bins(hi[0], hi[2], 0.0);
-            for row in r0..=r1 {
-                for col in c0..=c1 {
-                    pairs.push(((row * cols + col) as u32, i as u32));
+            match s {
+                Carving::Sphere(sphere) => {
+                    let [x, _, z] = sphere.centre();
+                    index.insert_box(x, z, sphere.radius(), i, &mut pairs);
+                }
+                // A capsule goes into the bins along its segment, not its whole bounding box:
+                // a long diagonal one would otherwise fill every bin of the grid. The segment is
+                // clipped first to the footprint with a wide margin (its ends may lie far outside;
+                // the margin keeps what warped points near the edges can reach).
+                Carving::Capsule(c) => {
+                    let r = c.0[6];
+                    let (a, b) = c.ends();
+                    let m = r + 0.5 * width_m.max(depth_m);
+                    let Some((t0, t1)) = clip([a[0], a[2]], [b[0], b[2]], -m, width_m + m, -m, depth_m + m) else {
+                        continue;
+                    };
+                    let (dx, dz) = (b[0] - a[0], b[2] - a[2]);
+                    let length = (t1 - t0) * (dx * dx + dz * dz).sqrt();
+                    let steps = (length / (0.5 * cell_m)).ceil() as usize;
+                    for k in 0..=steps {
+                        let t = t0 + (t1 - t0) * k as f32 / steps.max(1) as f32;
+                        index.insert_box(a[0] + dx * t, a[2] + dz * t, r + 0.5 * cell_m, i, &mut pairs);
+                    }
                 }
             }
         }
         pairs.sort_unstable();
+        pairs.dedup();
         for &(cell, _) in &pairs {
             index.offsets[cell as usize + 1] += 1;
         }
@@ -137,6 +155,15 @@ impl CarvingIndex {
         }
         index.items = pairs.into_iter().map(|(_, i)| i).collect();
         index
+    }
+
+    fn insert_box(&self, x: f32, z: f32, reach: f32, item: usize, pairs: &mut Vec<(u32, u32)>) {
+        let (c0, c1, r0, r1) = self.bins(x, z, reach);
+        for row in r0..=r1 {
+            for col in c0..=c1 {
+                pairs.push(((row * self.cols + col) as u32, item as u32));
+            }
+        }
     }
 
     /// The bins (first and last column, first and last row) a square of half-side `reach`
@@ -267,6 +294,28 @@ impl<'a> Implicit<'a> {
             [0.0, 1.0, 0.0]
         }
     }
+}
+
+/// The part `[t0, t1]` of the segment a→b (horizontal, t in [0, 1]) inside the box
+/// `[x0, x1] × [z0, z1]` (Liang–Barsky), or `None` when it misses.
+fn clip(a: [f32; 2], b: [f32; 2], x0: f32, x1: f32, z0: f32, z1: f32) -> Option<(f32, f32)> {
+    let (mut t0, mut t1) = (0.0f32, 1.0f32);
+    let d = [b[0] - a[0], b[1] - a[1]];
+    for (p, q) in [(-d[0], a[0] - x0), (d[0], x1 - a[0]), (-d[1], a[1] - z0), (d[1], z1 - a[1])] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return None;
+            }
+        } else {
+            let t = q / p;
+            if p < 0.0 {
+                t0 = t0.max(t);
+            } else {
+                t1 = t1.min(t);
+            }
+        }
+    }
+    (t0 <= t1).then_some((t0, t1))
 }
 
 /// The steepest slope of the heightfield (central differences), metres per metre.
