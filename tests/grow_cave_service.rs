@@ -38,8 +38,10 @@ async fn a_cave_grows_streams_and_replays_to_the_same_bytes() {
 
     let glb = server.artifact(&id, "mesh.glb").await;
     let nodes = closed_nodes(&glb);
-    assert!(nodes.iter().any(|(n, _)| n == "floor") && nodes.iter().any(|(n, _)| n == "roof"));
-    let speleothems: Vec<_> = nodes.iter().filter(|(n, _)| n != "floor" && n != "roof").collect();
+    // The chamber is one closed surface, every speleothem another.
+    assert!(nodes.iter().any(|(n, closed)| n == "chamber" && *closed), "{nodes:?}");
+    let speleothems: Vec<_> = nodes.iter().filter(|(n, _)| n != "chamber").collect();
+    assert!(result["neighbours"]["min_gap_m"].as_f64().unwrap() > 0.0, "{result}");
     assert_eq!(speleothems.len() as u64, count("stalactites") + count("stalagmites") + count("columns"));
     assert!(speleothems.iter().all(|(_, closed)| *closed), "{speleothems:?}");
     let report = common::gltf_validator::validate_glb(&glb);
@@ -70,10 +72,12 @@ async fn the_paper_examples_run() {
         "mixed-iron",
         "mixed-malachite",
         "wind-bent-stalactites",
+        "soda-straws",
+        "crowded-drips",
     ] {
         let job = server.run("grow-cave", &example("grow-cave", name)).await;
         let glb = server.artifact(job["id"].as_str().unwrap(), "mesh.glb").await;
-        assert!(closed_nodes(&glb).iter().filter(|(n, _)| n != "floor" && n != "roof").all(|(_, c)| *c), "{name}");
+        assert!(closed_nodes(&glb).iter().all(|(_, c)| *c), "{name}");
     }
 }
 
@@ -117,6 +121,28 @@ async fn bad_cave_requests_name_their_field() {
             "manual.stalactite[1].radius_m",
         ),
         (with(json!({"intensity": 2})), 422, "intensity"),
+        (with(json!({"coating_share": 5})), 422, "coating_share"),
+        (with(json!({"canal_radius_m": -0.1})), 422, "canal_radius_m"),
+        (with(json!({"chamber": {"walls": {"relief_m": -1}}})), 422, "chamber.walls.relief_m"),
+        (
+            with(
+                json!({"chamber": {"width_m": 6, "opening": {"wall": "north", "centre_m": 5.8, "width_m": 1, "height_m": 1}}}),
+            ),
+            422,
+            "chamber.opening.centre_m",
+        ),
+        (
+            with(
+                json!({"chamber": {"height_m": 3, "opening": {"wall": "west", "centre_m": 2, "width_m": 1, "height_m": 3}}}),
+            ),
+            422,
+            "chamber.opening.height_m",
+        ),
+        (
+            with(json!({"conditions": {"pluviometric_index": "2", "drip_interval": "soggy", "co2": "low"}})),
+            422,
+            "conditions.drip_interval",
+        ),
     ];
     for (body, status, field) in cases {
         let (got, problem) = server.post("/v1/jobs/grow-cave", &body).await;

@@ -6,6 +6,8 @@ mod deviation;
 mod gpu_order;
 mod grid_tiles;
 mod heightfield_mesh;
+#[cfg(test)]
+pub mod intersections;
 mod isosurface;
 mod lod;
 mod normals;

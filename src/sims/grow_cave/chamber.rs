@@ -6,19 +6,19 @@ use rand::Rng;
 
 use super::growth::site_rng;
 use super::params::{Chamber, GrowCaveParams, Mineral, Site, Sites, Surface};
-use crate::terrain::Heightfield;
 
 /// Roof and floor heights as functions of (x, z) in metres.
 pub struct ChamberShape {
-    chamber: Chamber,
+    pub chamber: Chamber,
     roof: Fbm<Perlin>,
     floor: Fbm<Perlin>,
+    walls: Fbm<Perlin>,
 }
 
 impl ChamberShape {
     pub fn new(chamber: &Chamber, seed: u64) -> Self {
         let fbm = |salt: u64| Fbm::<Perlin>::new((seed ^ salt) as u32 ^ (seed >> 32) as u32).set_octaves(3);
-        Self { chamber: chamber.clone(), roof: fbm(0x524F_4F46), floor: fbm(0x464C_4F52) }
+        Self { chamber: chamber.clone(), roof: fbm(0x524F_4F46), floor: fbm(0x464C_4F52), walls: fbm(0x5741_4C4C) }
     }
 
     fn relief(noise: &Fbm<Perlin>, s: &Surface, x: f32, z: f32) -> f32 {
@@ -38,17 +38,16 @@ impl ChamberShape {
         Self::relief(&self.floor, &self.chamber.floor, x, z)
     }
 
-    fn surface(&self, f: impl Fn(f32, f32) -> f32) -> Heightfield {
-        let (cols, rows, cell) = surface_grid(&self.chamber);
-        Heightfield::from_fn(cols, rows, cell, f)
-    }
-
-    pub fn roof_heightfield(&self) -> Heightfield {
-        self.surface(|x, z| self.roof_y(x, z))
-    }
-
-    pub fn floor_heightfield(&self) -> Heightfield {
-        self.surface(|x, z| self.floor_y(x, z))
+    /// How far the wall at (x, y, z) stands out beyond the chamber's box, metres (noise read
+    /// in 3D, so it runs on round the corners without a seam).
+    pub fn wall_push(&self, x: f32, y: f32, z: f32) -> f32 {
+        let s = &self.chamber.walls;
+        if s.relief_m == 0.0 {
+            return 0.0;
+        }
+        let f = s.frequency_per_m as f64;
+        let n = self.walls.get([x as f64 * f, y as f64 * f, z as f64 * f]).clamp(-1.0, 1.0) as f32;
+        s.relief_m * (n + 1.0) / 2.0
     }
 }
 

@@ -53,7 +53,8 @@ pub fn estimate(params: &GrowCaveParams, _terrain: &dyn TerrainLookup) -> Result
     let tube_vertices = (recorded + 2 * tubes) * segments;
     let (cols, rows, _) = surface_grid(&params.chamber);
     // The mesh of a surface keeps at most 1025 samples a side; the grids here have at most 513.
-    let surface = 2 * (cols * rows) as u64;
+    // Roof, floor and walls (at most 64 levels round the edge).
+    let surface = 2 * (cols * rows) as u64 + 64 * 2 * (cols + rows) as u64;
     let mut cost = CostBuilder::new();
     cost.memory("", BASE_BYTES)
         .memory("rings", RING_BYTES * recorded + SITE_BYTES * sites)
@@ -64,8 +65,17 @@ pub fn estimate(params: &GrowCaveParams, _terrain: &dyn TerrainLookup) -> Result
         Sites::Scatter { .. } => 15 * sites * sites,
         Sites::Explicit(_) => 0,
     };
+    // Keeping sites apart: every site against the earlier ones at the start, then each ring's
+    // capsules (two) against those sharing its bins, once when grown and once for the
+    // coating's clearances — at the least, capsules spread evenly over the bins.
+    let c = &params.chamber;
+    let cell = super::neighbours::bin_size(params).max(c.width_m.max(c.depth_m) / 128.0).max(1e-6);
+    let bins = ((c.width_m / cell).ceil().clamp(1.0, 128.0) * (c.depth_m / cell).ceil().clamp(1.0, 128.0)) as u64;
+    let capsules = 2 * recorded;
+    let per_bin = (capsules / bins.max(1)).max(1);
+    let neighbours = sites * sites / 2 + 2 * capsules * per_bin;
     // Surfaces are generated for each live snapshot and the final scene (about three times).
-    let work = recorded * segments + scatter + 3 * surface * 50 + 3 * tube_vertices * 20;
+    let work = recorded * segments + scatter + neighbours + 3 * surface * 50 + 3 * tube_vertices * 20;
     let field = if tube_vertices * 60 > surface * 150 { "rings" } else { "chamber.samples" };
     Ok(cost.work(field, work).build("units", UNITS_PER_SECOND))
 }

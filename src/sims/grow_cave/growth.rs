@@ -11,6 +11,9 @@ use super::params::{Co2, Conditions, DripInterval, GrowCaveParams, ManualRing, P
 
 /// Radii below this close the tip (condition ii: the new ring's radius is zero).
 pub const CLOSED_RADIUS_M: f32 = 1e-4;
+/// A stalactite's tip and its stalagmite's top join into a column only when this close
+/// horizontally (the same point, to rounding).
+const ALIGNED_M: f32 = 1e-4;
 
 /// One ring as grown: `[pass, [radius_m, height_m, dx_m, dz_m, vd_m]]` — the pass that grew
 /// it, its radius, its vertical step from the ring before, the wind's horizontal shift of its
@@ -44,6 +47,35 @@ pub struct Drawn {
     pub co2: Co2,
 }
 
+impl Drawn {
+    /// The pass's letter in [`SiteGrowth::weather`].
+    fn letter(&self) -> char {
+        match (self.level, self.drip) {
+            (0, _) => '0',
+            (1, _) => '1',
+            (_, DripInterval::Dry) => 'd',
+            (_, DripInterval::Wet) => 'w',
+            _ => 's',
+        }
+    }
+}
+
+/// How much water coats a stalactite (`.0`) and a stalagmite (`.1`) in a pass of `weather`
+/// letter `c`, in `coating_share × radius_step_m` units: a thin film runs over a stalactite
+/// whenever it rains (half a unit); only a drip splashes a stalagmite, half a unit at a dry
+/// interval, one at a standard, 2.5 at a wet
+/// (so that by default a wet stalagmite's older rings widen faster than Table 2 widens its
+/// new ones, and its base ends wider than its top).
+pub fn coating_units(c: char) -> (f32, f32) {
+    match c {
+        '1' => (0.5, 0.0),
+        'd' => (0.5, 0.5),
+        's' => (0.5, 1.0),
+        'w' => (0.5, 2.5),
+        _ => (0.0, 0.0),
+    }
+}
+
 /// Table 2: (radius direction × multiple, height multiple) of a stalactite at `co2`.
 pub fn stalactite_row(co2: Co2) -> (i32, u32) {
     match co2 {
@@ -57,7 +89,7 @@ pub fn stalactite_row(co2: Co2) -> (i32, u32) {
 pub fn stalagmite_row(drip: DripInterval, co2: Co2) -> (i32, u32) {
     let radius = match drip {
         DripInterval::Dry => -1,
-        DripInterval::Standard | DripInterval::Random => 0,
+        DripInterval::Standard | DripInterval::Random | DripInterval::Pluviometric => 0,
         DripInterval::Wet => 1,
     };
     let height = match co2 {
@@ -80,6 +112,15 @@ pub struct SiteGrowth {
     pub stalagmite: Vec<Ring>,
     /// The pass at which the two met and became a column.
     pub column_at: Option<u32>,
+    /// The weather of every pass so far, a letter each: `0` no rain, `1` rain without
+    /// dripping, `d` / `s` / `w` dripping at a dry, standard or wet interval. The coating
+    /// (horizontal growth) of every ring is read from it.
+    #[serde(default)]
+    pub weather: String,
+    /// The earlier drip site this one joined at the start (their initial rings would overlap):
+    /// its water runs with that site's and it grows nothing of its own.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub merged_into: Option<u32>,
     #[serde(skip)]
     pub stalactite_done: bool,
     #[serde(skip)]
@@ -96,6 +137,8 @@ impl SiteGrowth {
             stalactite: Vec::new(),
             stalagmite: Vec::new(),
             column_at: None,
+            weather: String::new(),
+            merged_into: None,
             stalactite_done: false,
             stalagmite_done: false,
         }
@@ -133,8 +176,23 @@ impl SiteGrowth {
             stalactite: keep(&self.stalactite),
             stalagmite: keep(&self.stalagmite),
             column_at: self.column_at.filter(|&p| p <= passes),
+            weather: self.weather.chars().take(passes as usize).collect(),
             ..self.clone()
         }
+    }
+}
+
+impl SiteGrowth {
+    /// Put a stalagmite ring grown in `pass` where the drops land: under the stalactite's tip
+    /// as it hangs now (the wind moves the drip point, not the stalagmite).
+    pub fn place_under_drip(&mut self, pass: u32) {
+        let drip = self.drip_point();
+        let Some(last) = self.stalagmite.last().filter(|r| r.pass() == pass).copied() else { return };
+        let top = self.stalagmite_top_xz();
+        let before = [top[0] - last.shift()[0], top[1] - last.shift()[1]];
+        let last = self.stalagmite.last_mut().expect("a ring");
+        last.1[2] = drip[0] - before[0];
+        last.1[3] = drip[1] - before[1];
     }
 }
 
@@ -149,7 +207,8 @@ pub struct Grower<'a> {
 }
 
 impl Grower<'_> {
-    fn draw(&self, rng: &mut ChaCha8Rng) -> Drawn {
+    /// This pass's conditions; `weather` is the site's letters of the passes before.
+    fn draw(&self, rng: &mut ChaCha8Rng, weather: &str) -> Drawn {
         let c = self.conditions;
         let level = match c.pluviometric_index {
             Pluviometric::Level0 => 0,
@@ -160,6 +219,16 @@ impl Grower<'_> {
         let drip = match c.drip_interval {
             DripInterval::Random => {
                 [DripInterval::Dry, DripInterval::Standard, DripInterval::Wet][rng.random_range(0..3)]
+            }
+            DripInterval::Pluviometric => {
+                // Inversely proportional to the rain: dripping passes among the last three.
+                let dripping = |c: char| matches!(c, 'd' | 's' | 'w');
+                let earlier = weather.chars().rev().take(2).filter(|&c| dripping(c)).count();
+                match earlier + (level == 2) as usize {
+                    3 => DripInterval::Wet,
+                    2 => DripInterval::Standard,
+                    _ => DripInterval::Dry,
+                }
             }
             d => d,
         };
@@ -213,12 +282,18 @@ impl Grower<'_> {
         Ring(pass, [radius, height, dx, dz, vd])
     }
 
-    /// Grow `site` by one pass (number `pass`, from 1).
+    /// Grow `site` by one pass (number `pass`, from 1): draw and record the pass's weather,
+    /// then add a ring to each speleothem still growing vertically. The caller checks the new
+    /// rings against the neighbours, then calls [`Grower::check_limits`].
     pub fn pass(&self, site: &mut SiteGrowth, rng: &mut ChaCha8Rng, pass: u32) {
-        if !site.growing() && !site.stalactite.is_empty() {
+        if site.merged_into.is_some() {
             return;
         }
-        let drawn = self.draw(rng);
+        let drawn = self.draw(rng, &site.weather);
+        site.weather.push(drawn.letter());
+        if !site.growing() {
+            return;
+        }
         if drawn.level == 0 {
             return; // condition (i): no rain, no growth this pass
         }
@@ -235,16 +310,10 @@ impl Grower<'_> {
             let row = stalagmite_row(drawn.drip, drawn.co2);
             // The stalagmite grows where the drops land: under the stalactite's tip as it hangs
             // now (the wind moves the drip point, not the stalagmite).
-            let (drip, top, before) = (site.drip_point(), site.stalagmite_top_xz(), site.stalagmite.len());
             let (rings, done) = (&mut site.stalagmite, &mut site.stalagmite_done);
             self.extend(rng, pass, rings, done, p.stalagmite_radius_m, list, row, drawn.co2, false);
-            if rings.len() > before {
-                let last = rings.last_mut().expect("a ring was added");
-                last.1[2] = drip[0] - top[0];
-                last.1[3] = drip[1] - top[1];
-            }
+            site.place_under_drip(pass);
         }
-        self.check_limits(site, pass);
     }
 
     /// Add one ring to a speleothem: its initial ring first, then one by `row` (or the manual
@@ -285,7 +354,7 @@ impl Grower<'_> {
 
     /// Conditions (iii) and (iv): a speleothem reaching the floor or roof stops; a stalactite
     /// meeting its stalagmite joins it into a column at the point where they meet.
-    fn check_limits(&self, site: &mut SiteGrowth, pass: u32) {
+    pub fn check_limits(&self, site: &mut SiteGrowth, pass: u32) {
         let tip = site.stalactite_tip_y();
         let top = site.stalagmite_top_y();
         if !site.stalagmite.is_empty() && !site.stalactite.is_empty() && tip <= top {
@@ -302,9 +371,13 @@ impl Grower<'_> {
                 }
             }
             let closed = |rings: &[Ring]| rings.last().is_some_and(|r| r.radius() < CLOSED_RADIUS_M);
-            // A closed tip touching the other only touches: both stop, no column. Otherwise the
-            // two become one column.
-            if !(closed(&site.stalactite) || closed(&site.stalagmite)) {
+            // The tip must hang over the top: a stalagmite that did not grow this pass may stand
+            // where the drops fell before the wind moved the tip.
+            let ([dx, dz], [tx, tz]) = (site.drip_point(), site.stalagmite_top_xz());
+            let aligned = (dx - tx).hypot(dz - tz) <= ALIGNED_M;
+            // A closed tip touching the other, or a tip reaching the top's height away from it,
+            // only touches: both stop, no column. Otherwise the two become one column.
+            if aligned && !(closed(&site.stalactite) || closed(&site.stalagmite)) {
                 site.column_at = Some(pass);
             }
             site.stalactite_done = true;

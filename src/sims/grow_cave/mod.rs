@@ -4,13 +4,18 @@
 //! parallel, each drip site drawing from its own random stream.
 
 mod chamber;
+mod chamber_mesh;
 mod cost;
 mod growth;
+mod neighbours;
 mod outputs;
 pub mod params;
+mod profile;
 mod sequence;
 mod speleothem_mesh;
 
+#[cfg(test)]
+mod shape_tests;
 #[cfg(test)]
 mod tests;
 
@@ -91,6 +96,13 @@ pub fn grow(
             })
             .collect(),
     };
+    let reach = params.stalactite_radius_m + params.kf_m;
+    let at: Vec<(f32, f32)> = sites.iter().map(|s| (s.x_m, s.z_m)).collect();
+    for (site, merged) in sequence.sites.iter_mut().zip(neighbours::merges(&at, reach)) {
+        site.growth.merged_into = merged;
+    }
+    let (width, depth) = (params.chamber.width_m, params.chamber.depth_m);
+    let mut bodies = neighbours::Bodies::new(width, depth, neighbours::bin_size(params));
     let mut rngs: Vec<_> = (0..sites.len()).map(|i| site_rng(seed, i)).collect();
     for pass in 1..=params.rings {
         sequence
@@ -99,9 +111,19 @@ pub fn grow(
             .zip(rngs.par_iter_mut())
             .zip(growers.par_iter())
             .for_each(|((site, rng), grower)| grower.pass(&mut site.growth, rng, pass));
+        sequence.sites.par_iter_mut().zip(growers.par_iter()).for_each(|(site, grower)| {
+            let g = &mut site.growth;
+            let grew = |rings: &[growth::Ring]| rings.last().is_some_and(|r| r.pass() == pass);
+            if grew(&g.stalactite) || grew(&g.stalagmite) {
+                grower.check_limits(g, pass);
+            }
+        });
+        neighbours::settle(&mut sequence.sites, &mut bodies, width, depth, pass);
         sequence.passes = pass;
         on_pass(pass, &sequence)?;
-        if sequence.sites.iter().all(|s| !s.growth.stalactite.is_empty() && !s.growth.growing()) {
+        // Once nothing grows vertically, only the coating goes on; without it, nothing does.
+        let still = |s: &RecordedSite| s.growth.merged_into.is_none() && s.growth.growing();
+        if params.coating_share == 0.0 && !sequence.sites.iter().any(still) {
             break;
         }
     }

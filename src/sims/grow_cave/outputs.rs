@@ -5,12 +5,15 @@ use rayon::prelude::*;
 use serde_json::{json, Value};
 
 use super::chamber::ChamberShape;
+use super::chamber_mesh::chamber_mesh;
+use super::neighbours::{bin_size, Bodies};
 use super::params::Chamber;
 use super::params::{GrowCaveParams, Mineral};
+use super::profile::{site_profiles, Context, SiteProfiles};
 use super::sequence::{CaveSequence, RecordedSite};
-use super::speleothem_mesh::{column_mesh, speleothem_mesh};
+use super::speleothem_mesh::{profile_mesh, Profile};
 use crate::export::{mesh_glbs, metres_text, render_inside_png, Artifact, InsideView, MeshSettings};
-use crate::mesh::{heightfield_mesh, MaterialKind, Mesh, Scene, SceneNode, DEFAULT_MAX_SIDE_SAMPLES};
+use crate::mesh::{MaterialKind, Mesh, Scene, SceneNode};
 use crate::stop::{Stop, Stopped};
 
 /// Limestone walls.
@@ -50,46 +53,52 @@ pub fn mineral_colour(mineral: Mineral, intensity: f32) -> [f32; 3] {
     [0, 1, 2].map(|k| base[k] + (mc[k] - base[k]) * intensity)
 }
 
+/// Every site's profiles.
+fn profiles(params: &GrowCaveParams, sequence: &CaveSequence) -> Vec<SiteProfiles> {
+    let bodies = bodies(params, sequence);
+    let ctx = Context { params, bodies: &bodies };
+    sequence.sites.par_iter().enumerate().map(|(i, s)| site_profiles(&ctx, i as u32, &s.growth)).collect()
+}
+
 /// The speleothems of one site, as named nodes: a column, or a stalactite and a stalagmite.
-fn site_nodes(params: &GrowCaveParams, index: usize, site: &RecordedSite) -> Vec<SceneNode> {
-    let g = &site.growth;
+fn site_nodes(params: &GrowCaveParams, index: usize, site: &RecordedSite, profiles: &SiteProfiles) -> Vec<SceneNode> {
     let colour = mineral_colour(site.mineral, params.intensity);
     let segments = params.segments as usize;
     let node = |name: &str, mesh: Mesh| SceneNode::new(format!("{name} {index}"), mesh, MaterialKind::VertexColors);
-    if g.column_at.is_some() {
-        return vec![node("column", column_mesh(g, index as u64, segments, colour))];
+    // Roughness keys: the stalactite (and a column) 2i, the stalagmite 2i + 1.
+    let key = index as u64 * 2;
+    match profiles {
+        SiteProfiles::Column(p) => vec![node("column", profile_mesh(p, key, segments, colour))],
+        SiteProfiles::Apart { stalactite, stalagmite } => {
+            let mut out = Vec::new();
+            if let Some(p) = stalactite {
+                out.push(node("stalactite", profile_mesh(p, key, segments, colour)));
+            }
+            if let Some(p) = stalagmite {
+                out.push(node("stalagmite", profile_mesh(p, key + 1, segments, colour)));
+            }
+            out
+        }
     }
-    let mut out = Vec::new();
-    if !g.stalactite.is_empty() {
-        out.push(node("stalactite", speleothem_mesh(g, index as u64, &g.stalactite, true, segments, colour)));
-    }
-    if !g.stalagmite.is_empty() {
-        out.push(node("stalagmite", speleothem_mesh(g, index as u64, &g.stalagmite, false, segments, colour)));
-    }
-    out
 }
 
-/// The chamber's floor (facing up) and roof (facing down) as nodes.
-fn chamber_nodes(shape: &ChamberShape) -> (SceneNode, SceneNode) {
-    let floor = heightfield_mesh(&shape.floor_heightfield(), DEFAULT_MAX_SIDE_SAMPLES, None).mesh;
-    let mut roof = heightfield_mesh(&shape.roof_heightfield(), DEFAULT_MAX_SIDE_SAMPLES, None).mesh;
-    for t in roof.indices.chunks_exact_mut(3) {
-        t.swap(1, 2);
-    }
-    for n in &mut roof.normals {
-        *n = n.map(|c| -c);
-    }
-    let matte = MaterialKind::Matte { srgb: ROCK_SRGB };
-    (SceneNode::new("floor", floor, matte), SceneNode::new("roof", roof, matte))
+/// Every site's speleothems as capsules, for the clearances the coating keeps.
+pub fn bodies(params: &GrowCaveParams, sequence: &CaveSequence) -> Bodies {
+    let c = &params.chamber;
+    Bodies::of_sites(sequence.sites.iter().map(|s| &s.growth), c.width_m, c.depth_m, bin_size(params))
 }
 
-/// The scene: floor, roof, then each site's speleothems in site order.
+/// The scene: the chamber, then each site's speleothems in site order.
 pub fn scene(params: &GrowCaveParams, sequence: &CaveSequence) -> Scene {
+    scene_of(params, sequence, &profiles(params, sequence))
+}
+
+fn scene_of(params: &GrowCaveParams, sequence: &CaveSequence, profiles: &[SiteProfiles]) -> Scene {
     let shape = ChamberShape::new(&params.chamber, sequence.seed);
-    let (floor, roof) = chamber_nodes(&shape);
+    let chamber = SceneNode::new("chamber", chamber_mesh(&shape), MaterialKind::Matte { srgb: ROCK_SRGB });
     let speleothems: Vec<Vec<SceneNode>> =
-        sequence.sites.par_iter().enumerate().map(|(i, s)| site_nodes(params, i, s)).collect();
-    let mut nodes = vec![floor, roof];
+        sequence.sites.par_iter().zip(profiles).enumerate().map(|(i, (s, p))| site_nodes(params, i, s, p)).collect();
+    let mut nodes = vec![chamber];
     nodes.extend(speleothems.into_iter().flatten());
     Scene { nodes }
 }
@@ -125,6 +134,26 @@ impl Stats {
     }
 }
 
+/// How the drip sites kept apart: how many merged into an earlier one at the start, and the
+/// narrowest gap left between two sites' bodies (their capsules; null with fewer than two).
+fn neighbour_figures(params: &GrowCaveParams, sequence: &CaveSequence) -> Value {
+    let merged = sequence.sites.iter().filter(|s| s.growth.merged_into.is_some()).count();
+    let bodies = bodies(params, sequence);
+    let reach = 4.0 * bin_size(params);
+    let gap = sequence
+        .sites
+        .par_iter()
+        .enumerate()
+        .map(|(i, s)| {
+            super::neighbours::site_capsules(&s.growth)
+                .iter()
+                .map(|(_, _, c)| bodies.gap(i as u32, c, reach))
+                .fold(f32::INFINITY, f32::min)
+        })
+        .reduce(|| f32::INFINITY, f32::min);
+    json!({"merged_sites": merged, "min_gap_m": if gap.is_finite() { json!(gap) } else { Value::Null }})
+}
+
 /// `mesh.glb` and `preview.png` of the cave the sequence describes, and the figures.
 pub fn build(
     params: &GrowCaveParams,
@@ -132,26 +161,33 @@ pub fn build(
     stop: Stop,
     mesh_settings: &MeshSettings,
 ) -> Result<(Value, Vec<Artifact>), Stopped> {
-    let scene = scene(params, sequence);
+    let profiles = profiles(params, sequence);
+    let scene = scene_of(params, sequence, &profiles);
     stop.check()?;
     let ((glbs, glb_figures), preview) =
         rayon::join(|| mesh_glbs(&scene, mesh_settings), || picture(params, &scene, PREVIEW_PX, stop));
     let preview = preview?;
     let (mut stalactites, mut stalagmites, mut columns) = (Stats::default(), Stats::default(), Stats::default());
-    for s in &sequence.sites {
+    // Base radii as built: the first ring with the coating of every pass since.
+    let base = |p: &Profile| p.sections[1].radius;
+    for (s, p) in sequence.sites.iter().zip(&profiles) {
         let g = &s.growth;
-        if g.column_at.is_some() {
-            columns.push(g.roof_y_m - g.floor_y_m, g.stalactite[0].radius().max(g.stalagmite[0].radius()));
-            continue;
-        }
-        if let Some(first) = g.stalactite.first() {
-            stalactites.push(g.roof_y_m - g.stalactite_tip_y(), first.radius());
-        }
-        if let Some(first) = g.stalagmite.first() {
-            stalagmites.push(g.stalagmite_top_y() - g.floor_y_m, first.radius());
+        match p {
+            SiteProfiles::Column(c) => {
+                let bottom = c.sections[c.sections.len() - 2].radius;
+                columns.push(g.roof_y_m - g.floor_y_m, base(c).max(bottom));
+            }
+            SiteProfiles::Apart { stalactite, stalagmite } => {
+                if let Some(p) = stalactite {
+                    stalactites.push(g.roof_y_m - g.stalactite_tip_y(), base(p));
+                }
+                if let Some(p) = stalagmite {
+                    stalagmites.push(g.stalagmite_top_y() - g.floor_y_m, base(p));
+                }
+            }
         }
     }
-    let speleothem = |n: &SceneNode| n.name != "floor" && n.name != "roof";
+    let speleothem = |n: &SceneNode| n.name != "chamber";
     let triangles: usize = scene.nodes.iter().filter(|n| speleothem(n)).map(|n| n.mesh.triangle_count()).sum();
     let all_triangles: usize = scene.nodes.iter().map(|n| n.mesh.triangle_count()).sum();
     let result = json!({
@@ -161,6 +197,7 @@ pub fn build(
         "stalagmites": stalagmites.summary(),
         "columns": columns.summary(),
         "triangles": { "speleothems": triangles, "total": all_triangles },
+        "neighbours": neighbour_figures(params, sequence),
         "glb": glb_figures,
     });
     let mut glbs = glbs.into_iter();

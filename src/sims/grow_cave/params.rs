@@ -48,6 +48,15 @@ fn default_height_step() -> f32 {
 fn default_kf() -> f32 {
     0.01
 }
+fn default_coating() -> f32 {
+    0.5
+}
+fn default_canal() -> f32 {
+    0.02
+}
+fn default_straw() -> f32 {
+    0.09
+}
 fn default_intensity() -> f32 {
     1.0
 }
@@ -98,6 +107,14 @@ pub struct Chamber {
     pub roof: Surface,
     #[serde(default)]
     pub floor: Surface,
+    /// The four walls: relief pushes them outwards into the rock (the chamber's free space
+    /// never shrinks below width × depth), `frequency_per_m` along the wall and up it.
+    #[serde(default)]
+    pub walls: Surface,
+    /// A way in: a passage through one wall from the floor up. Without it the chamber is one
+    /// closed surface.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub opening: Option<Opening>,
     /// Samples along each side of the roof and floor meshes.
     #[serde(default = "default_samples")]
     // 513 = MAX_SURFACE_SAMPLES
@@ -109,6 +126,43 @@ impl Default for Chamber {
     fn default() -> Self {
         serde_json::from_str("{}").expect("defaults")
     }
+}
+
+/// Which wall an opening goes through: `west` at x = 0, `east` at x = width, `north` at
+/// z = 0, `south` at z = depth.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Side {
+    West,
+    East,
+    North,
+    South,
+}
+
+/// A passage out of the chamber: a rectangular hole in one wall, from the floor up, carried
+/// outwards through the rock as a straight tunnel that is open at its far end.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Opening {
+    pub wall: Side,
+    /// Where along the wall its middle lies, metres from the wall's lower-x (or lower-z) end.
+    /// The hole snaps to the wall's samples and keeps a sample clear of each corner.
+    #[schema(minimum = 0.0, maximum = 10000.0)]
+    pub centre_m: f32,
+    /// Metres; at least two of the wall's cells, within the wall.
+    #[schema(exclusive_minimum = 0.0, maximum = 10000.0)]
+    pub width_m: f32,
+    /// Metres above the floor; below the roof.
+    #[schema(exclusive_minimum = 0.0, maximum = 10000.0)]
+    pub height_m: f32,
+    /// How far the tunnel runs out through the rock, metres.
+    #[serde(default = "default_tunnel")]
+    #[schema(default = 2.0, exclusive_minimum = 0.0, maximum = 10000.0)]
+    pub length_m: f32,
+}
+
+fn default_tunnel() -> f32 {
+    2.0
 }
 
 /// The pluviometric index level: 0 no rain (nothing grows), 1 stalactites without dripping,
@@ -134,6 +188,10 @@ pub enum DripInterval {
     Wet,
     /// Drawn anew for every ring.
     Random,
+    /// Follows the pluviometric index, inversely (section 4.1): the more of the last three
+    /// passes dripped (level 2), the shorter the interval — three `wet`, two `standard`, one
+    /// `dry`.
+    Pluviometric,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
@@ -333,10 +391,62 @@ pub struct GrowCaveParams {
     #[serde(default = "default_kf")]
     #[schema(default = 0.01, minimum = 0.0, maximum = 10.0)]
     pub kf_m: f32,
+    /// Horizontal growth (section 3.3): every pass with water adds this share of
+    /// `radius_step_m` to the radius of every ring already grown — half of it for the film
+    /// running over a stalactite at levels 1 and 2, all of it for the drip's splash over a
+    /// stalagmite at level 2 (half for a dry drip interval, 2.5 × for a wet one) — and goes on
+    /// after vertical growth stops, so bases widen with age. Never so far that two drip sites'
+    /// speleothems touch. 0 = none.
+    #[serde(default = "default_coating")]
+    #[schema(default = 0.5, minimum = 0.0, maximum = 4.0)]
+    pub coating_share: f32,
+    /// The central canal of a young stalactite (the paper's thin hollow cylinder), metres; at
+    /// most half a ring's radius. 0 = solid stalactites.
+    #[serde(default = "default_canal")]
+    #[schema(default = 0.02, minimum = 0.0, maximum = 10000.0)]
+    pub canal_radius_m: f32,
+    /// A stalactite's rings stay hollow while their radius, with coating, is below this; the
+    /// canal closes from the roof down as the stalactite thickens, and a column or a tip closed
+    /// to a point has none.
+    #[serde(default = "default_straw")]
+    #[schema(default = 0.09, minimum = 0.0, maximum = 10000.0)]
+    pub straw_max_radius_m: f32,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub wind: Option<Wind>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub manual: Option<Manual>,
+}
+
+/// The opening must lie within its wall, at least two wall cells wide, and below the roof.
+fn validate_opening(v: &mut Validator, c: &Chamber, o: &Opening) {
+    let along = match o.wall {
+        Side::West | Side::East => c.depth_m,
+        Side::North | Side::South => c.width_m,
+    };
+    let (cols, rows, cell) = super::chamber::surface_grid(c);
+    let samples = if matches!(o.wall, Side::West | Side::East) { rows } else { cols };
+    if samples < 4 {
+        v.error("wall", format!("has {samples} samples along it; an opening needs at least 4 (raise chamber.samples)"));
+    }
+    for (leaf, value) in [("width_m", o.width_m), ("height_m", o.height_m), ("length_m", o.length_m)] {
+        v.positive(leaf, value as f64);
+        if value.is_finite() && value > MAX_CHAMBER_M {
+            v.error(leaf, format!("must be at most {MAX_CHAMBER_M} m"));
+        }
+    }
+    if v.finite("centre_m", o.centre_m as f64)
+        && o.width_m.is_finite()
+        && (o.centre_m - o.width_m / 2.0 < 0.0 || o.centre_m + o.width_m / 2.0 > along)
+    {
+        v.error("centre_m", format!("puts the opening outside its wall (0 to {along} m)"));
+    }
+    if o.width_m.is_finite() && o.width_m < 2.0 * cell {
+        v.error("width_m", format!("must be at least two wall cells ({} m)", 2.0 * cell));
+    }
+    let free = c.height_m - c.roof.relief_m - c.floor.relief_m;
+    if o.height_m.is_finite() && free.is_finite() && o.height_m >= free {
+        v.error("height_m", format!("must stay below the lowest roof over the highest floor ({free} m)"));
+    }
 }
 
 fn default_mineral() -> Mineral {
@@ -364,6 +474,16 @@ impl Validate for GrowCaveParams {
                 && c.roof.relief_m + c.floor.relief_m >= c.height_m
             {
                 v.error("height_m", "must exceed the roof's and the floor's relief together");
+            }
+            v.field("walls", |v| {
+                v.non_negative("relief_m", c.walls.relief_m as f64);
+                v.in_range("frequency_per_m", c.walls.frequency_per_m as f64, 0.0, 100.0);
+                if c.walls.relief_m.is_finite() && c.walls.relief_m > MAX_CHAMBER_M {
+                    v.error("relief_m", format!("must be at most {MAX_CHAMBER_M} m"));
+                }
+            });
+            if let Some(o) = &c.opening {
+                v.field("opening", |v| validate_opening(v, c, o));
             }
             if c.samples < 2 {
                 v.error("samples", "must be at least 2");
@@ -440,6 +560,14 @@ impl Validate for GrowCaveParams {
             }
         }
         v.non_negative("radius_step_m", self.radius_step_m as f64);
+        v.in_range("coating_share", self.coating_share as f64, 0.0, 4.0);
+        for (leaf, value) in [("canal_radius_m", self.canal_radius_m), ("straw_max_radius_m", self.straw_max_radius_m)]
+        {
+            v.non_negative(leaf, value as f64);
+            if value.is_finite() && value > c.height_m.max(0.0) {
+                v.error(leaf, "must be less than the chamber's height");
+            }
+        }
         v.non_negative("kf_m", self.kf_m as f64);
         if self.kf_m.is_finite() && self.kf_m > 10.0 {
             v.error("kf_m", "must be at most 10 m");

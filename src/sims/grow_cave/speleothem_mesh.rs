@@ -1,19 +1,43 @@
-//! A speleothem's surface: a closed tube through its rings (paper Figures 5–6: each pass joins
-//! the new ring to the one before), capped inside the roof or floor it hangs from and closed
-//! at its tip, coloured base to tip by fv_c = mc · (arID / rc) (section 4.2).
+//! A speleothem's surface: a closed tube through the sections of its profile (paper Figures
+//! 5–6: each pass joins the new ring to the one before), capped inside the roof or floor it
+//! hangs from and closed at its tip — to a point, or round into the central canal of a hollow
+//! straw — coloured base to tip by fv_c = mc · (arID / rc) (section 4.2).
 
 use std::f32::consts::TAU;
 
-use super::growth::{Ring, SiteGrowth, CLOSED_RADIUS_M};
+use super::growth::CLOSED_RADIUS_M;
 use crate::mesh::{recompute_normals, Mesh};
 
-/// One ring as placed: centre, radius, displacement, colour factor.
-struct Placed {
-    centre: [f32; 3],
-    radius: f32,
-    displacement: f32,
+/// One cross-section of a speleothem's surface: a horizontal ring (or a point when its
+/// radius is below [`CLOSED_RADIUS_M`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Section {
+    pub centre: [f32; 3],
+    pub radius: f32,
+    /// How far the roughness may push a vertex out (vd of section 4.1).
+    pub displacement: f32,
     /// The colour factor: arID / rc, lifted so the base is not black (see [`BASE_SHADE`]).
-    shade: f32,
+    pub shade: f32,
+}
+
+/// How a tube ends past its last section.
+#[derive(Clone, Debug, PartialEq)]
+pub enum End {
+    /// A fan to this point.
+    Apex([f32; 3]),
+    /// Open into a central canal: an annulus at the last section, then the canal's wall up
+    /// through the sections from `from` (radii `radii`, tip last) to a point at `apex`.
+    Canal { from: usize, radii: Vec<f32>, apex: [f32; 3] },
+}
+
+/// A speleothem's surface as a tube through its sections, in order (top to bottom when
+/// `down`), closed at the start by a fan to `start` and at the end by `end`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Profile {
+    pub sections: Vec<Section>,
+    pub down: bool,
+    pub start: [f32; 3],
+    pub end: End,
 }
 
 /// fv_c = mc · (arID / rc) darkens a speleothem's first rings to black, which no cave shows
@@ -21,41 +45,8 @@ struct Placed {
 /// of mc at the base to all of it at the tip.
 pub const BASE_SHADE: f32 = 0.4;
 
-fn shade(ring_fraction: f32) -> f32 {
+pub fn shade(ring_fraction: f32) -> f32 {
     BASE_SHADE + (1.0 - BASE_SHADE) * ring_fraction
-}
-
-/// Rings of a stalactite (down from the roof, `down = true`) or stalagmite (up from the floor),
-/// in world space, starting with an anchor one radius inside the rock so the base is sealed
-/// however the rock surface slopes.
-fn place(site: &SiteGrowth, rings: &[Ring], down: bool) -> Vec<Placed> {
-    let sign = if down { -1.0 } else { 1.0 };
-    let base_y = if down { site.roof_y_m } else { site.floor_y_m };
-    let rc = rings.len() as f32;
-    let mut out = Vec::with_capacity(rings.len() + 1);
-    let first = rings[0];
-    // A stalagmite's first ring stands under the drip point (its recorded shift from the site).
-    let [fx, fz] = first.shift();
-    out.push(Placed {
-        centre: [site.x_m + fx, base_y - sign * first.radius().max(0.02), site.z_m + fz],
-        radius: first.radius(),
-        displacement: 0.0,
-        shade: shade(1.0 / rc),
-    });
-    let (mut x, mut y, mut z) = (site.x_m, base_y, site.z_m);
-    for (k, ring) in rings.iter().enumerate() {
-        let [dx, dz] = ring.shift();
-        x += dx;
-        z += dz;
-        y += sign * ring.height();
-        out.push(Placed {
-            centre: [x, y, z],
-            radius: ring.radius(),
-            displacement: ring.displacement(),
-            shade: shade((k + 1) as f32 / rc),
-        });
-    }
-    out
 }
 
 /// Per-vertex horizontal displacement factor in [0, 1]: a hash of (site, ring, vertex), so a
@@ -90,15 +81,17 @@ impl Tube {
         (self.mesh.positions.len() - 1) as u32
     }
 
-    /// Add a ring's vertices (or one vertex when it has closed to a point); returns the first.
-    fn ring(&mut self, r: &Placed, index: usize, v: f32) -> (u32, bool) {
+    /// Add a section's vertices (or one vertex when it has closed to a point); returns the
+    /// first. `index` keys the roughness.
+    fn ring(&mut self, r: &Section, index: usize, v: f32) -> (u32, bool) {
         if r.radius < CLOSED_RADIUS_M {
             return (self.vertex(r.centre, r.shade, [0.5, v]), true);
         }
         let first = self.mesh.positions.len() as u32;
         for j in 0..self.segments {
             let a = TAU * j as f32 / self.segments as f32;
-            let rr = r.radius + r.displacement * roughness(self.site, index, j);
+            let rough = if r.displacement > 0.0 { r.displacement * roughness(self.site, index, j) } else { 0.0 };
+            let rr = r.radius + rough;
             let p = [r.centre[0] + rr * a.cos(), r.centre[1], r.centre[2] + rr * a.sin()];
             self.vertex(p, r.shade, [j as f32 / self.segments as f32, v]);
         }
@@ -140,20 +133,16 @@ impl Tube {
     }
 }
 
-/// Run the tube through the placed rings, in order (top to bottom when `down`), capping the
-/// first and last.
-fn tube_through(tube: &mut Tube, placed: &[Placed], down: bool) {
-    let sign = if down { -1.0 } else { 1.0 };
+/// Run the tube through the profile's sections and close both ends.
+fn tube_through(tube: &mut Tube, p: &Profile) {
+    let (placed, down) = (&p.sections, p.down);
     let count = placed.len() as f32;
     let mut previous: Option<(u32, bool)> = None;
     for (k, r) in placed.iter().enumerate() {
         let v = k as f32 / count;
         let current = tube.ring(r, k, v);
         match previous {
-            None => {
-                let apex = [r.centre[0], r.centre[1] - sign * r.radius * 0.5, r.centre[2]];
-                tube.cap(current, apex, r.shade, v, !down);
-            }
+            None => tube.cap(current, p.start, r.shade, v, !down),
             Some(p) => tube.join(p, current, down),
         }
         previous = Some(current);
@@ -161,9 +150,25 @@ fn tube_through(tube: &mut Tube, placed: &[Placed], down: bool) {
             return; // closed to a point: the tip
         }
     }
-    let last = placed.last().expect("rings");
-    let apex = [last.centre[0], last.centre[1] + sign * last.radius * 0.5, last.centre[2]];
-    tube.cap(previous.expect("a ring"), apex, last.shade, 1.0, down);
+    let last = placed.last().expect("sections");
+    let outer = previous.expect("a ring");
+    match &p.end {
+        End::Apex(apex) => tube.cap(outer, *apex, last.shade, 1.0, down),
+        End::Canal { from, radii, apex } => {
+            // The canal's wall faces its axis: joined the other way round from the outside.
+            let mut inner = None;
+            for (k, (s, &c)) in placed[*from..].iter().zip(radii).enumerate().rev() {
+                let section = Section { radius: c, displacement: 0.0, ..*s };
+                let ring = tube.ring(&section, from + k, 1.0);
+                match inner {
+                    None => tube.join(outer, ring, down),
+                    Some(below) => tube.join(below, ring, down),
+                }
+                inner = Some(ring);
+            }
+            tube.cap(inner.expect("a hollow section"), *apex, last.shade, 1.0, down);
+        }
+    }
 }
 
 fn finish(mut tube: Tube) -> Mesh {
@@ -171,31 +176,9 @@ fn finish(mut tube: Tube) -> Mesh {
     tube.mesh
 }
 
-/// A stalactite or stalagmite on its own.
-pub fn speleothem_mesh(
-    site: &SiteGrowth,
-    index: u64,
-    rings: &[Ring],
-    down: bool,
-    segments: usize,
-    colour: [f32; 3],
-) -> Mesh {
-    let placed = place(site, rings, down);
-    let mut tube = Tube::new(segments, colour, index * 2 + !down as u64);
-    tube_through(&mut tube, &placed, down);
-    finish(tube)
-}
-
-/// A column: the stalactite's rings down to where they met, then the stalagmite's back down
-/// to the floor, one closed tube.
-pub fn column_mesh(site: &SiteGrowth, index: u64, segments: usize, colour: [f32; 3]) -> Mesh {
-    let mut placed = place(site, &site.stalactite, true);
-    let mut below = place(site, &site.stalagmite, false);
-    below.reverse();
-    // The two meeting rings coincide in height; keep the stalactite's.
-    below.remove(0);
-    placed.extend(below);
-    let mut tube = Tube::new(segments, colour, index * 2);
-    tube_through(&mut tube, &placed, true);
+/// The closed surface of a profile: `key` seeds its roughness.
+pub fn profile_mesh(p: &Profile, key: u64, segments: usize, colour: [f32; 3]) -> Mesh {
+    let mut tube = Tube::new(segments, colour, key);
+    tube_through(&mut tube, p);
     finish(tube)
 }

@@ -1,0 +1,294 @@
+//! Drip sites that would grow into each other. At the start a site whose initial ring would
+//! overlap an earlier site's **merges** into it (its water joins that site's flow; it grows
+//! nothing of its own). Afterwards a ring that would reach another site's speleothem, or cross
+//! the chamber's walls, is not grown and that speleothem **stops** growing vertically, as at
+//! the roof or floor (a column forming in that pass stays two pieces and both stop).
+//!
+//! Each speleothem's body is a chain of capsules — anchor to first ring, ring to ring, with the
+//! larger ring's radius plus its displacement — and, past every ring, a capsule for the rounded
+//! top or the drip tip the mesh may add there. The coating and the column's waist later widen a
+//! ring by less than half its clearance to any other site's capsules ([`Bodies::gap`]), so two
+//! sites' surfaces never meet.
+
+use super::growth::{Ring, SiteGrowth};
+use super::sequence::RecordedSite;
+
+/// How far past a ring the mesh may reach (rounded top or drip tip), in ring radii.
+pub const TIP_REACH: f32 = 1.2;
+/// Share of a ring's clearance its coating and waist may take (the other site takes as much).
+pub const CLEARANCE_SHARE: f32 = 0.45;
+/// The least gap a new ring must keep from other sites' bodies and the walls, metres.
+pub const MARGIN_M: f32 = 0.002;
+/// Most bins along a side of the index.
+const MAX_BINS: usize = 128;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Capsule {
+    pub a: [f32; 3],
+    pub b: [f32; 3],
+    pub r: f32,
+}
+
+impl Capsule {
+    /// The gap between the two surfaces (negative when they overlap).
+    pub fn gap(&self, o: &Capsule) -> f32 {
+        segment_distance(self.a, self.b, o.a, o.b) as f32 - self.r - o.r
+    }
+
+    /// (min x, max x, min z, max z) of the capsule.
+    fn bounds_xz(&self) -> [f32; 4] {
+        [
+            self.a[0].min(self.b[0]) - self.r,
+            self.a[0].max(self.b[0]) + self.r,
+            self.a[2].min(self.b[2]) - self.r,
+            self.a[2].max(self.b[2]) + self.r,
+        ]
+    }
+
+    /// The gap to the walls of the box [0, width] × [0, depth] (negative when it crosses one).
+    pub fn wall_gap(&self, width: f32, depth: f32) -> f32 {
+        let [x0, x1, z0, z1] = self.bounds_xz();
+        x0.min(width - x1).min(z0).min(depth - z1)
+    }
+}
+
+/// The distance between segments pq and rs (closest points, Ericson §5.1.9), in f64.
+fn segment_distance(p: [f32; 3], q: [f32; 3], r: [f32; 3], s: [f32; 3]) -> f64 {
+    let v =
+        |a: [f32; 3], b: [f32; 3]| [b[0] as f64 - a[0] as f64, b[1] as f64 - a[1] as f64, b[2] as f64 - a[2] as f64];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let (d1, d2, w) = (v(p, q), v(r, s), v(r, p));
+    let (a, e, f) = (dot(d1, d1), dot(d2, d2), dot(d2, w));
+    let (mut sc, mut tc);
+    if a <= 1e-18 && e <= 1e-18 {
+        return dot(w, w).sqrt();
+    }
+    if a <= 1e-18 {
+        sc = 0.0;
+        tc = (f / e).clamp(0.0, 1.0);
+    } else {
+        let c = dot(d1, w);
+        if e <= 1e-18 {
+            tc = 0.0;
+            sc = (-c / a).clamp(0.0, 1.0);
+        } else {
+            let b = dot(d1, d2);
+            let denom = a * e - b * b;
+            sc = if denom > 1e-18 { ((b * f - c * e) / denom).clamp(0.0, 1.0) } else { 0.0 };
+            tc = (b * sc + f) / e;
+            if tc < 0.0 {
+                tc = 0.0;
+                sc = (-c / a).clamp(0.0, 1.0);
+            } else if tc > 1.0 {
+                tc = 1.0;
+                sc = ((b - c) / a).clamp(0.0, 1.0);
+            }
+        }
+    }
+    let d: [f64; 3] = std::array::from_fn(|k| w[k] + d1[k] * sc - d2[k] * tc);
+    dot(d, d).sqrt()
+}
+
+/// Every ring's centre, in world space, from the base (roof or floor) along the speleothem.
+pub fn centres(site: &SiteGrowth, rings: &[Ring], down: bool) -> Vec<[f32; 3]> {
+    let sign = if down { -1.0 } else { 1.0 };
+    let (mut x, mut y, mut z) = (site.x_m, if down { site.roof_y_m } else { site.floor_y_m }, site.z_m);
+    rings
+        .iter()
+        .map(|r| {
+            x += r.shift()[0];
+            z += r.shift()[1];
+            y += sign * r.height();
+            [x, y, z]
+        })
+        .collect()
+}
+
+/// The capsules ring `k` of a speleothem adds to its body: from the ring before (or the anchor
+/// inside the rock) to this ring, and past this ring by [`TIP_REACH`] radii. `centres` are
+/// [`centres`]'s.
+pub fn ring_capsules(site: &SiteGrowth, rings: &[Ring], centres: &[[f32; 3]], k: usize, down: bool) -> [Capsule; 2] {
+    let sign = if down { -1.0 } else { 1.0 };
+    let base_y = if down { site.roof_y_m } else { site.floor_y_m };
+    let (ring, here) = (rings[k], centres[k]);
+    let reach = |r: &Ring| r.radius() + r.displacement();
+    let (before, r_before) = if k == 0 {
+        ([here[0], base_y - sign * ring.radius().max(0.02), here[2]], reach(&ring))
+    } else {
+        (centres[k - 1], reach(&rings[k - 1]))
+    };
+    let tip = [here[0], here[1] + sign * TIP_REACH * ring.radius(), here[2]];
+    [Capsule { a: before, b: here, r: r_before.max(reach(&ring)) }, Capsule { a: here, b: tip, r: reach(&ring) }]
+}
+
+/// Every capsule of a site's speleothems, each with (stalagmite?, ring index).
+pub fn site_capsules(site: &SiteGrowth) -> Vec<(bool, usize, Capsule)> {
+    let mut out = Vec::new();
+    for (up, rings) in [(false, &site.stalactite), (true, &site.stalagmite)] {
+        let centres = centres(site, rings, !up);
+        for k in 0..rings.len() {
+            for c in ring_capsules(site, rings, &centres, k, !up) {
+                out.push((up, k, c));
+            }
+        }
+    }
+    out
+}
+
+/// A uniform grid over the chamber's floor plan of every capsule grown so far, by site.
+pub struct Bodies {
+    cell: f32,
+    cols: usize,
+    rows: usize,
+    bins: Vec<Vec<u32>>,
+    items: Vec<(u32, Capsule)>,
+}
+
+impl Bodies {
+    /// An empty index over width × depth with bins of about `cell` metres (at most
+    /// [`MAX_BINS`] a side).
+    pub fn new(width: f32, depth: f32, cell: f32) -> Self {
+        let cell = cell.max(width / MAX_BINS as f32).max(depth / MAX_BINS as f32).max(1e-6);
+        let cols = ((width / cell).ceil() as usize).clamp(1, MAX_BINS);
+        let rows = ((depth / cell).ceil() as usize).clamp(1, MAX_BINS);
+        Self { cell, cols, rows, bins: vec![Vec::new(); cols * rows], items: Vec::new() }
+    }
+
+    /// Bins overlapped by `c` grown by `pad`.
+    fn bins_of(&self, c: &Capsule, pad: f32) -> impl Iterator<Item = usize> + '_ {
+        let [x0, x1, z0, z1] = c.bounds_xz();
+        let index = |v: f32, n: usize| ((v / self.cell).floor().max(0.0) as usize).min(n - 1);
+        let (c0, c1) = (index(x0 - pad, self.cols), index(x1 + pad, self.cols));
+        let (r0, r1) = (index(z0 - pad, self.rows), index(z1 + pad, self.rows));
+        (r0..=r1).flat_map(move |r| (c0..=c1).map(move |c| r * self.cols + c))
+    }
+
+    pub fn insert(&mut self, site: u32, c: Capsule) {
+        let id = self.items.len() as u32;
+        self.items.push((site, c));
+        let bins: Vec<usize> = self.bins_of(&c, 0.0).collect();
+        for b in bins {
+            self.bins[b].push(id);
+        }
+    }
+
+    /// The smallest gap from `c` to a capsule of another site, looking `reach` metres around
+    /// it (infinity when none is that near).
+    pub fn gap(&self, site: u32, c: &Capsule, reach: f32) -> f32 {
+        let mut best = f32::INFINITY;
+        for b in self.bins_of(c, reach.max(0.0)) {
+            for &id in &self.bins[b] {
+                let (other, o) = &self.items[id as usize];
+                if *other != site {
+                    best = best.min(c.gap(o));
+                }
+            }
+        }
+        best
+    }
+
+    /// An index of every capsule of every site that grows.
+    pub fn of_sites<'a>(sites: impl Iterator<Item = &'a SiteGrowth>, width: f32, depth: f32, cell: f32) -> Self {
+        let mut bodies = Bodies::new(width, depth, cell);
+        for (i, s) in sites.enumerate() {
+            for (_, _, c) in site_capsules(s) {
+                bodies.insert(i as u32, c);
+            }
+        }
+        bodies
+    }
+}
+
+/// Bin size for a cave: a few of its largest rings across, or a ring's farthest wind drift.
+pub fn bin_size(params: &super::params::GrowCaveParams) -> f32 {
+    let radius = params.stalactite_radius_m.max(params.stalagmite_radius_m) + params.kf_m;
+    let drift = params.wind.as_ref().map_or(0.0, |w| w.scale * 4.5 * params.height_step_m);
+    (4.0 * radius).max(drift)
+}
+
+/// Which sites merge into an earlier one at the start: a site whose initial stalactite ring
+/// (with its displacement) would come within [`MARGIN_M`] of an earlier, unmerged site's.
+pub fn merges(sites: &[(f32, f32)], radius: f32) -> Vec<Option<u32>> {
+    let mut out: Vec<Option<u32>> = vec![None; sites.len()];
+    for i in 0..sites.len() {
+        let (x, z) = sites[i];
+        out[i] = (0..i)
+            .find(|&j| out[j].is_none() && (sites[j].0 - x).hypot(sites[j].1 - z) < 2.0 * radius + MARGIN_M)
+            .map(|j| j as u32);
+    }
+    out
+}
+
+/// What a site may still lose this pass: its newest ring of one speleothem.
+fn newest(site: &SiteGrowth, up: bool, pass: u32) -> Option<[Capsule; 2]> {
+    let rings = if up { &site.stalagmite } else { &site.stalactite };
+    rings.last().filter(|r| r.pass() == pass)?;
+    let centres = centres(site, rings, !up);
+    Some(ring_capsules(site, rings, &centres, rings.len() - 1, !up))
+}
+
+/// Check this pass's new rings against the other sites' bodies and the walls — stalactites
+/// first, then stalagmites, placed under the drip point as it now stands. A ring that would
+/// come within [`MARGIN_M`] of another site's body (grown before or this pass) or of a wall is
+/// removed and its speleothem stops; a site that became a column this pass loses the pass's
+/// rings of both and both stop. Accepted rings enter `bodies`. Returns how many speleothems
+/// stopped. Every decision depends only on the state before the check, so the order of sites
+/// does not matter.
+pub fn settle(sites: &mut [RecordedSite], bodies: &mut Bodies, width: f32, depth: f32, pass: u32) -> usize {
+    use rayon::prelude::*;
+    let mut stopped = 0;
+    for up in [false, true] {
+        if up {
+            sites.par_iter_mut().for_each(|s| s.growth.place_under_drip(pass));
+        }
+        let pending: Vec<(usize, [Capsule; 2])> =
+            sites.iter().enumerate().filter_map(|(i, s)| newest(&s.growth, up, pass).map(|c| (i, c))).collect();
+        let mut this_pass = Bodies {
+            cell: bodies.cell,
+            cols: bodies.cols,
+            rows: bodies.rows,
+            bins: vec![Vec::new(); bodies.bins.len()],
+            items: Vec::new(),
+        };
+        for (i, caps) in &pending {
+            for c in caps {
+                this_pass.insert(*i as u32, *c);
+            }
+        }
+        let rejected: Vec<bool> = pending
+            .par_iter()
+            .map(|(i, caps)| {
+                caps.iter().any(|c| {
+                    let site = *i as u32;
+                    c.wall_gap(width, depth) < MARGIN_M
+                        || bodies.gap(site, c, MARGIN_M) < MARGIN_M
+                        || this_pass.gap(site, c, MARGIN_M) < MARGIN_M
+                })
+            })
+            .collect();
+        for ((i, caps), no) in pending.into_iter().zip(rejected) {
+            let site = &mut sites[i].growth;
+            if !no {
+                for c in caps {
+                    bodies.insert(i as u32, c);
+                }
+                continue;
+            }
+            stopped += 1;
+            if site.column_at == Some(pass) {
+                site.column_at = None;
+                site.stalactite.retain(|r| r.pass() != pass);
+                site.stalagmite.retain(|r| r.pass() != pass);
+                site.stalactite_done = true;
+                site.stalagmite_done = true;
+            } else if up {
+                site.stalagmite.pop();
+                site.stalagmite_done = true;
+            } else {
+                site.stalactite.pop();
+                site.stalactite_done = true;
+            }
+        }
+    }
+    stopped
+}
