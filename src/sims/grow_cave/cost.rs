@@ -15,12 +15,12 @@ const RING_BYTES: u64 = 600;
 const SITE_BYTES: u64 = 450;
 /// Bytes per speleothem vertex at the final build: the tube, its glb (twice) and the render's
 /// copy, with the slack of growing buffers.
-const TUBE_VERTEX_BYTES: u64 = 220;
+const TUBE_VERTEX_BYTES: u64 = 140;
 /// Bytes per roof or floor sample: the grid, its mesh and their copies in glb and render.
-const SURFACE_SAMPLE_BYTES: u64 = 300;
+const SURFACE_SAMPLE_BYTES: u64 = 100;
 /// Bytes per glb node (a speleothem): its JSON and glTF structures.
 const NODE_BYTES: u64 = 10_000;
-const BASE_BYTES: u64 = 4 << 20;
+const BASE_BYTES: u64 = 6 << 20;
 
 pub fn estimate(params: &GrowCaveParams, _terrain: &dyn TerrainLookup) -> Result<Cost, SimError> {
     let sites = match &params.sites {
@@ -50,7 +50,15 @@ pub fn estimate(params: &GrowCaveParams, _terrain: &dyn TerrainLookup) -> Result
     };
     // Per speleothem: its rings, an anchor and a tip.
     let recorded = (tubes * rings).min(sites.saturating_mul(height_bound).saturating_add(tubes));
-    let tube_vertices = (recorded + 2 * tubes) * segments;
+    // A straw's canal doubles its stalactite's rings (every site with a tube has a stalactite).
+    let stalactites = match &params.sites {
+        Sites::Explicit(list) => {
+            list.iter().filter(|s| tubes_of(s.conditions.as_ref().unwrap_or(&params.conditions)) > 0).count() as u64
+        }
+        Sites::Scatter { count, .. } => u64::from(*count) * tubes_of(&params.conditions).min(1),
+    };
+    let canal = if params.canal_radius_m > 0.0 { stalactites } else { 0 };
+    let tube_vertices = (recorded + 2 * tubes) * segments * (tubes + canal) / tubes.max(1);
     let (cols, rows, _) = surface_grid(&params.chamber);
     // The mesh of a surface keeps at most 1025 samples a side; the grids here have at most 513.
     // Roof, floor and walls (at most 64 levels round the edge).

@@ -8,6 +8,7 @@ use serde_json::{json, Value};
 
 use super::neighbours::{centres, MARGIN_M};
 use super::params::Sites;
+use super::tests::bytes;
 use super::*;
 use crate::mesh::intersections::{is_oriented_manifold, meshes_meet, self_intersections};
 use crate::mesh::{Mesh, Scene};
@@ -144,14 +145,6 @@ fn fifty_windy_caves_make_clean_closed_separate_surfaces() {
     }
     // The caves exercise what they should: columns, free stalagmites, early stops.
     assert!(columns > 300 && stalagmites > 20 && stopped > 0, "{columns} columns, {stalagmites} stalagmites");
-}
-
-/// Artifact names and sha256s.
-fn bytes(o: &Outcome<CaveSequence>) -> Vec<(String, String)> {
-    o.artifacts
-        .iter()
-        .map(|a| (a.name.clone(), hex::encode(<sha2::Sha256 as sha2::Digest>::digest(&a.bytes))))
-        .collect()
 }
 
 #[test]

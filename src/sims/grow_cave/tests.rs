@@ -239,7 +239,7 @@ fn ctx() -> TestContext {
 }
 
 /// Artifact names and sha256s.
-fn bytes(o: &Outcome<CaveSequence>) -> Vec<(String, String)> {
+pub(super) fn bytes(o: &Outcome<CaveSequence>) -> Vec<(String, String)> {
     o.artifacts
         .iter()
         .map(|a| (a.name.clone(), hex::encode(<sha2::Sha256 as sha2::Digest>::digest(&a.bytes))))
