@@ -158,6 +158,13 @@ async fn the_paper_examples_run() {
         let job = server.run("weather-column", &body).await;
         assert_eq!(job["result"]["mesh"]["closed"], true, "{name}: {}", job["result"]);
     }
+    // Gravity's example in full: the cap falls, and the sequence says when and how far.
+    let job = server.run("weather-column", &example("weather-column", "toppled-cap")).await;
+    assert_eq!(job["result"]["mesh"]["closed"], true, "{}", job["result"]);
+    let sequence: Value =
+        serde_json::from_slice(&server.artifact(job["id"].as_str().unwrap(), "sequence.json").await).unwrap();
+    let falls = sequence["falls"].as_array().expect("falls");
+    assert!(!falls.is_empty() && falls.iter().all(|f| f["dy"].as_u64().unwrap() > 0), "{falls:?}");
 }
 
 #[tokio::test]
@@ -185,7 +192,10 @@ async fn bad_weathering_requests_name_their_field() {
         base64::engine::general_purpose::STANDARD.encode(out)
     };
     let not_png = base64::engine::general_purpose::STANDARD.encode(b"GIF89a not a png at all");
+    let mut falling_events = with(&["gravity"], json!(true));
+    falling_events["update"] = json!("event_based");
     let cases = [
+        (falling_events, 422, "gravity"),
         (
             with(&["column", "profile"], json!({"joint_map": {"png_base64": black}})),
             422,

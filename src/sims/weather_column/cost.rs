@@ -54,6 +54,11 @@ pub fn estimate(params: &WeatherColumnParams, terrain: &dyn TerrainLookup) -> Re
         .memory("grid", 4 * n + (5 * np).max(7 * n))
         .memory("update", active_bytes)
         .memory("column", BYTES_PER_VERTEX * vertices);
+    // Gravity: each cell's voxel identity (4 bytes), the per-identity record and the grounded
+    // marks (2 each), and the record's copy for the sequence.
+    if params.gravity {
+        cost.memory("gravity", 10 * n);
+    }
 
     let update_visits = match params.update {
         Update::Synchronized => 1,
@@ -64,7 +69,10 @@ pub fn estimate(params: &WeatherColumnParams, terrain: &dyn TerrainLookup) -> Re
         + active * bubble_cells
         + removed * bubble_cells * update_visits
         + 8 * np
-        + vertices * (60 + 14 * smoothing);
+        + vertices * (60 + 14 * smoothing)
+        // Gravity: the searches to the ground from beside each removal (a column's height at
+        // most, lowest first), and the air counted afresh after a fall (a few falls).
+        + if params.gravity { removed * 6 * height + 4 * n * (6 + 4 * reach as u64) } else { 0 };
     let field = if removed * bubble_cells > n * 8 { "stop_at_fraction" } else { "grid" };
     Ok(cost.work(field, work).build("voxel visits", VISITS_PER_SECOND))
 }

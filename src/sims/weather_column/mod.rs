@@ -9,6 +9,7 @@
 
 mod bubble;
 mod cost;
+mod gravity;
 mod grid;
 mod outputs;
 pub mod params;
@@ -18,6 +19,8 @@ mod sequence;
 mod shape;
 mod weathering;
 
+#[cfg(test)]
+mod gravity_tests;
 #[cfg(test)]
 mod tests;
 
@@ -75,9 +78,18 @@ impl Simulation for WeatherColumn {
         let (rock, history) = simulate(params, seed, joint_map.as_deref(), ctx.stop(), &mut on_step)?;
         ctx.check_cancelled()?;
         ctx.report("meshing", history.steps() as u64, params.steps as u64, "extracting the surface");
-        let (result, artifacts) =
-            outputs::build(params, &rock.grid, &rock.resistance, &rock.state, &history, ctx.stop(), &ctx.mesh)?;
-        let sequence = WeatherSequence::record(&rock.grid, seed, &history, &rock.state);
+        let sequence = WeatherSequence::record(&rock, seed, &history);
+        let (result, artifacts) = outputs::build(
+            params,
+            &rock.grid,
+            &rock.resistance,
+            &rock.state,
+            rock.gravity.as_ref().map(|g| g.origin.as_slice()),
+            rock.initial_voxels,
+            &history,
+            ctx.stop(),
+            &ctx.mesh,
+        )?;
         Ok(Outcome { result, sequence, artifacts })
     }
 
@@ -88,12 +100,23 @@ impl Simulation for WeatherColumn {
         ctx: &RunContext,
     ) -> Result<Outcome<Self::Sequence>, SimError> {
         let grid = Grid::new(params);
-        let (state, history) = sequence.state_until(&grid, until_step)?;
+        let sequence = sequence.until(&grid, until_step)?;
+        let (state, origin, initial) = sequence.cells(&grid)?;
+        let history = sequence.history();
         ctx.check_cancelled()?;
         ctx.report("meshing", history.steps() as u64, sequence.steps as u64, "extracting the surface");
         let resistance = ResistanceField::new(params, sequence.seed);
-        let (result, artifacts) = outputs::build(params, &grid, &resistance, &state, &history, ctx.stop(), &ctx.mesh)?;
-        let sequence = WeatherSequence::record(&grid, sequence.seed, &history, &state);
+        let (result, artifacts) = outputs::build(
+            params,
+            &grid,
+            &resistance,
+            &state,
+            origin.as_deref(),
+            initial,
+            &history,
+            ctx.stop(),
+            &ctx.mesh,
+        )?;
         Ok(Outcome { result, sequence, artifacts })
     }
 }
@@ -137,7 +160,11 @@ fn build_rock(params: &WeatherColumnParams, seed: u64, joint_map: Option<&[u8]>)
     let state = shape::initial_state(&footprint, &grid, params.column_voxels() as usize);
     let layers = layer_of_plane(params, &grid);
     let bubbles = params.layers.iter().map(|l| BubbleTable::new(&l.bubble, params.ratio_exponent)).collect();
-    Ok(Rock::new(grid, state, layers, bubbles, ResistanceField::new(params, seed)))
+    let mut rock = Rock::new(grid, state, layers, bubbles, ResistanceField::new(params, seed));
+    if params.gravity {
+        rock.gravity = Some(gravity::Gravity::new(&rock.state));
+    }
+    Ok(rock)
 }
 
 /// Build the column and weather it; `on_step` hears of every step and may stop the run.
@@ -150,6 +177,7 @@ fn simulate(
 ) -> Result<(Rock, History), SimError> {
     let mut rock = build_rock(params, seed, joint_map)?;
     stop.check()?;
+    // Gravity runs the synchronized update only (validation refuses the other).
     let schedule = Schedule {
         stop,
         rate: params.rate,

@@ -5,7 +5,7 @@
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
-use super::grid::{Grid, NEVER_ROCK};
+use super::grid::Grid;
 use super::params::WeatherColumnParams;
 use super::resistance::ResistanceField;
 use super::weathering::History;
@@ -110,13 +110,22 @@ pub fn rock_mesh(
 }
 
 /// Per-vertex sRGB colours by the resistance of the rock at each vertex.
-pub fn colour_by_resistance(mesh: &mut Mesh, params: &WeatherColumnParams, resistance: &ResistanceField) {
+/// `origin` (with gravity): each cell's voxel identity, so a fallen piece keeps its layers'
+/// colours — each vertex reads the resistance where the rock next to it started.
+pub fn colour_by_resistance(
+    mesh: &mut Mesh,
+    params: &WeatherColumnParams,
+    grid: &Grid,
+    resistance: &ResistanceField,
+    origin: Option<&[u32]>,
+) {
     let (lo, hi) = resistance.range();
     let span = hi - lo;
     let colours = mesh
         .positions
         .par_iter()
         .map(|p| {
+            let p = &origin.map_or(*p, |o| started_at(grid, o, *p));
             let layer = layer_at_height(params, p[1]);
             let t = if span > 1e-6 { ((resistance.at_m(layer, *p) - lo) / span).clamp(0.0, 1.0) } else { 0.5 };
             let (a, b, f) = if t < 0.5 { (RAMP[0], RAMP[1], t * 2.0) } else { (RAMP[1], RAMP[2], t * 2.0 - 1.0) };
@@ -125,6 +134,28 @@ pub fn colour_by_resistance(mesh: &mut Mesh, params: &WeatherColumnParams, resis
         })
         .collect();
     mesh.colors = Some(colours);
+}
+
+/// Where the rock at `p` started: `p` lifted by as many cells as the voxel in the nearest rock
+/// cell (its own or, in a fixed order, one of the 26 around it) has fallen.
+fn started_at(grid: &Grid, origin: &[u32], p: [f32; 3]) -> [f32; 3] {
+    let v = grid.voxel_size_m;
+    let cell = |k: usize, n: usize| ((p[k] / v).floor().max(0.0) as i64).min(n as i64 - 1);
+    let (cx, cy, cz) = (cell(0, grid.nx), cell(1, grid.ny), cell(2, grid.nz));
+    for (dx, dy, dz) in std::iter::once((0, 0, 0))
+        .chain((-1..=1).flat_map(|a| (-1..=1).flat_map(move |b| (-1..=1).map(move |c| (a, b, c)))))
+    {
+        let (x, y, z) = (cx + dx, cy + dy, cz + dz);
+        if x < 0 || y < 0 || z < 0 || x >= grid.nx as i64 || y >= grid.ny as i64 || z >= grid.nz as i64 {
+            continue;
+        }
+        let i = grid.index(x as usize, y as usize, z as usize);
+        if origin[i] != super::gravity::EMPTY {
+            let fell = grid.coords(origin[i] as usize).1 as f32 - y as f32;
+            return [p[0], p[1] + fell * v, p[2]];
+        }
+    }
+    p
 }
 
 fn layer_at_height(params: &WeatherColumnParams, y_m: f32) -> u8 {
@@ -181,19 +212,23 @@ pub(super) fn snapshot_block(grid: &Grid) -> usize {
 }
 
 /// `mesh.glb` and `preview.png` of the rock in `state` (after however many steps it holds),
-/// and the job's result figures.
+/// and the job's result figures; `origin` is each cell's voxel identity when anything fell,
+/// `initial` how many voxels were rock at the start.
+#[allow(clippy::too_many_arguments)]
 pub fn build(
     params: &WeatherColumnParams,
     grid: &Grid,
     resistance: &ResistanceField,
     state: &[u16],
+    origin: Option<&[u32]>,
+    initial: u64,
     history: &History,
     stop: Stop,
     mesh_settings: &MeshSettings,
 ) -> Result<(Value, Vec<Artifact>), Stopped> {
     let rock = |i: usize| state[i] == super::grid::ROCK;
     let mut mesh = rock_mesh(grid, &rock, params.mesh.smoothing_iterations, stop)?;
-    colour_by_resistance(&mut mesh, params, resistance);
+    colour_by_resistance(&mut mesh, params, grid, resistance, origin);
     let closed = mesh.is_closed();
     let mesh_volume = mesh.signed_volume();
     let (vertices, triangles) = (mesh.vertex_count(), mesh.triangle_count());
@@ -203,7 +238,6 @@ pub fn build(
         rayon::join(|| mesh_glbs(&scene, mesh_settings), || render_png(&scene, &PREVIEW, stop));
     let preview = preview?;
 
-    let initial = state.par_iter().filter(|&&s| s != NEVER_ROCK).count() as u64;
     let remaining = state.par_iter().filter(|&&s| s == super::grid::ROCK).count() as u64;
     // The shortest decimal of the f32 edge (0.1, not 0.10000000149), cubed.
     let edge_m: f64 = grid.voxel_size_m.to_string().parse().unwrap_or(grid.voxel_size_m as f64);

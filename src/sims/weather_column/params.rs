@@ -296,6 +296,12 @@ pub struct WeatherColumnParams {
     pub ratio_exponent: f32,
     #[serde(default)]
     pub update: Update,
+    /// Rock no longer connected to the ground falls straight down after each step until it
+    /// rests on rock or the ground, then keeps weathering where it lies (the paper's future
+    /// work; its Figure 2d). Synchronized update only; a floating column has no ground, so
+    /// nothing falls.
+    #[serde(default)]
+    pub gravity: bool,
     /// Most weathering steps: at most 65 000, and at most the server's operation cap (100 000
     /// by default).
     #[serde(default = "default_steps")]
@@ -333,6 +339,9 @@ impl Bubble {
 
 impl Validate for WeatherColumnParams {
     fn validate(&self, v: &mut Validator, limits: &Limits) {
+        if self.gravity && self.update == Update::EventBased {
+            v.error("gravity", "needs the synchronized update (falls happen between steps)");
+        }
         let g = self.grid;
         v.field("grid", |v| {
             for (leaf, side) in [("x", g.x), ("y", g.y), ("z", g.z)] {

@@ -6,6 +6,7 @@
 use rayon::prelude::*;
 
 use super::bubble::BubbleTable;
+use super::gravity::Gravity;
 use super::grid::{Grid, ROCK};
 use super::resistance::ResistanceField;
 use crate::stop::{Stop, Stopped};
@@ -31,6 +32,8 @@ pub struct Rock {
     pub reach: [i32; 3],
     /// Smallest and largest `dy` of any bubble.
     pub dy_range: (i32, i32),
+    /// Voxel identities and falls, when rock falls (`gravity`).
+    pub gravity: Option<Gravity>,
 }
 
 /// The weathering state of the active voxels, sorted by voxel index.
@@ -84,6 +87,7 @@ impl Rock {
             initial_voxels: rock_voxels,
             reach,
             dy_range,
+            gravity: None,
         }
     }
 
@@ -132,7 +136,13 @@ impl Rock {
         Ok(Active { index, level, resistance })
     }
 
+    /// The resistance of the voxel in cell `i`: where it started, so a fallen piece keeps its
+    /// layers'.
     pub fn resistance_of(&self, i: usize) -> f32 {
+        let i = match &self.gravity {
+            Some(g) if g.origin[i] != super::gravity::EMPTY => g.origin[i] as usize,
+            _ => i,
+        };
         let (x, y, z) = self.grid.coords(i);
         self.resistance.at_voxel(self.layer_of_plane[y], x, y, z)
     }

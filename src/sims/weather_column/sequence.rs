@@ -1,12 +1,16 @@
 //! The recorded sequence: for every voxel, the step that removed it — a compact volume,
-//! deflated — plus the per-step counts. Replay until step k keeps the voxels removed after k.
+//! deflated — plus the per-step counts, and with gravity the falls (the voxels indexed by the
+//! cell each started in). Replay until step k keeps the voxels removed after k and the falls
+//! up to k.
 
 use std::io::{Read, Write};
 
 use base64::Engine as _;
 use serde::{Deserialize, Serialize};
 
+use super::gravity::{replay_cells, Fall};
 use super::grid::{Grid, NEVER_ROCK, ROCK};
+use super::rock::Rock;
 use super::weathering::History;
 use crate::jobs::{Sequence, SimError};
 
@@ -26,6 +30,10 @@ pub struct WeatherSequence {
     pub active_per_step: Vec<u32>,
     pub removed_per_step: Vec<u32>,
     pub removal_steps: String,
+    /// With gravity: the pieces that fell, in the order they fell (`removal_steps` is then
+    /// indexed by the cell each voxel started in).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub falls: Vec<Fall>,
 }
 
 impl Sequence for WeatherSequence {
@@ -35,7 +43,15 @@ impl Sequence for WeatherSequence {
 }
 
 impl WeatherSequence {
-    pub fn record(grid: &Grid, seed: u64, history: &History, state: &[u16]) -> Self {
+    /// The sequence of a run: the rock's state (by identity, with gravity) and falls.
+    pub fn record(rock: &Rock, seed: u64, history: &History) -> Self {
+        match &rock.gravity {
+            Some(g) => Self { falls: g.falls.clone(), ..Self::of_state(&rock.grid, seed, history, &g.record) },
+            None => Self::of_state(&rock.grid, seed, history, &rock.state),
+        }
+    }
+
+    fn of_state(grid: &Grid, seed: u64, history: &History, state: &[u16]) -> Self {
         Self {
             format: FORMAT.into(),
             grid: [grid.nx as u32, grid.ny as u32, grid.nz as u32],
@@ -44,14 +60,38 @@ impl WeatherSequence {
             active_per_step: history.active_per_step.clone(),
             removed_per_step: history.removed_per_step.clone(),
             removal_steps: encode(state),
+            falls: Vec::new(),
         }
+    }
+
+    /// The sequence a run of `until` steps would have recorded (all when `None` or beyond).
+    pub fn until(&self, grid: &Grid, until: Option<u64>) -> Result<Self, SimError> {
+        let (record, history) = self.state_until(grid, until)?;
+        let k = history.steps();
+        let falls = self.falls.iter().filter(|f| f.step <= k).copied().collect();
+        Ok(Self { falls, ..Self::of_state(grid, self.seed, &history, &record) })
+    }
+
+    /// The cells the sequence ends with, each cell's voxel identity when anything fell, and
+    /// how many voxels were rock at the start.
+    #[allow(clippy::type_complexity)]
+    pub fn cells(&self, grid: &Grid) -> Result<(Vec<u16>, Option<Vec<u32>>, u64), SimError> {
+        let (record, _) = self.state_until(grid, None)?;
+        let initial = record.iter().filter(|&&s| s != NEVER_ROCK).count() as u64;
+        if self.falls.is_empty() {
+            return Ok((record, None, initial));
+        }
+        let steps = u16::try_from(self.steps).map_err(|_| SimError::Failed("too many steps".into()))?;
+        let (cells, origin) = replay_cells(grid, &record, &self.falls, steps);
+        Ok((cells, Some(origin), initial))
     }
 
     pub fn history(&self) -> History {
         History { active_per_step: self.active_per_step.clone(), removed_per_step: self.removed_per_step.clone() }
     }
 
-    /// The state volume after `until` steps (all of them when `None`) and the history so far.
+    /// The recorded volume after `until` steps (all of them when `None`) and the history so
+    /// far: the cells, without gravity; by identity, with it.
     pub fn state_until(&self, grid: &Grid, until: Option<u64>) -> Result<(Vec<u16>, History), SimError> {
         if self.format != FORMAT {
             return Err(SimError::Failed(format!("unknown sequence format {:?}", self.format)));
@@ -109,7 +149,7 @@ mod tests {
         let grid = Grid { nx: 3, ny: 2, nz: 2, voxel_size_m: 1.0, floating: false };
         let state: Vec<u16> = vec![0, 1, 2, 3, NEVER_ROCK, 0, 5, 5, 0, 0, 1, 2];
         let history = History { active_per_step: vec![9, 8, 7, 6, 5], removed_per_step: vec![2, 2, 1, 0, 2] };
-        let seq = WeatherSequence::record(&grid, 7, &history, &state);
+        let seq = WeatherSequence::of_state(&grid, 7, &history, &state);
         assert_eq!(seq.state_until(&grid, None).unwrap().0, state);
         let (two, h) = seq.state_until(&grid, Some(2)).unwrap();
         assert_eq!(two, vec![0, 1, 2, 0, NEVER_ROCK, 0, 0, 0, 0, 0, 1, 2]);

@@ -200,6 +200,8 @@ fn weathered_rock_mesh_is_closed_and_holds_the_rock_volume() {
             &rock.grid,
             &rock.resistance,
             &rock.state,
+            None,
+            rock.initial_voxels,
             &history,
             Stop::NEVER,
             &crate::export::MeshSettings::default(),

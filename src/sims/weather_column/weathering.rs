@@ -80,7 +80,39 @@ pub fn synchronized_step(rock: &mut Rock, active: &mut Active, rate: f32, step: 
         active.index.par_iter().zip(active.level.par_iter()).filter(|(_, &l)| l <= 0.0).map(|(&i, _)| i).collect();
     let activated = rock.remove(&removed, step);
     *active = merge_active(rock, std::mem::take(active), activated);
+    if rock.gravity.is_some() {
+        fall(rock, active, &removed, step);
+    }
     removed.len()
+}
+
+/// Let what the step's removals cut loose fall; when anything fell, count the air afresh and
+/// keep every active voxel's decimation level (a fallen one's too).
+fn fall(rock: &mut Rock, active: &mut Active, removed: &[u32], step: u16) {
+    let mut gravity = rock.gravity.take().expect("gravity");
+    gravity.removed(removed, step);
+    let moved = super::gravity::settle(&rock.grid, &mut rock.state, &mut gravity, removed, step);
+    rock.gravity = Some(gravity);
+    if moved.is_empty() {
+        return;
+    }
+    let plane = rock.grid.plane() as u32;
+    let mut to: HashMap<u32, u32> = HashMap::new();
+    for (fall, piece) in &moved {
+        for &c in piece {
+            to.insert(c as u32, c as u32 - fall.dy * plane);
+        }
+    }
+    let levels: HashMap<u32, f32> =
+        active.index.iter().zip(&active.level).map(|(&i, &l)| (to.get(&i).copied().unwrap_or(i), l)).collect();
+    rock.air.fill(0);
+    let mut fresh = rock.initialise(Stop::NEVER).expect("never stopped");
+    for (k, i) in fresh.index.iter().enumerate() {
+        if let Some(&l) = levels.get(i) {
+            fresh.level[k] = l;
+        }
+    }
+    *active = fresh;
 }
 
 /// Survivors of `active` (level above 0) and the newly `activated` voxels (level 1), sorted.
