@@ -102,7 +102,8 @@ pub fn grow(
         site.growth.merged_into = merged;
     }
     let (width, depth) = (params.chamber.width_m, params.chamber.depth_m);
-    let mut bodies = neighbours::Bodies::new(width, depth, neighbours::bin_size(params));
+    let height = params.chamber.height_m;
+    let mut bodies = neighbours::Bodies::new(width, depth, height, neighbours::bin_size(params));
     let mut rngs: Vec<_> = (0..sites.len()).map(|i| site_rng(seed, i)).collect();
     for pass in 1..=params.rings {
         sequence

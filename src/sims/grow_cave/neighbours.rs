@@ -135,52 +135,93 @@ pub fn site_capsules(site: &SiteGrowth) -> Vec<(bool, usize, Capsule)> {
     out
 }
 
-/// A uniform grid over the chamber's floor plan of every capsule grown so far, by site.
+/// A uniform grid over the chamber (x, y, z) of every capsule grown so far, by site. Bins are
+/// cubes; capsules beyond the chamber go in the bins at its edge.
 pub struct Bodies {
     cell: f32,
-    cols: usize,
-    rows: usize,
+    /// Bins along x, y, z.
+    n: [usize; 3],
     bins: Vec<Vec<u32>>,
     items: Vec<(u32, Capsule)>,
 }
 
 impl Bodies {
-    /// An empty index over width × depth with bins of about `cell` metres (at most
-    /// [`MAX_BINS`] a side).
-    pub fn new(width: f32, depth: f32, cell: f32) -> Self {
-        let cell = cell.max(width / MAX_BINS as f32).max(depth / MAX_BINS as f32).max(1e-6);
-        let cols = ((width / cell).ceil() as usize).clamp(1, MAX_BINS);
-        let rows = ((depth / cell).ceil() as usize).clamp(1, MAX_BINS);
-        Self { cell, cols, rows, bins: vec![Vec::new(); cols * rows], items: Vec::new() }
+    /// An empty index over width × height × depth with bins of about `cell` metres (at most
+    /// [`MAX_BINS`] a side and [`MAX_BINS`]² · 16 in all).
+    pub fn new(width: f32, depth: f32, height: f32, cell: f32) -> Self {
+        let extent = [width, height, depth];
+        let mut cell = extent.iter().fold(cell.max(1e-6), |c, &e| c.max(e / MAX_BINS as f32));
+        let count = |cell: f32| extent.map(|e| ((e / cell).ceil() as usize).clamp(1, MAX_BINS));
+        while count(cell).iter().product::<usize>() > MAX_BINS * MAX_BINS * 16 {
+            cell *= 1.25;
+        }
+        let n = count(cell);
+        Self { cell, n, bins: vec![Vec::new(); n[0] * n[1] * n[2]], items: Vec::new() }
     }
 
-    /// Bins overlapped by `c` grown by `pad`.
-    fn bins_of(&self, c: &Capsule, pad: f32) -> impl Iterator<Item = usize> + '_ {
-        let [x0, x1, z0, z1] = c.bounds_xz();
-        let index = |v: f32, n: usize| ((v / self.cell).floor().max(0.0) as usize).min(n - 1);
-        let (c0, c1) = (index(x0 - pad, self.cols), index(x1 + pad, self.cols));
-        let (r0, r1) = (index(z0 - pad, self.rows), index(z1 + pad, self.rows));
-        (r0..=r1).flat_map(move |r| (c0..=c1).map(move |c| r * self.cols + c))
+    fn empty_like(&self) -> Self {
+        Self { cell: self.cell, n: self.n, bins: vec![Vec::new(); self.bins.len()], items: Vec::new() }
+    }
+
+    /// The bin box (low and high bin along x, y, z) of `c`.
+    fn span(&self, c: &Capsule) -> ([i64; 3], [i64; 3]) {
+        let index = |v: f32, k: usize| ((v / self.cell).floor().max(0.0) as i64).min(self.n[k] as i64 - 1);
+        let lo = [0, 1, 2].map(|k| index(c.a[k].min(c.b[k]) - c.r, k));
+        let hi = [0, 1, 2].map(|k| index(c.a[k].max(c.b[k]) + c.r, k));
+        (lo, hi)
+    }
+
+    fn bin(&self, [x, y, z]: [i64; 3]) -> usize {
+        (x as usize) + self.n[0] * ((z as usize) + self.n[2] * y as usize)
     }
 
     pub fn insert(&mut self, site: u32, c: Capsule) {
         let id = self.items.len() as u32;
         self.items.push((site, c));
-        let bins: Vec<usize> = self.bins_of(&c, 0.0).collect();
-        for b in bins {
-            self.bins[b].push(id);
+        let (lo, hi) = self.span(&c);
+        for y in lo[1]..=hi[1] {
+            for z in lo[2]..=hi[2] {
+                for x in lo[0]..=hi[0] {
+                    let b = self.bin([x, y, z]);
+                    self.bins[b].push(id);
+                }
+            }
         }
     }
 
-    /// The smallest gap from `c` to a capsule of another site, looking `reach` metres around
-    /// it (infinity when none is that near).
+    /// The smallest gap from `c` to a capsule of another site within `reach` metres of it
+    /// (infinity when none is that near; a nearer one may be reported beyond it). Bins are
+    /// searched in shells outwards from `c`'s own, and the search ends once a shell lies
+    /// farther than the best gap so far: a capsule in shell k is at least (k − 1) bins away.
     pub fn gap(&self, site: u32, c: &Capsule, reach: f32) -> f32 {
+        let (lo, hi) = self.span(c);
+        let n = self.n.map(|v| v as i64);
         let mut best = f32::INFINITY;
-        for b in self.bins_of(c, reach.max(0.0)) {
-            for &id in &self.bins[b] {
-                let (other, o) = &self.items[id as usize];
-                if *other != site {
-                    best = best.min(c.gap(o));
+        for k in 0i64.. {
+            if k >= 1 && (k - 1) as f32 * self.cell > best.min(reach.max(0.0)) {
+                break;
+            }
+            // The shells so far covered the whole grid.
+            if k >= 1 && (0..3).all(|d| lo[d] - (k - 1) <= 0 && hi[d] + (k - 1) >= n[d] - 1) {
+                break;
+            }
+            let (a, b) = (lo.map(|v| v - k), hi.map(|v| v + k));
+            for y in a[1].max(0)..=b[1].min(n[1] - 1) {
+                for z in a[2].max(0)..=b[2].min(n[2] - 1) {
+                    // Inside the shell before: only the two x ends.
+                    let inner = k > 0 && y > a[1] && y < b[1] && z > a[2] && z < b[2];
+                    let xs: Vec<i64> = if inner { vec![a[0], b[0]] } else { (a[0]..=b[0]).collect() };
+                    for x in xs {
+                        if x < 0 || x >= n[0] {
+                            continue;
+                        }
+                        for &id in &self.bins[self.bin([x, y, z])] {
+                            let (other, o) = &self.items[id as usize];
+                            if *other != site {
+                                best = best.min(c.gap(o));
+                            }
+                        }
+                    }
                 }
             }
         }
@@ -188,8 +229,12 @@ impl Bodies {
     }
 
     /// An index of every capsule of every site that grows.
-    pub fn of_sites<'a>(sites: impl Iterator<Item = &'a SiteGrowth>, width: f32, depth: f32, cell: f32) -> Self {
-        let mut bodies = Bodies::new(width, depth, cell);
+    pub fn of_sites<'a>(
+        sites: impl Iterator<Item = &'a SiteGrowth>,
+        [width, depth, height]: [f32; 3],
+        cell: f32,
+    ) -> Self {
+        let mut bodies = Bodies::new(width, depth, height, cell);
         for (i, s) in sites.enumerate() {
             for (_, _, c) in site_capsules(s) {
                 bodies.insert(i as u32, c);
@@ -243,13 +288,7 @@ pub fn settle(sites: &mut [RecordedSite], bodies: &mut Bodies, width: f32, depth
         }
         let pending: Vec<(usize, [Capsule; 2])> =
             sites.iter().enumerate().filter_map(|(i, s)| newest(&s.growth, up, pass).map(|c| (i, c))).collect();
-        let mut this_pass = Bodies {
-            cell: bodies.cell,
-            cols: bodies.cols,
-            rows: bodies.rows,
-            bins: vec![Vec::new(); bodies.bins.len()],
-            items: Vec::new(),
-        };
+        let mut this_pass = bodies.empty_like();
         for (i, caps) in &pending {
             for c in caps {
                 this_pass.insert(*i as u32, *c);

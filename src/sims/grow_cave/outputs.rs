@@ -85,7 +85,7 @@ fn site_nodes(params: &GrowCaveParams, index: usize, site: &RecordedSite, profil
 /// Every site's speleothems as capsules, for the clearances the coating keeps.
 pub fn bodies(params: &GrowCaveParams, sequence: &CaveSequence) -> Bodies {
     let c = &params.chamber;
-    Bodies::of_sites(sequence.sites.iter().map(|s| &s.growth), c.width_m, c.depth_m, bin_size(params))
+    Bodies::of_sites(sequence.sites.iter().map(|s| &s.growth), [c.width_m, c.depth_m, c.height_m], bin_size(params))
 }
 
 /// The scene: the chamber, then each site's speleothems in site order.
