@@ -7,6 +7,8 @@ pub mod grow_cave;
 pub mod weather_column;
 
 #[cfg(test)]
+mod generator_tests;
+#[cfg(test)]
 mod test_support;
 
 use crate::jobs::JobKind;

@@ -67,11 +67,23 @@ struct Octave {
     offset: [f64; 2],
 }
 
-/// Generate an fBm heightfield: `size × size` samples, `cell_size` metres apart.
+/// Generate an fBm heightfield: `size × size` samples, `cell_size` metres apart, by the
+/// requested generator version.
 ///
 /// Parameters are expected to be validated (`size² ≤` the grid cap, 1 to 16 octaves,
-/// roughness in (0, 1]); octaves beyond 32 are ignored.
+/// roughness in (0, 1], a known `generator`); octaves beyond 32 are ignored.
 pub fn generate_fractal(p: &FractalParams) -> Heightfield {
+    // One arm per released version; a new version is a new arm beside the old, never an edit
+    // of one (the golden hashes in the tests below would fail). Validation admits only
+    // FRACTAL_GENERATORS.
+    #[allow(clippy::match_single_binding)]
+    match p.generator {
+        _ => generator_1(p),
+    }
+}
+
+/// Version 1: the generator of every job before versions were named.
+fn generator_1(p: &FractalParams) -> Heightfield {
     let size = p.size as usize;
     let cell_size_m = p.cell_size;
     if size == 0 {
@@ -384,5 +396,54 @@ mod tests {
         assert_eq!(generate_fractal(&params(1, 1, true)).heights_m.len(), 1);
         let flat = generate_fractal(&FractalParams { relief: 0.0, ..params(9, 1, false) });
         assert!(flat.heights_m.iter().all(|&h| h == 0.0));
+    }
+}
+
+/// Golden hashes: every released generator version, pinned. A failure here means a stored
+/// sequence would no longer replay to its terrain — add a new version instead of editing one.
+#[cfg(test)]
+mod golden {
+    use super::*;
+    use sha2::{Digest, Sha256};
+
+    /// sha256 of the heights as little-endian f32, row by row.
+    pub(crate) fn heights_sha256(hf: &Heightfield) -> String {
+        let mut sha = Sha256::new();
+        for h in &hf.heights_m {
+            sha.update(h.to_le_bytes());
+        }
+        hex::encode(sha.finalize())
+    }
+
+    fn version_1(json: serde_json::Value) -> String {
+        let p: FractalParams = serde_json::from_value(json).unwrap();
+        assert_eq!(p.generator, 1, "absent means version 1");
+        heights_sha256(&generate_fractal(&p))
+    }
+
+    #[test]
+    fn version_1_gives_the_heights_it_always_gave() {
+        let cases = [
+            (serde_json::json!({}), "a7e3ab9881cf79d5621fa760647a860724e807a7f0b732cb062180890cd70af7"),
+            (
+                serde_json::json!({"size": 129, "seed": 3, "island": true, "relief": 60.0}),
+                "36b69d258aefab0337b4f7f0374eae32bfebe8e6fa484b2ac31067694086bb9a",
+            ),
+            (
+                serde_json::json!({"size": 65, "octaves": 3, "roughness": 0.8, "seed": 123456789012_u64}),
+                "baa6cec18d7bb13955bf551f461d6db1765088dce343fd41d612a26022a48fff",
+            ),
+            (
+                serde_json::json!({"size": 33, "cell_size": 2.5, "octaves": 16, "roughness": 1.0, "generator": 1}),
+                "9193946b1352f21cbe049ad350f0495975e7ddfdff1561bc6399c45a8e36bd3e",
+            ),
+            (
+                serde_json::json!({"size": 2, "seed": 0}),
+                "fd4c31340d77cc93b8cb88f77d1396c65d92fcf6be50eec390dc6629d26edb6c",
+            ),
+        ];
+        let got: Vec<(String, String)> = cases.iter().map(|(j, _)| (j.to_string(), version_1(j.clone()))).collect();
+        let want: Vec<(String, String)> = cases.iter().map(|(j, w)| (j.to_string(), w.to_string())).collect();
+        assert_eq!(got, want);
     }
 }

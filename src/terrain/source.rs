@@ -72,6 +72,20 @@ pub struct FractalParams {
     /// Shape the terrain into an island: land in the middle, sea (height < 0) at the edges.
     #[serde(default)]
     pub island: bool,
+    /// The generator's version. A version, once released, gives the same heights on every
+    /// later server (pinned by golden hashes in its tests), so a stored sequence replays
+    /// exactly; a new generator is a new number and the old ones keep working. Absent means 1,
+    /// always (not "the newest"), so requests and sequences stored without it keep their terrain.
+    #[serde(default = "default_generator")]
+    #[schema(default = 1, minimum = 1, maximum = 1)]
+    pub generator: u32,
+}
+
+/// The fractal generator versions this server has.
+pub const FRACTAL_GENERATORS: std::ops::RangeInclusive<u32> = 1..=1;
+
+fn default_generator() -> u32 {
+    1
 }
 
 impl Default for FractalParams {
@@ -261,6 +275,10 @@ impl Validate for TerrainSource {
                 v.in_range("roughness", p.roughness as f64, 0.0, 1.0);
                 if p.roughness <= 0.0 {
                     v.error("roughness", "must be greater than 0");
+                }
+                if !FRACTAL_GENERATORS.contains(&p.generator) {
+                    let (lo, hi) = (FRACTAL_GENERATORS.start(), FRACTAL_GENERATORS.end());
+                    v.error("generator", format!("this server has fractal generators {lo} to {hi}"));
                 }
             }),
             TerrainSource::Heightmap(u) => v.field("heightmap", |v| {

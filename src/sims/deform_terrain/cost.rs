@@ -48,7 +48,7 @@ pub fn estimate(params: &DeformTerrainParams, terrain: &dyn TerrainLookup) -> Re
             Constraint::Tileable(_) => (9, 2),
             Constraint::ShapeMask(m) => match &m.mask {
                 MaskShape::Image(_) => (6, 10),
-                MaskShape::Polygons(p) => (2, 5 + p.iter().map(Vec::len).sum::<usize>() as u64),
+                MaskShape::PolygonsM(p) => (2, 5 + p.iter().map(Vec::len).sum::<usize>() as u64),
             },
         };
         field_cells += kept;

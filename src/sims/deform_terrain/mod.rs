@@ -7,6 +7,7 @@ mod candidates;
 mod constraints;
 mod cost;
 mod kernel;
+pub mod packed;
 mod params;
 mod prediction;
 mod search;
@@ -372,6 +373,7 @@ fn finish(
     };
     let fitness_json = serde_json::to_vec(&log).map_err(|e| SimError::Failed(e.to_string()))?;
     let sequence_bytes = serde_json::to_vec_pretty(&sequence).map_err(|e| SimError::Failed(e.to_string()))?.len();
+    let packed = pack(problem, &sequence, h);
     let roads = constraints::road_material(fields, grid.cells());
     let sea_level_m = constraints::water_level(fields).unwrap_or(0.0) as f32;
     let options = HeightfieldExport { material: roads.as_deref(), sea_level_m, ..output };
@@ -409,14 +411,31 @@ fn finish(
         far_cells(h, &problem.original, interest, grid.cols, grid.rows, 2 * max_radius, grid.relief),
     );
     result.insert("sequence_bytes".into(), json!(sequence_bytes));
-    // §4.5's compression: the terrain source plus 10 bytes per operation (u16 col, u16 row,
-    // f32 amplitude, u16 radius) — what a binary encoding of sequence.json would take.
-    let source_bytes = serde_json::to_vec(&sequence.terrain).map_err(|e| SimError::Failed(e.to_string()))?.len();
-    result.insert("sequence_packed_bytes".into(), json!(source_bytes + 10 * sequence.operations.len()));
+    result.insert(
+        "sequence_bin".into(),
+        json!({
+            "bytes": packed.bytes.len(),
+            "operations": packed.operations,
+            "quantum_m": packed.quantum_m,
+            "tolerance_m": packed.tolerance_m,
+            "max_error_m": packed.max_error_m,
+        }),
+    );
     result.insert("heightmap_png_bytes".into(), json!(heightmap_png_bytes));
     let mut artifacts = exported.artifacts;
     artifacts.push(Artifact::new("fitness.json", "application/json", fitness_json));
+    artifacts.push(Artifact::new("sequence.bin", "application/octet-stream", packed.bytes));
     Ok(Outcome { result: Value::Object(result), sequence, artifacts })
+}
+
+/// `sequence.bin` of the sequence that ended at `h`, within the requested tolerance (absent:
+/// half a step of the 16-bit heightmap over `h`'s range).
+fn pack(problem: &Problem, sequence: &DeformSequence, h: &[f64]) -> packed::Packed {
+    let (lo, hi) = h.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    let step = if hi > lo { (hi - lo) / 65535.0 } else { 0.0 };
+    let tolerance = problem.params.sequence_tolerance_m.unwrap_or(step / 2.0);
+    let start = packed::Start { original: &problem.original, cols: problem.cols, rows: problem.rows };
+    packed::encode(sequence, &start, h, tolerance)
 }
 
 /// Cells at least `distance` cells (Chebyshev) from every cell of interest: how many, and

@@ -169,6 +169,15 @@ pub struct DeformTerrainParams {
     /// Absent: no tiles.
     #[serde(default)]
     pub tiles: Option<TileGrid>,
+    /// `sequence.bin` (the compressed terrain) replays to within this many metres of the
+    /// result at every sample: amplitudes are quantised, superseded operations merged and
+    /// negligible ones pruned until it holds. 0: amplitudes exact and every operation kept, so
+    /// its replay is bit-identical to `sequence.json`'s. Absent: half a step of the 16-bit
+    /// `heightmap.png` (the result's height range / 65 535 / 2), the PNG's own rounding.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    // 1e6 = MAX_METRES
+    #[schema(minimum = 0.0, maximum = 1000000.0)]
+    pub sequence_tolerance_m: Option<f64>,
 }
 
 /// One constraint: exactly one of the kinds.
@@ -220,15 +229,44 @@ pub struct ShapeMask {
 
 /// The land mask: an image of the terrain's size (brighter than its mid-range = land; e.g. an
 /// 8- or 16-bit grayscale PNG as a `heightmap`, white = land), or polygons.
+///
+/// Polygons were once given in grid cells (`polygons`, [col, row] pairs); that form is refused
+/// with a problem saying what replaced it, since the same numbers would mean other places.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-#[serde(rename_all = "snake_case", deny_unknown_fields)]
+#[serde(rename_all = "snake_case", deny_unknown_fields, try_from = "MaskForm")]
 #[schema(as = DeformMaskShape)]
 pub enum MaskShape {
     Image(TerrainSource),
-    /// Polygons of [col, row] grid coordinates; land is inside any of them (even-odd). At
+    /// Polygons of points in metres on the grid (x along columns, z along rows, sample (col,
+    /// row) at (col × cell size, row × cell size)); land is inside any of them (even-odd). At
     /// least one polygon, each of at least 3 vertices, at most 256 vertices in all (more is
     /// answered with 413); coordinates within ±1 000 000.
-    Polygons(Vec<Vec<[f64; 2]>>),
+    PolygonsM(Vec<Vec<PlanPoint>>),
+}
+
+/// What a mask may be sent as, the retired form included.
+#[derive(Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+enum MaskForm {
+    Image(TerrainSource),
+    PolygonsM(Vec<Vec<PlanPoint>>),
+    Polygons(serde::de::IgnoredAny),
+}
+
+/// Said when a request uses the retired form.
+pub const RETIRED_POLYGONS: &str = "`polygons` ([col, row] grid cells) was replaced by `polygons_m`: every \
+     coordinate is now metres on the grid, each vertex {\"x\": col × cell size, \"z\": row × cell size}";
+
+impl TryFrom<MaskForm> for MaskShape {
+    type Error = &'static str;
+
+    fn try_from(form: MaskForm) -> Result<Self, Self::Error> {
+        match form {
+            MaskForm::Image(src) => Ok(Self::Image(src)),
+            MaskForm::PolygonsM(polys) => Ok(Self::PolygonsM(polys)),
+            MaskForm::Polygons(_) => Err(RETIRED_POLYGONS),
+        }
+    }
 }
 
 /// A road: cells within width/2 of the polyline want the road's height; other cells their
@@ -497,6 +535,9 @@ impl Validate for DeformTerrainParams {
         if let Some(tiles) = &self.tiles {
             v.field("tiles", |v| tiles.validate(v, limits));
         }
+        if let Some(t) = self.sequence_tolerance_m {
+            v.in_range("sequence_tolerance_m", t, 0.0, MAX_METRES);
+        }
         let dims = self.terrain.known_dimensions();
         let extent = match (dims, self.terrain.known_cell_size()) {
             (Some((c, r)), Some(cell)) => Some(((c - 1) as f64 * cell as f64, (r - 1) as f64 * cell as f64)),
@@ -616,20 +657,21 @@ fn validate_constraint(
         Constraint::ShapeMask(m) => {
             match &m.mask {
                 MaskShape::Image(src) => v.field("mask", |v| same_size(v, "image", src, dims, limits)),
-                MaskShape::Polygons(polys) => v.field("mask", |v| {
+                MaskShape::PolygonsM(polys) => v.field("mask", |v| {
                     if polys.is_empty() {
-                        v.error("polygons", "needs at least one polygon");
+                        v.error("polygons_m", "needs at least one polygon");
                     }
                     if polys.iter().map(Vec::len).sum::<usize>() > MAX_OUTLINE_VERTICES {
-                        v.too_large("polygons", format!("more than {MAX_OUTLINE_VERTICES} vertices in all"));
+                        v.too_large("polygons_m", format!("more than {MAX_OUTLINE_VERTICES} vertices in all"));
                     }
-                    v.field("polygons", |v| {
+                    v.field("polygons_m", |v| {
                         for (i, poly) in polys.iter().enumerate() {
                             if poly.len() < 3 {
                                 v.index(i, |v| v.error("", "a polygon needs at least 3 vertices"));
                             }
-                            if poly.iter().flatten().any(|x| !x.is_finite() || x.abs() > MAX_METRES) {
-                                v.index(i, |v| v.error("", "coordinates must be finite grid coordinates"));
+                            let bad = |x: f64| !x.is_finite() || x.abs() > MAX_METRES;
+                            if poly.iter().any(|q| bad(q.x) || bad(q.z)) {
+                                v.index(i, |v| v.error("", "coordinates must be finite metres within ±1000000"));
                             }
                         }
                     });

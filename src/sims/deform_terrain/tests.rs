@@ -23,12 +23,12 @@ fn params(v: Value) -> DeformTerrainParams {
 }
 
 /// A five-pointed star in grid coordinates.
-pub(super) fn star(cx: f64, cz: f64, outer: f64) -> Vec<[f64; 2]> {
+pub(super) fn star(cx: f64, cz: f64, outer: f64) -> Vec<Value> {
     (0..10)
         .map(|k| {
             let r = if k % 2 == 0 { outer } else { outer * 0.42 };
             let a = std::f64::consts::PI * (k as f64 / 5.0) - std::f64::consts::FRAC_PI_2;
-            [cx + r * a.cos(), cz + r * a.sin()]
+            json!({"x": cx + r * a.cos(), "z": cz + r * a.sin()})
         })
         .collect()
 }
@@ -63,7 +63,7 @@ fn figure(out: &Outcome<DeformSequence>, kind: &str, name: &str) -> f64 {
 }
 
 fn star_request() -> Value {
-    json!({"terrain": fractal(129, 7), "constraints": [{"shape_mask": {"mask": {"polygons": [star(64.0, 66.0, 56.0)]}}}]})
+    json!({"terrain": fractal(129, 7), "constraints": [{"shape_mask": {"mask": {"polygons_m": [star(64.0, 66.0, 56.0)]}}}]})
 }
 
 fn s_road_request() -> Value {
@@ -151,7 +151,7 @@ fn bits(artifacts: &[Artifact]) -> Vec<(String, Vec<u8>)> {
 
 fn small_star() -> DeformTerrainParams {
     params(json!({"terrain": fractal(65, 3), "constraints": [
-        {"shape_mask": {"mask": {"polygons": [star(32.0, 33.0, 28.0)]}}},
+        {"shape_mask": {"mask": {"polygons_m": [star(32.0, 33.0, 28.0)]}}},
         {"points": {"points": [{"x": 32.0, "z": 33.0, "height": 90.0}]}}
     ], "max_iterations": 120}))
 }
@@ -366,7 +366,7 @@ fn combined_roads_keep_only_their_corridor() {
     };
     let alone = params(json!({"terrain": fractal(65, 3), "constraints": [road.clone()]}));
     let with_mask = params(json!({"terrain": fractal(65, 3), "constraints": [
-        road.clone(), {"shape_mask": {"mask": {"polygons": [star(32.0, 33.0, 28.0)]}}}]}));
+        road.clone(), {"shape_mask": {"mask": {"polygons_m": [star(32.0, 33.0, 28.0)]}}}]}));
     assert_eq!(grid_of(&alone), 65 * 65);
     let corridor = grid_of(&with_mask);
     assert!(corridor < 65 * 20 && corridor > 44 * 10, "{corridor}");
@@ -385,4 +385,47 @@ fn the_iteration_limit_follows_the_configured_operation_cap() {
     p.validate(&mut v, &Limits { max_operations: 100, ..Limits::default() });
     assert!(v.too_large, "{:?}", v.errors);
     assert_eq!(v.errors.iter().map(|e| e.field.as_str()).collect::<Vec<_>>(), vec!["max_iterations"]);
+}
+
+/// The heights of a job's `heightfield.npy`.
+fn final_heights(out: &crate::jobs::Outcome<DeformSequence>) -> Vec<f64> {
+    let npy = out.artifacts.iter().find(|a| a.name == "heightfield.npy").expect("heightfield.npy");
+    let hf = crate::export::read_heightfield_npy(&npy.bytes, 1.0).unwrap();
+    hf.heights_m.iter().map(|&v| v as f64).collect()
+}
+
+#[test]
+fn sequence_bin_replays_within_its_tolerance_and_exactly_without_one() {
+    let mut req = s_road_request();
+    req["max_iterations"] = json!(1500);
+    let tc = TestContext::new(neighbour());
+    let run = run_with(&params(req.clone()), 1);
+    let bin = &run.artifacts.iter().find(|a| a.name == "sequence.bin").expect("sequence.bin").bytes;
+    let start = tc.ctx().resolve_terrain(&params(req.clone()).terrain).unwrap();
+    let original: Vec<f64> = start.heights_m.iter().map(|&v| v as f64).collect();
+    let header = packed::header(bin).unwrap();
+    assert_eq!(header.terrain, params(req.clone()).terrain);
+    // The default tolerance: half a step of the 16-bit heightmap over the result's range.
+    let heights = final_heights(&run);
+    let (lo, hi) = heights.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    let tolerance = (hi - lo) / 65535.0 / 2.0;
+    assert!((header.tolerance_m as f64 - tolerance).abs() < 1e-6 * tolerance, "{} vs {tolerance}", header.tolerance_m);
+    let decoded = packed::decode(bin, &original, 1.0).unwrap();
+    assert!(decoded.operations.len() < run.sequence.operations.len(), "merged or pruned some");
+    let replayed = apply_sequence(&start, &decoded.operations);
+    // heightfield.npy holds f32: allow its rounding on top of the tolerance.
+    let worst = replayed.heights_m.iter().zip(&heights).map(|(&a, b)| (a as f64 - b).abs()).fold(0.0, f64::max);
+    assert!(worst <= tolerance + 1e-5, "{worst} > {tolerance}");
+    let json_bytes = run.result["sequence_bytes"].as_u64().unwrap() as usize;
+    assert!(bin.len() * 10 < json_bytes, "{} vs {json_bytes}", bin.len());
+    assert_eq!(run.result["sequence_bin"]["bytes"], json!(bin.len()));
+
+    // Tolerance 0: every operation as run, amplitudes to the bit; the replay is the run's.
+    req["sequence_tolerance_m"] = json!(0.0);
+    let exact = run_with(&params(req), 1);
+    let bin = &exact.artifacts.iter().find(|a| a.name == "sequence.bin").unwrap().bytes;
+    let decoded = packed::decode(bin, &original, 1.0).unwrap();
+    assert_eq!(decoded.operations, exact.sequence.operations);
+    let replayed = apply_sequence(&start, &decoded.operations);
+    assert_eq!(replayed.heights_m, final_heights(&exact).iter().map(|&v| v as f32).collect::<Vec<_>>());
 }

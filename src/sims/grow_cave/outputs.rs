@@ -54,9 +54,8 @@ pub fn mineral_colour(mineral: Mineral, intensity: f32) -> [f32; 3] {
 }
 
 /// Every site's profiles.
-fn profiles(params: &GrowCaveParams, sequence: &CaveSequence) -> Vec<SiteProfiles> {
-    let bodies = bodies(params, sequence);
-    let ctx = Context { params, bodies: &bodies };
+fn profiles(params: &GrowCaveParams, sequence: &CaveSequence, bodies: &Bodies) -> Vec<SiteProfiles> {
+    let ctx = Context { params, bodies };
     sequence.sites.par_iter().enumerate().map(|(i, s)| site_profiles(&ctx, i as u32, &s.growth)).collect()
 }
 
@@ -90,7 +89,7 @@ pub fn bodies(params: &GrowCaveParams, sequence: &CaveSequence) -> Bodies {
 
 /// The scene: the chamber, then each site's speleothems in site order.
 pub fn scene(params: &GrowCaveParams, sequence: &CaveSequence) -> Scene {
-    scene_of(params, sequence, &profiles(params, sequence))
+    scene_of(params, sequence, &profiles(params, sequence, &bodies(params, sequence)))
 }
 
 fn scene_of(params: &GrowCaveParams, sequence: &CaveSequence, profiles: &[SiteProfiles]) -> Scene {
@@ -136,9 +135,8 @@ impl Stats {
 
 /// How the drip sites kept apart: how many merged into an earlier one at the start, and the
 /// narrowest gap left between two sites' bodies (their capsules; null with fewer than two).
-fn neighbour_figures(params: &GrowCaveParams, sequence: &CaveSequence) -> Value {
+fn neighbour_figures(params: &GrowCaveParams, sequence: &CaveSequence, bodies: &Bodies) -> Value {
     let merged = sequence.sites.iter().filter(|s| s.growth.merged_into.is_some()).count();
-    let bodies = bodies(params, sequence);
     let reach = 4.0 * bin_size(params);
     let gap = sequence
         .sites
@@ -161,7 +159,8 @@ pub fn build(
     stop: Stop,
     mesh_settings: &MeshSettings,
 ) -> Result<(Value, Vec<Artifact>), Stopped> {
-    let profiles = profiles(params, sequence);
+    let bodies = bodies(params, sequence);
+    let profiles = profiles(params, sequence, &bodies);
     let scene = scene_of(params, sequence, &profiles);
     stop.check()?;
     let ((glbs, glb_figures), preview) =
@@ -197,7 +196,7 @@ pub fn build(
         "stalagmites": stalagmites.summary(),
         "columns": columns.summary(),
         "triangles": { "speleothems": triangles, "total": all_triangles },
-        "neighbours": neighbour_figures(params, sequence),
+        "neighbours": neighbour_figures(params, sequence, &bodies),
         "glb": glb_figures,
     });
     let mut glbs = glbs.into_iter();

@@ -378,7 +378,7 @@ pub struct GrowCaveParams {
     pub stalagmite_radius_m: f32,
     /// Table 2's "x1" radius step, metres (each ring draws 50–150 % of it).
     #[serde(default = "default_radius_step")]
-    #[schema(default = 0.004, minimum = 0.0)]
+    #[schema(default = 0.004, minimum = 0.0, maximum = 0.1)]
     pub radius_step_m: f32,
     /// Table 2's "x1" height step, metres (each ring draws 50–150 % of it); at most the
     /// chamber's `height_m`.
@@ -559,7 +559,11 @@ impl Validate for GrowCaveParams {
                 v.error(leaf, "must be less than the chamber's height");
             }
         }
+        // 25 × Table 2's step: wider rings than any speleothem grows in a pass.
         v.non_negative("radius_step_m", self.radius_step_m as f64);
+        if self.radius_step_m > 0.1 {
+            v.error("radius_step_m", "must be at most 0.1");
+        }
         v.in_range("coating_share", self.coating_share as f64, 0.0, 4.0);
         for (leaf, value) in [("canal_radius_m", self.canal_radius_m), ("straw_max_radius_m", self.straw_max_radius_m)]
         {

@@ -48,7 +48,17 @@ fn coating_after(weather: &str, unit: f32, stalagmite: bool) -> Vec<f32> {
 /// One speleothem's rings as sections, before its ends are shaped: the anchor inside the rock,
 /// then each ring (coated, within its clearance). Also returns each section's widest allowed
 /// radius.
-fn ring_sections(ctx: &Context, index: u32, site: &SiteGrowth, rings: &[Ring], down: bool) -> (Vec<Section>, Vec<f32>) {
+///
+/// The clearance search reaches only as far as can matter: for a column, as far as its waist
+/// may widen a ring (`column` is true); otherwise as far as the ring's own coating goes.
+fn ring_sections(
+    ctx: &Context,
+    index: u32,
+    site: &SiteGrowth,
+    rings: &[Ring],
+    down: bool,
+    column: bool,
+) -> (Vec<Section>, Vec<f32>) {
     let p = ctx.params;
     let sign = if down { -1.0 } else { 1.0 };
     let base_y = if down { site.roof_y_m } else { site.floor_y_m };
@@ -56,22 +66,24 @@ fn ring_sections(ctx: &Context, index: u32, site: &SiteGrowth, rings: &[Ring], d
     let centres = centres(site, rings, down);
     let caps: Vec<[Capsule; 2]> = (0..rings.len()).map(|k| ring_capsules(site, rings, &centres, k, down)).collect();
     let most_coating = after.first().copied().unwrap_or(0.0) + 2.0 * rings.iter().map(Ring::radius).fold(0.0, f32::max);
-    let reach = most_coating / CLEARANCE_SHARE;
-    let clearance =
-        |c: &Capsule| ctx.bodies.gap(index, c, reach).min(c.wall_gap(p.chamber.width_m, p.chamber.depth_m)).max(0.0);
+    let clearance = |c: &Capsule, reach: f32| {
+        ctx.bodies.gap(index, c, reach).min(c.wall_gap(p.chamber.width_m, p.chamber.depth_m)).max(0.0)
+    };
     let rc = rings.len() as f32;
     let mut sections = Vec::with_capacity(rings.len() + 1);
     let mut widest = Vec::with_capacity(rings.len() + 1);
     for (k, ring) in rings.iter().enumerate() {
-        let mut gap = clearance(&caps[k][0]).min(clearance(&caps[k][1]));
-        if let Some(next) = caps.get(k + 1) {
-            gap = gap.min(clearance(&next[0]));
-        }
-        let limit = ring.radius() + CLEARANCE_SHARE * gap;
         // A tip closed to a point stays one: the film drips from it.
         let closed = ring.radius() < CLOSED_RADIUS_M;
-        let coated =
-            if closed { ring.radius() } else { ring.radius() + after[(ring.pass() as usize).min(after.len() - 1)] };
+        let coating = if closed { 0.0 } else { after[(ring.pass() as usize).min(after.len() - 1)] };
+        // Beyond coating / share the clearance cannot bind: a gap found farther is as good as none.
+        let reach = if column { most_coating } else { coating } / CLEARANCE_SHARE + MIN_STEP_M;
+        let mut gap = clearance(&caps[k][0], reach).min(clearance(&caps[k][1], reach));
+        if let Some(next) = caps.get(k + 1) {
+            gap = gap.min(clearance(&next[0], reach));
+        }
+        let limit = ring.radius() + CLEARANCE_SHARE * gap;
+        let coated = ring.radius() + coating;
         let section = |centre| Section {
             centre,
             radius: coated.min(limit),
@@ -161,7 +173,7 @@ fn gap_between(site: &SiteGrowth) -> f32 {
 }
 
 fn stalactite(ctx: &Context, index: u32, site: &SiteGrowth) -> Profile {
-    let (mut sections, _) = ring_sections(ctx, index, site, &site.stalactite, true);
+    let (mut sections, _) = ring_sections(ctx, index, site, &site.stalactite, true, false);
     let start = start_apex(&sections, true);
     let end = match canal(ctx.params, &sections) {
         Some(end) => end,
@@ -174,7 +186,7 @@ fn stalactite(ctx: &Context, index: u32, site: &SiteGrowth) -> Profile {
 }
 
 fn stalagmite(ctx: &Context, index: u32, site: &SiteGrowth) -> Profile {
-    let (mut sections, _) = ring_sections(ctx, index, site, &site.stalagmite, false);
+    let (mut sections, _) = ring_sections(ctx, index, site, &site.stalagmite, false, false);
     let start = start_apex(&sections, false);
     // Within the body's tip capsule (TIP_REACH radii, widened by the coating's limit).
     let top = sections.last().expect("sections").radius;
@@ -186,8 +198,8 @@ fn stalagmite(ctx: &Context, index: u32, site: &SiteGrowth) -> Profile {
 /// join's radii blended over two radii above and below by a Gaussian of the profile (a smooth
 /// waist instead of a step), never wider than each section's clearance allows.
 fn column(ctx: &Context, index: u32, site: &SiteGrowth) -> Profile {
-    let (mut sections, mut widest) = ring_sections(ctx, index, site, &site.stalactite, true);
-    let (mut below, mut below_widest) = ring_sections(ctx, index, site, &site.stalagmite, false);
+    let (mut sections, mut widest) = ring_sections(ctx, index, site, &site.stalactite, true, true);
+    let (mut below, mut below_widest) = ring_sections(ctx, index, site, &site.stalagmite, false, true);
     below.reverse();
     below_widest.reverse();
     // The meeting rings share their height: one section at the stalactite's centre, as narrow

@@ -8,19 +8,10 @@ use serde_json::{json, Value};
 
 use super::neighbours::{centres, MARGIN_M};
 use super::params::Sites;
-use super::tests::bytes;
+use super::tests::{bytes, params};
 use super::*;
 use crate::mesh::intersections::{is_oriented_manifold, meshes_meet, self_intersections};
 use crate::mesh::{Mesh, Scene};
-use crate::validate::{Limits, Validate, Validator};
-
-fn params(v: Value) -> GrowCaveParams {
-    let p: GrowCaveParams = serde_json::from_value(v).expect("parses");
-    let mut val = Validator::new();
-    p.validate(&mut val, &Limits::default());
-    assert!(val.is_ok(), "{:?}", val.errors);
-    p
-}
 
 fn grown(p: &GrowCaveParams, seed: u64) -> CaveSequence {
     grow(p, seed, &mut |_, _| Ok(())).expect("grows")

@@ -10,7 +10,7 @@ use crate::sims::test_support::TestContext;
 use crate::terrain::Heightfield;
 use crate::validate::{Limits, Validate, Validator};
 
-fn params(v: Value) -> GrowCaveParams {
+pub(super) fn params(v: Value) -> GrowCaveParams {
     let p: GrowCaveParams = serde_json::from_value(v).expect("parses");
     let mut val = Validator::new();
     p.validate(&mut val, &Limits::default());

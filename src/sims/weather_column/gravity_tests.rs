@@ -8,10 +8,9 @@ use serde_json::json;
 
 use super::gravity::{all_grounded, component, replay_cells};
 use super::grid::ROCK;
+use super::tests::{ctx, hashes};
 use super::*;
-use crate::sims::test_support::TestContext;
 use crate::stop::Stop;
-use crate::terrain::Heightfield;
 use crate::validate::{Limits, Validate, Validator};
 
 /// A cylinder on the ground: a base, a thin soft neck, a hard cap above.
@@ -95,17 +94,6 @@ fn a_cap_cut_loose_falls_as_one_piece_onto_what_is_below_and_nothing_floats() {
     let cap: Vec<usize> = component(g, &without.state, first.voxel as usize);
     let later = cap.iter().filter(|&&c| record[c] != ROCK && record[c] as u32 > s).count();
     assert!(later > 20, "{later} voxels of the cap weathered after it fell");
-}
-
-fn ctx() -> TestContext {
-    TestContext::new(Heightfield::from_fn(2, 2, 1.0, |_, _| 0.0))
-}
-
-fn hashes(o: &crate::jobs::Outcome<WeatherSequence>) -> Vec<(String, String)> {
-    o.artifacts
-        .iter()
-        .map(|a| (a.name.clone(), hex::encode(<sha2::Sha256 as sha2::Digest>::digest(&a.bytes))))
-        .collect()
 }
 
 #[test]

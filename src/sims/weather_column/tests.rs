@@ -239,11 +239,11 @@ fn column_on_the_ground_has_a_flat_base_at_zero() {
     assert!(mesh.signed_volume() > 0.0);
 }
 
-fn ctx() -> TestContext {
+pub(super) fn ctx() -> TestContext {
     TestContext::new(Heightfield::from_fn(2, 2, 1.0, |_, _| 0.0))
 }
 
-fn hashes(outcome: &Outcome<WeatherSequence>) -> Vec<(String, Vec<u8>)> {
+pub(super) fn hashes(outcome: &Outcome<WeatherSequence>) -> Vec<(String, Vec<u8>)> {
     outcome.artifacts.iter().map(|a| (a.name.clone(), a.bytes.clone())).collect()
 }
 

@@ -5,7 +5,7 @@
 use serde_json::{json, Value};
 
 use super::{Detail, Field, Grid, OneSided};
-use crate::sims::deform_terrain::params::{MaskShape, ShapeMask};
+use crate::sims::deform_terrain::params::{MaskShape, PlanPoint, ShapeMask};
 use crate::terrain::Heightfield;
 
 /// Cells within this many (Chebyshev) of a land/sea change are refined around.
@@ -19,8 +19,9 @@ pub fn build(m: &ShapeMask, image: Option<&Heightfield>, grid: &Grid) -> Field {
             let mid = (lo as f64 + hi as f64) / 2.0;
             img.heights_m.iter().map(|&v| v as f64 > mid).collect()
         }
-        (MaskShape::Polygons(polys), _) => {
-            (0..n).map(|i| inside_any(polys, (i % cols) as f64, (i / cols) as f64)).collect()
+        (MaskShape::PolygonsM(polys), _) => {
+            let at = |i: usize| ((i % cols) as f64 * grid.cell_m, (i / cols) as f64 * grid.cell_m);
+            (0..n).map(|i| inside_any(polys, at(i))).collect()
         }
         (MaskShape::Image(_), None) => vec![false; n],
     };
@@ -54,13 +55,13 @@ pub fn build(m: &ShapeMask, image: Option<&Heightfield>, grid: &Grid) -> Field {
     }
 }
 
-/// Even-odd test of a point in grid coordinates against every polygon.
-fn inside_any(polys: &[Vec<[f64; 2]>], x: f64, z: f64) -> bool {
+/// Even-odd test of a point (x, z), metres, against every polygon.
+fn inside_any(polys: &[Vec<PlanPoint>], (x, z): (f64, f64)) -> bool {
     let mut inside = false;
     for poly in polys {
         let mut j = poly.len() - 1;
         for i in 0..poly.len() {
-            let ([xi, zi], [xj, zj]) = (poly[i], poly[j]);
+            let ((xi, zi), (xj, zj)) = ((poly[i].x, poly[i].z), (poly[j].x, poly[j].z));
             if (zi > z) != (zj > z) && x < (xj - xi) * (z - zi) / (zj - zi) + xi {
                 inside = !inside;
             }

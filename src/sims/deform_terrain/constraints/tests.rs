@@ -15,7 +15,9 @@ fn terrain(cols: usize, rows: usize, phase: f32) -> Heightfield {
 fn every_constraint() -> Vec<Constraint> {
     let c = |v: serde_json::Value| serde_json::from_value::<Constraint>(v).unwrap();
     vec![
-        c(json!({"shape_mask": {"mask": {"polygons": [[[5.0, 5.0], [30.0, 8.0], [20.0, 28.0]]]}, "weight": 2.0}})),
+        c(
+            json!({"shape_mask": {"mask": {"polygons_m": [[{"x": 5.0, "z": 5.0}, {"x": 30.0, "z": 8.0}, {"x": 20.0, "z": 28.0}]]}, "weight": 2.0}}),
+        ),
         c(
             json!({"road": {"path": [{"x": 2.0, "z": 3.0}, {"x": 20.0, "z": 25.0}, {"x": 38.0, "z": 10.0}], "width_m": 3.0,
                  "height": {"profile": {"max_gradient_percent": 8.0}}}}),
@@ -102,12 +104,32 @@ fn the_closed_form_displacement_is_the_best_of_the_quadratic_part() {
 }
 
 #[test]
+fn mask_polygons_are_metres_on_the_grid_and_the_cell_form_is_refused() {
+    // 2 m cells: the square x, z in [9, 29] m holds the samples col, row 5..=14 (10 m .. 28 m).
+    let (cols, rows) = (20, 20);
+    let h0 = vec![0.0; cols * rows];
+    let grid = Grid { cols, rows, cell_m: 2.0, original: &h0, relief: 10.0 };
+    let square = json!([{"x": 9.0, "z": 9.0}, {"x": 29.0, "z": 9.0}, {"x": 29.0, "z": 29.0}, {"x": 9.0, "z": 29.0}]);
+    let c: Constraint = serde_json::from_value(json!({"shape_mask": {"mask": {"polygons_m": [square]}}})).unwrap();
+    let f = &build(&[c], &[None], &grid).unwrap()[0];
+    let side = &f.one_sided.as_ref().unwrap().side;
+    for (i, &s) in side.iter().enumerate() {
+        let (col, row) = (i % cols, i / cols);
+        let inside = (5..=14).contains(&col) && (5..=14).contains(&row);
+        assert_eq!(s > 0, inside, "({col}, {row})");
+    }
+    let old = json!({"shape_mask": {"mask": {"polygons": [[[4.5, 4.5], [14.5, 4.5], [14.5, 14.5]]]}}});
+    let err = serde_json::from_value::<Constraint>(old).unwrap_err().to_string();
+    assert!(err.contains("replaced by `polygons_m`") && err.contains("metres"), "{err}");
+}
+
+#[test]
 fn the_shape_mask_counts_each_side_with_its_margin() {
     let (cols, rows) = (20, 20);
     let h0 = vec![0.0; cols * rows];
     let grid = Grid { cols, rows, cell_m: 1.0, original: &h0, relief: 10.0 };
     let c: Constraint = serde_json::from_value(
-        json!({"shape_mask": {"mask": {"polygons": [[[4.5, 4.5], [14.5, 4.5], [14.5, 14.5], [4.5, 14.5]]]}, "water_level": 0.0, "margin": 1.0}}),
+        json!({"shape_mask": {"mask": {"polygons_m": [[{"x": 4.5, "z": 4.5}, {"x": 14.5, "z": 4.5}, {"x": 14.5, "z": 14.5}, {"x": 4.5, "z": 14.5}]]}, "water_level": 0.0, "margin": 1.0}}),
     )
     .unwrap();
     let f = &build(&[c], &[None], &grid).unwrap()[0];
