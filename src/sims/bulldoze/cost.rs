@@ -41,6 +41,12 @@ pub fn estimate(params: &BulldozeParams, terrain: &dyn TerrainLookup) -> Result<
                 steps_bytes += STEP_BYTES;
                 work = work.saturating_add(clip(shape_bounds(&p.shape)));
             }
+            Operation::Local(l) => steps_bytes += STEP_BYTES + 100 * l.vertices.len() as u64,
+            // Every sample once, as the grid's own work counts it.
+            Operation::Global(_) => {
+                steps_bytes += STEP_BYTES;
+                work = work.saturating_add(cells);
+            }
             Operation::Pass(pass) => {
                 let b = &pass.blade;
                 // The blade's farthest reach from the path: its half width turned by its angle.

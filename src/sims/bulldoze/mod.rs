@@ -13,6 +13,7 @@ mod cost;
 mod params;
 mod path;
 mod primitives;
+mod scopes;
 mod sequence;
 
 #[cfg(test)]
@@ -29,6 +30,7 @@ pub use combine::Operator;
 pub use params::{BulldozeParams, Operation, PassOp, PathVertex, PlanPoint, PrimitiveOp, Window};
 pub use path::{MoveStep, PathPoint};
 pub use primitives::{Berm, BoxShape, Cone, HalfCylinder, Mound, Ramp, Shape, Torus};
+pub use scopes::{Clamp, Exaggerate, GlobalOp, LocalOp, LocalVertex};
 pub use sequence::{BulldozeSequence, Step};
 
 use crate::jobs::{Cost, Outcome, RunContext, SimError, Simulation};
@@ -109,6 +111,8 @@ fn replay_edit(sequence: &BulldozeSequence, until_step: Option<u64>, ctx: &RunCo
         match group {
             Group::Primitive(p) => dozer.primitive(p)?,
             Group::Pass(moves) => dozer.pass(&moves)?,
+            Group::Local(l) => dozer.local(l)?,
+            Group::Global(g) => dozer.global(g)?,
         }
     }
     let tally = dozer.tally;
@@ -162,6 +166,8 @@ struct Tally {
     primitives: u64,
     passes: u64,
     moves: u64,
+    /// Local and global operations.
+    scoped: u64,
 }
 
 /// Who follows an edit between its steps: a job's run context, or nobody.
@@ -234,6 +240,14 @@ impl<'a, W: Watcher> Bulldozer<'a, W> {
                     self.pass(&moves)?;
                     steps.extend(moves.into_iter().map(Step::Move));
                 }
+                Operation::Local(l) => {
+                    self.local(l)?;
+                    steps.push(Step::Local(l.clone()));
+                }
+                Operation::Global(g) => {
+                    self.global(g)?;
+                    steps.push(Step::Global(g.clone()));
+                }
             }
         }
         Ok(steps)
@@ -245,6 +259,26 @@ impl<'a, W: Watcher> Bulldozer<'a, W> {
         self.tally.steps += 1;
         self.tally.primitives += 1;
         let message = || format!("{} ({})", primitives::shape_name(&p.shape), p.operator.name());
+        self.watcher.progress(self.tally.steps, self.total, message, Some(self.hf));
+        Ok(())
+    }
+
+    fn local(&mut self, l: &LocalOp) -> Result<(), W::Stop> {
+        self.watcher.check_cancelled()?;
+        scopes::apply_local(self.hf, l, self.window.as_ref());
+        self.single_step(|| format!("local: {} vertices", l.vertices.len()))
+    }
+
+    fn global(&mut self, g: &GlobalOp) -> Result<(), W::Stop> {
+        self.watcher.check_cancelled()?;
+        scopes::apply_global(self.hf, g, self.window.as_ref());
+        self.single_step(|| "global".to_string())
+    }
+
+    /// Count a one-step operation of a scope without a primitive's footprint and report it.
+    fn single_step(&mut self, message: impl FnOnce() -> String) -> Result<(), W::Stop> {
+        self.tally.steps += 1;
+        self.tally.scoped += 1;
         self.watcher.progress(self.tally.steps, self.total, message, Some(self.hf));
         Ok(())
     }
@@ -275,7 +309,7 @@ impl Edit {
         let (changed, cut, fill) = change_totals(&self.initial, &self.hf);
         let t = self.tally;
         [
-            ("operations", json!(t.primitives + t.passes)),
+            ("operations", json!(t.primitives + t.passes + t.scoped)),
             ("steps", json!(t.steps)),
             ("passes", json!(t.passes)),
             ("primitives", json!(t.primitives)),

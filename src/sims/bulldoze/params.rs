@@ -7,6 +7,7 @@ use utoipa::ToSchema;
 use super::blade::Blade;
 use super::combine::Operator;
 use super::primitives::Shape;
+use super::scopes::{GlobalOp, LocalOp};
 use crate::export::TileGrid;
 use crate::terrain::TerrainSource;
 use crate::validate::{Limits, Validate, Validator};
@@ -73,7 +74,8 @@ pub struct Window {
     pub max_z: f32,
 }
 
-/// One operation: exactly one of `primitive` or `pass`.
+/// One operation, by the paper's scopes of action (§2): `local` (listed vertices), `primitive`
+/// and `pass` (a move or a pass of moves over a footprint), `global` (every vertex).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 #[schema(as = BulldozeOperation)]
@@ -82,6 +84,10 @@ pub enum Operation {
     Primitive(PrimitiveOp),
     /// A blade swept along a path: one move per path segment.
     Pass(PassOp),
+    /// Listed vertices set or offset exactly.
+    Local(LocalOp),
+    /// A height transform of every vertex.
+    Global(GlobalOp),
 }
 
 fn default_primitive_operator() -> Operator {
@@ -205,7 +211,7 @@ impl BulldozeParams {
         self.operations
             .iter()
             .map(|op| match op {
-                Operation::Primitive(_) => 1,
+                Operation::Primitive(_) | Operation::Local(_) | Operation::Global(_) => 1,
                 Operation::Pass(p) => p.path.len().saturating_sub(1) as u64,
             })
             .sum()
@@ -263,15 +269,16 @@ impl Validate for BulldozeParams {
             .operations
             .iter()
             .map(|op| match op {
-                Operation::Primitive(_) => 1,
+                Operation::Primitive(_) | Operation::Global(_) => 1,
                 Operation::Pass(p) => p.path.len() as u64,
+                Operation::Local(l) => l.vertices.len() as u64,
             })
             .sum();
         if steps > limits.max_operations {
             v.too_large(
                 "operations",
                 format!(
-                    "{steps} primitives and path vertices in all is more than the cap of {}",
+                    "{steps} operations, path vertices and local vertices in all is more than the cap of {}",
                     limits.max_operations
                 ),
             );
@@ -305,6 +312,8 @@ impl Validate for Operation {
         match self {
             Operation::Primitive(p) => v.field("primitive", |v| v.field("shape", |v| p.shape.validate(v, limits))),
             Operation::Pass(p) => v.field("pass", |v| p.validate(v, limits)),
+            Operation::Local(l) => v.field("local", |v| l.validate(v, limits)),
+            Operation::Global(g) => v.field("global", |v| g.validate(v, limits)),
         }
     }
 }

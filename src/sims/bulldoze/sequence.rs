@@ -5,6 +5,7 @@ use serde::{Deserialize, Serialize};
 
 use super::params::{PrimitiveOp, Window};
 use super::path::MoveStep;
+use super::scopes::{GlobalOp, LocalOp};
 use crate::jobs::Sequence;
 use crate::terrain::TerrainSource;
 
@@ -27,6 +28,8 @@ pub struct BulldozeSequence {
 pub enum Step {
     Primitive(PrimitiveOp),
     Move(MoveStep),
+    Local(LocalOp),
+    Global(GlobalOp),
 }
 
 impl Sequence for BulldozeSequence {
@@ -39,6 +42,8 @@ impl Sequence for BulldozeSequence {
 pub enum Group<'a> {
     Primitive(&'a PrimitiveOp),
     Pass(Vec<MoveStep>),
+    Local(&'a LocalOp),
+    Global(&'a GlobalOp),
 }
 
 /// Split steps into primitives and passes (runs of moves with the same pass number).
@@ -49,6 +54,14 @@ pub fn groups(steps: &[Step]) -> Vec<Group<'_>> {
         match &steps[i] {
             Step::Primitive(p) => {
                 out.push(Group::Primitive(p));
+                i += 1;
+            }
+            Step::Local(l) => {
+                out.push(Group::Local(l));
+                i += 1;
+            }
+            Step::Global(g) => {
+                out.push(Group::Global(g));
                 i += 1;
             }
             Step::Move(first) => {

@@ -46,7 +46,10 @@ fn busy_request() -> BulldozeParams {
                 "blade": {"width_m": 5, "profile": [[-1, -1], [1, -1]]},
                 "operator": "add"}},
             {"primitive": {"shape": {"torus": {"center": {"x": 60, "z": 60}, "major_radius_m": 20,
-                "minor_radius_m": 4, "height_m": 3}}, "operator": "average"}}
+                "minor_radius_m": 4, "height_m": 3}}, "operator": "average"}},
+            {"local": {"vertices": [{"x": 60, "z": 60, "set_m": 30}, {"x": 61, "z": 60, "offset_m": -1}]}},
+            {"global": {"exaggerate": {"factor": 1.3, "about_m": 12}}},
+            {"global": {"curve": [[0, 0], [14, 14], [20, 16], [40, 30]]}}
         ]
     }))
 }
@@ -70,7 +73,7 @@ fn truncated(p: &BulldozeParams, k: u64) -> BulldozeParams {
             break;
         }
         match op {
-            Operation::Primitive(_) => {
+            Operation::Primitive(_) | Operation::Local(_) | Operation::Global(_) => {
                 operations.push(op.clone());
                 left -= 1;
             }
