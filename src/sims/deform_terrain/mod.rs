@@ -425,6 +425,10 @@ fn finish(
     let mut artifacts = exported.artifacts;
     artifacts.push(Artifact::new("fitness.json", "application/json", fitness_json));
     artifacts.push(Artifact::new("sequence.bin", "application/octet-stream", packed.bytes));
+    if let Some(roads) = constraints::roads_json(fields, h, &grid) {
+        let bytes = serde_json::to_vec(&roads).map_err(|e| SimError::Failed(e.to_string()))?;
+        artifacts.push(Artifact::new("road.json", "application/json", bytes));
+    }
     Ok(Outcome { result: Value::Object(result), sequence, artifacts })
 }
 

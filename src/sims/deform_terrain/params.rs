@@ -76,8 +76,14 @@ fn default_band() -> u32 {
 ///
 /// Each constraint is a fitness F_c: a sum of per-vertex penalties divided by (constrained
 /// vertices × relief²), relief = the starting terrain's max − min, so F_c is a mean-square
-/// error in units of relief². The search minimises F = Σ weight_c · F_c. Lengths in metres;
-/// grid coordinates (cols along X, rows along Z) where a field says so.
+/// error in units of relief². The search minimises F = Σ weight_c · F_c. Every length and
+/// coordinate is metres on the grid: x along columns, z along rows, sample (col, row) at
+/// (col × cell size, row × cell size); only radii, spacings and bands count cells.
+///
+/// Besides the heightfield artifacts a job writes `fitness.json` (the fitness after every
+/// iteration), `sequence.bin` (the terrain compressed as its deformation sequence, within
+/// `sequence_tolerance_m`) and, with a road, `road.json` (every road constraint's centreline in
+/// metres with the deformed terrain's height along it, its width and the gradient reached).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 #[schema(as = DeformTerrainParams)]

@@ -429,3 +429,41 @@ fn sequence_bin_replays_within_its_tolerance_and_exactly_without_one() {
     let replayed = apply_sequence(&start, &decoded.operations);
     assert_eq!(replayed.heights_m, final_heights(&exact).iter().map(|&v| v as f32).collect::<Vec<_>>());
 }
+
+#[test]
+fn road_json_gives_each_road_centreline_in_metres_with_its_heights_and_gradient() {
+    // 2 m cells: a straight road from (10, 40) m to (110, 40) m at 70 m, beside a point.
+    let mut terrain = fractal(65, 3);
+    terrain["fractal"]["cell_size"] = json!(2.0);
+    let req = json!({"terrain": terrain, "constraints": [
+        {"points": {"points": [{"x": 20.0, "z": 100.0, "height": 50.0}]}},
+        {"road": {"path": [{"x": 10.0, "z": 40.0}, {"x": 110.0, "z": 40.0}], "width_m": 6.0, "height": {"constant": 70.0}}}
+    ], "max_iterations": 600});
+    let out = run_with(&params(req), 2);
+    let road = out.artifacts.iter().find(|a| a.name == "road.json").expect("road.json");
+    let json: Value = serde_json::from_slice(&road.bytes).unwrap();
+    let roads = json["roads"].as_array().unwrap();
+    assert_eq!(roads.len(), 1);
+    let r = &roads[0];
+    assert_eq!(r["constraint"], json!(1));
+    assert_eq!(r["width_m"], json!(6.0));
+    assert!((r["length_m"].as_f64().unwrap() - 100.0).abs() < 1e-9);
+    // One sample a cell (2 m) along the path: 51 points at x = 10, 12, …, 110, z = 40.
+    let points = r["centreline"].as_array().unwrap();
+    assert_eq!(points.len(), 51);
+    let err = r["max_error_m"].as_f64().unwrap();
+    assert!(err <= 0.005 * 120.0, "{err}");
+    for (k, p) in points.iter().enumerate() {
+        assert!((p["x"].as_f64().unwrap() - (10.0 + 2.0 * k as f64)).abs() < 1e-9, "{p}");
+        assert_eq!(p["z"].as_f64().unwrap(), 40.0);
+        assert_eq!(p["target_y"].as_f64().unwrap(), 70.0);
+        // The centreline's height is the deformed terrain's: within the road cells' error.
+        assert!((p["y"].as_f64().unwrap() - 70.0).abs() <= err + 1e-9, "{p}");
+    }
+    // Flat to within the error: no gradient steeper than the error over one cell allows.
+    let step = r["max_step_gradient_percent"].as_f64().unwrap();
+    assert!(step <= 2.0 * err / 2.0 * 100.0 + 1e-9, "{step}");
+    // No road, no road.json.
+    let star = run_with(&small_star(), 1);
+    assert!(star.artifacts.iter().all(|a| a.name != "road.json"));
+}

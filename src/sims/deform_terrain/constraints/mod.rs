@@ -475,6 +475,24 @@ pub fn road_material(fields: &[Field], cells: usize) -> Option<Vec<u8>> {
     out
 }
 
+/// `road.json`: every road constraint (its index among the constraints) as a game places it,
+/// when there is a road.
+pub fn roads_json(fields: &[Field], h: &[f64], grid: &Grid) -> Option<Value> {
+    let roads: Vec<Value> = fields
+        .iter()
+        .enumerate()
+        .filter_map(|(i, f)| match &f.detail {
+            Detail::Road(d) => {
+                let mut road = road::centreline(d, h, grid);
+                road["constraint"] = json!(i);
+                Some(road)
+            }
+            _ => None,
+        })
+        .collect();
+    (!roads.is_empty()).then(|| json!({ "roads": roads }))
+}
+
 /// The cells to refine candidates around: the union of every constraint's interest.
 pub fn interest(fields: &[Field], cells: usize) -> Vec<bool> {
     let mut out = vec![false; cells];

@@ -16,6 +16,8 @@ pub struct RoadDetail {
     cells: Vec<(usize, f64)>,
     /// Centreline samples in grid coordinates, one cell apart along the path.
     centreline: Vec<(f64, f64)>,
+    /// The road's wanted height at each centreline sample.
+    profile: Vec<f64>,
     /// Metres between centreline samples.
     step_m: f64,
     width_m: f64,
@@ -122,7 +124,7 @@ pub fn build(road: &Road, grid: &Grid, combined: bool) -> Field {
         pairs: None,
         interest,
         anchors: true,
-        detail: Detail::Road(RoadDetail { cells, centreline, step_m, width_m: road.width_m }),
+        detail: Detail::Road(RoadDetail { cells, centreline, profile, step_m, width_m: road.width_m }),
     }
 }
 
@@ -153,6 +155,32 @@ pub fn bilinear(h: &[f64], cols: usize, rows: usize, x: f64, z: f64) -> f64 {
     let top = h[r0 * cols + c0] * (1.0 - tx) + h[r0 * cols + c1] * tx;
     let bottom = h[r1 * cols + c0] * (1.0 - tx) + h[r1 * cols + c1] * tx;
     top * (1.0 - tz) + bottom * tz
+}
+
+/// A road as a game places it (`road.json`): the centreline one cell apart in metres (x along
+/// columns, z along rows) with the terrain's height there after the deformation (`y`, bilinear)
+/// and the height the road wanted (`target_y`), its width, its length, and the gradient it
+/// actually reached (steepest over runs of four widths, as the figures measure it, and between
+/// neighbouring samples).
+pub fn centreline(d: &RoadDetail, h: &[f64], grid: &Grid) -> Value {
+    let along: Vec<f64> = d.centreline.iter().map(|&(x, z)| bilinear(h, grid.cols, grid.rows, x, z)).collect();
+    let points: Vec<Value> = d
+        .centreline
+        .iter()
+        .zip(&along)
+        .zip(&d.profile)
+        .map(|((&(x, z), &y), &t)| json!({"x": x * grid.cell_m, "z": z * grid.cell_m, "y": y, "target_y": t}))
+        .collect();
+    let step = along.windows(2).map(|w| (w[1] - w[0]).abs() / d.step_m * 100.0).fold(0.0f64, f64::max);
+    let figures = figures(d, h, grid);
+    json!({
+        "width_m": d.width_m,
+        "length_m": d.step_m * (d.centreline.len().saturating_sub(1)) as f64,
+        "max_gradient_percent": figures["max_gradient_percent"],
+        "max_step_gradient_percent": step,
+        "max_error_m": d.cells.iter().fold(0.0f64, |m, &(i, t)| m.max((h[i] - t).abs())),
+        "centreline": points,
+    })
 }
 
 /// The largest miss of a road cell as a share of the relief, and the steepest centreline
