@@ -61,45 +61,50 @@ impl Validate for Blade {
                 format!("must be between -{MAX_ANGLE_DEG} and {MAX_ANGLE_DEG}, exclusive (got {})", self.angle_deg),
             );
         }
-        let p = &self.profile;
-        if p.len() < 2 {
-            v.error("profile", format!("needs at least 2 points (got {})", p.len()));
-            return;
-        }
-        if p.len() > MAX_PROFILE_POINTS {
-            v.error("profile", format!("may have at most {MAX_PROFILE_POINTS} points (got {})", p.len()));
-            return;
-        }
-        v.field("profile", |v| {
-            let mut all_finite = true;
-            for (i, [u, h]) in p.iter().enumerate() {
-                v.index(i, |v| {
-                    all_finite &= v.finite("[0]", *u as f64) & metres(v, "[1]", *h, Sign::Any);
-                });
-            }
-            if !all_finite {
-                return;
-            }
-            if p[0][0] != -1.0 {
-                v.error(
-                    "[0][0]",
-                    format!("the first point must be at u = -1, the blade's left edge (got {})", p[0][0]),
-                );
-            }
-            let last = p.len() - 1;
-            if p[last][0] != 1.0 {
-                v.error(
-                    &format!("[{last}][0]"),
-                    format!("the last point must be at u = 1, the blade's right edge (got {})", p[last][0]),
-                );
-            }
-            for i in 1..p.len() {
-                if p[i][0] <= p[i - 1][0] {
-                    v.error(&format!("[{i}][0]"), "u must increase strictly along the profile");
-                }
-            }
-        });
+        validate_profile(v, &self.profile);
     }
+}
+
+/// Check a profile: 2 to 64 points `[u, height_m]`, u strictly increasing from exactly −1 to
+/// exactly +1, heights in range. Errors go under `profile`.
+pub fn validate_profile(v: &mut Validator, p: &[[f32; 2]]) {
+    if p.len() < 2 {
+        v.error("profile", format!("needs at least 2 points (got {})", p.len()));
+        return;
+    }
+    if p.len() > MAX_PROFILE_POINTS {
+        v.error("profile", format!("may have at most {MAX_PROFILE_POINTS} points (got {})", p.len()));
+        return;
+    }
+    v.field("profile", |v| {
+        let mut all_finite = true;
+        for (i, [u, h]) in p.iter().enumerate() {
+            v.index(i, |v| {
+                all_finite &= v.finite("[0]", *u as f64) & metres(v, "[1]", *h, Sign::Any);
+            });
+        }
+        if !all_finite {
+            return;
+        }
+        if p[0][0] != -1.0 {
+            v.error(
+                "[0][0]",
+                format!("the first point must be at u = -1, the blade's left edge (got {})", p[0][0]),
+            );
+        }
+        let last = p.len() - 1;
+        if p[last][0] != 1.0 {
+            v.error(
+                &format!("[{last}][0]"),
+                format!("the last point must be at u = 1, the blade's right edge (got {})", p[last][0]),
+            );
+        }
+        for i in 1..p.len() {
+            if p[i][0] <= p[i - 1][0] {
+                v.error(&format!("[{i}][0]"), "u must increase strictly along the profile");
+            }
+        }
+    });
 }
 
 /// A validated blade ready to evaluate.
@@ -158,6 +163,20 @@ impl BladeGeometry {
         }
         Some((u, along - a * self.sin_angle))
     }
+}
+
+/// The profile `t` of the way from `a` to `b` (0 ≤ t ≤ 1): at every u, (1 − t)·a(u) + t·b(u),
+/// on the union of their points (both piecewise linear, so this is exact between them).
+pub fn blend_profiles(a: &[[f32; 2]], b: &[[f32; 2]], t: f64) -> Vec<[f32; 2]> {
+    let (ga, gb) = (profile_geometry(a), profile_geometry(b));
+    let mut us: Vec<f32> = a.iter().chain(b).map(|p| p[0]).collect();
+    us.sort_by(f32::total_cmp);
+    us.dedup();
+    us.iter().map(|&u| [u, ((1.0 - t) * ga.profile(u as f64) + t * gb.profile(u as f64)) as f32]).collect()
+}
+
+fn profile_geometry(profile: &[[f32; 2]]) -> BladeGeometry {
+    BladeGeometry::new(&Blade { width_m: 2.0, profile: profile.to_vec(), offset_m: 0.0, angle_deg: 0.0 })
 }
 
 #[cfg(test)]

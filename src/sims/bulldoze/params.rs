@@ -132,6 +132,26 @@ pub struct PassOp {
     #[serde(default = "default_pass_operator")]
     #[schema(default = "replace")]
     pub operator: Operator,
+    /// A blade of changing profile along the path (the paper's "blade of continually changing
+    /// profile along an exponential spiral"): profiles at path vertices, in increasing vertex
+    /// order, at most one per vertex. The blade's own `profile` is the profile at vertex 0
+    /// unless a keyframe is there; between two keyframes the profile at every point of the path
+    /// is the pointwise linear blend (at every u) by arc length; after the last it holds.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub keyframes: Vec<ProfileKeyframe>,
+}
+
+/// The blade's profile at one path vertex.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = BulldozeProfileKeyframe)]
+pub struct ProfileKeyframe {
+    /// Index of the path vertex (0-based).
+    pub vertex: u32,
+    /// As the blade's `profile`: 2 to 64 points `[u, height_m]`, u from −1 to +1.
+    // 64 = MAX_PROFILE_POINTS; the items' ±1e6 (MAX_METRES) bounds both u and height_m
+    #[schema(min_items = 2, max_items = 64, minimum = -1e6, maximum = 1e6)]
+    pub profile: Vec<[f32; 2]>,
 }
 
 /// A path vertex.
@@ -329,6 +349,18 @@ impl Validate for PassOp {
                 format!("{} points is more than the cap of {}", self.path.len(), limits.max_operations),
             );
         }
+        v.field("keyframes", |v| {
+            for (i, k) in self.keyframes.iter().enumerate() {
+                v.index(i, |v| {
+                    if k.vertex as usize >= self.path.len() {
+                        v.error("vertex", format!("must name a path vertex (0 to {})", self.path.len().saturating_sub(1)));
+                    } else if i > 0 && k.vertex <= self.keyframes[i - 1].vertex {
+                        v.error("vertex", "keyframes must follow the path, one per vertex at most");
+                    }
+                    super::blade::validate_profile(v, &k.profile);
+                });
+            }
+        });
         v.field("path", |v| {
             for (i, p) in self.path.iter().enumerate() {
                 v.index(i, |v| {

@@ -36,8 +36,13 @@ pub struct MoveStep {
     pub previous: Option<PlanPoint>,
     pub from: PathPoint,
     pub to: PathPoint,
+    /// The blade, with its profile at `from`.
     pub blade: Blade,
     pub operator: Operator,
+    /// The profile at `to` when keyframes change it along the move: the relief blends from the
+    /// blade's profile to this one linearly with the distance along the segment.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub profile_to: Option<Vec<[f32; 2]>>,
 }
 
 /// The moves of a pass, its relative vertices resolved against `hf` as the pass starts.
@@ -47,6 +52,7 @@ pub fn resolve_pass(hf: &Heightfield, pass_index: u32, pass: &PassOp) -> Vec<Mov
         .iter()
         .map(|v| PathPoint { x: v.x, z: v.z, height: v.height.unwrap_or_else(|| hf.sample(v.x, v.z)) })
         .collect();
+    let profiles = vertex_profiles(pass);
     points
         .windows(2)
         .enumerate()
@@ -56,8 +62,37 @@ pub fn resolve_pass(hf: &Heightfield, pass_index: u32, pass: &PassOp) -> Vec<Mov
             previous: k.checked_sub(1).map(|i| PlanPoint { x: points[i].x, z: points[i].z }),
             from: w[0],
             to: w[1],
-            blade: pass.blade.clone(),
+            blade: Blade { profile: profiles[k].clone(), ..pass.blade.clone() },
             operator: pass.operator,
+            profile_to: (profiles[k + 1] != profiles[k]).then(|| profiles[k + 1].clone()),
+        })
+        .collect()
+}
+
+/// The blade's profile at every path vertex: the keyframes (the blade's own profile at vertex
+/// 0 unless one is there), blended by arc length between them, held after the last.
+fn vertex_profiles(pass: &PassOp) -> Vec<Vec<[f32; 2]>> {
+    let path = &pass.path;
+    let mut arc = vec![0.0f64];
+    for w in path.windows(2) {
+        arc.push(arc.last().expect("starts at 0") + (w[1].x as f64 - w[0].x as f64).hypot(w[1].z as f64 - w[0].z as f64));
+    }
+    let mut keys: Vec<(usize, &[[f32; 2]])> = pass.keyframes.iter().map(|k| (k.vertex as usize, &k.profile[..])).collect();
+    if keys.first().is_none_or(|k| k.0 != 0) {
+        keys.insert(0, (0, &pass.blade.profile));
+    }
+    (0..path.len())
+        .map(|i| {
+            // The last keyframe at or before i, and the next after it.
+            let k = keys.partition_point(|key| key.0 <= i) - 1;
+            match keys.get(k + 1) {
+                Some(&(b, next)) if i != keys[k].0 => {
+                    let a = keys[k].0;
+                    let t = (arc[i] - arc[a]) / (arc[b] - arc[a]);
+                    super::blade::blend_profiles(keys[k].1, next, t)
+                }
+                _ => keys[k].1.to_vec(),
+            }
         })
         .collect()
 }
@@ -76,6 +111,8 @@ pub struct MoveGeometry {
     h0: f64,
     h1: f64,
     blade: BladeGeometry,
+    /// The profile at the move's end, when keyframes change it.
+    blade_to: Option<BladeGeometry>,
     pivot: Option<Pivot>,
     bounds: Bounds,
 }
@@ -121,7 +158,9 @@ impl MoveGeometry {
             ]);
             Some(Pivot { frame: Frame { ox: from.0, oz: from.1, ..previous }, previous_length, turn, reach })
         });
-        Self { frame, length, h0: step.from.height as f64, h1: step.to.height as f64, blade, pivot, bounds }
+        let blade_to =
+            step.profile_to.as_ref().map(|p| BladeGeometry::new(&Blade { profile: p.clone(), ..step.blade.clone() }));
+        Self { frame, length, h0: step.from.height as f64, h1: step.to.height as f64, blade, blade_to, pivot, bounds }
     }
 
     /// The blade coordinate u at which the turning blade passes over a point outside both
@@ -182,8 +221,13 @@ impl Footprint for MoveGeometry {
         let (s, d) = self.frame.local(x, z);
         if let Some((u, s0)) = self.blade.locate(s, d) {
             if (0.0..=self.length).contains(&s0) {
-                let base = self.h0 + (self.h1 - self.h0) * (s0 / self.length);
-                return Some((base, self.blade.profile(u)));
+                let t = s0 / self.length;
+                let base = self.h0 + (self.h1 - self.h0) * t;
+                let relief = match &self.blade_to {
+                    Some(to) => (1.0 - t) * self.blade.profile(u) + t * to.profile(u),
+                    None => self.blade.profile(u),
+                };
+                return Some((base, relief));
             }
         }
         let pivot = self.pivot.as_ref()?;
@@ -223,7 +267,7 @@ pub fn apply_pass<E>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sims::bulldoze::params::PathVertex;
+    use crate::sims::bulldoze::params::{PathVertex, ProfileKeyframe};
 
     fn vertex(x: f32, z: f32, height: Option<f32>) -> PathVertex {
         PathVertex { x, z, height }
@@ -235,7 +279,7 @@ mod tests {
 
     /// Resolve and apply one pass; returns its moves.
     fn bulldoze(hf: &mut Heightfield, path: Vec<PathVertex>, blade: Blade, operator: Operator) -> Vec<MoveStep> {
-        let moves = resolve_pass(hf, 0, &PassOp { path, blade, operator });
+        let moves = resolve_pass(hf, 0, &PassOp { path, blade, operator, keyframes: Vec::new() });
         apply_pass(hf, &moves, None, |_| Ok::<(), ()>(())).unwrap();
         moves
     }
@@ -274,6 +318,37 @@ mod tests {
                 assert_eq!(hf.get(101, row), 0.0);
             }
         }
+    }
+
+    #[test]
+    fn a_keyframed_blade_has_the_interpolated_profile_across_the_middle_of_each_segment() {
+        // Flat at vertex 0, a V 4 m deep at vertex 2, vertex 1 between by arc length: at the
+        // middle of segment 0 the blade is a quarter of the way (20 of 80 m), at the middle
+        // of segment 1 three quarters.
+        let flat = [[-1.0, 0.0], [1.0, 0.0]];
+        let vee = [[-1.0, 0.0], [0.0, -4.0], [1.0, 0.0]];
+        let mut hf = Heightfield::flat(121, 41, 1.0, 0.0);
+        let path = vec![vertex(10.0, 20.0, Some(5.0)), vertex(50.0, 20.0, Some(5.0)), vertex(90.0, 20.0, Some(5.0))];
+        let keyframes = vec![ProfileKeyframe { vertex: 2, profile: vee.to_vec() }];
+        let pass = PassOp { path, blade: blade(8.0, &flat), operator: Operator::Replace, keyframes };
+        let moves = resolve_pass(&hf, 0, &pass);
+        apply_pass(&mut hf, &moves, None, |_| Ok::<(), ()>(())).unwrap();
+        // By hand: V(u) = −4 (1 − |u|); the blend at t is 5 + t · V(u), u = d / 4.
+        for (x, t) in [(30, 0.25), (70, 0.75)] {
+            for d in -4i32..=4 {
+                let u = d as f64 / 4.0;
+                let want = 5.0 + t * -4.0 * (1.0 - u.abs());
+                let got = hf.get(x, (20 + d) as usize);
+                assert!(close(got, want, 1e-5), "x {x} d {d}: {got} vs {want}");
+            }
+            assert_eq!(hf.get(x, 25), 0.0, "outside the blade");
+        }
+        // Recorded: each move's blade carries its start profile and the end one.
+        assert_eq!(moves[0].blade.profile, flat.to_vec());
+        assert_eq!(moves[1].profile_to.as_deref(), Some(&vee[..]));
+        // Without keyframes nothing is recorded beyond the blade.
+        let plain = resolve_pass(&hf, 0, &PassOp { keyframes: Vec::new(), ..pass });
+        assert!(plain.iter().all(|m| m.profile_to.is_none()));
     }
 
     #[test]
@@ -442,7 +517,7 @@ mod tests {
         let window = Window { min_x: 5.0, min_z: 12.0, max_x: 30.5, max_z: 40.0 };
         for operator in [Operator::Replace, Operator::Add, Operator::Average, Operator::Max] {
             for window in [None, Some(&window)] {
-                let moves = resolve_pass(&start, 0, &PassOp { path: zig_zag(9, None), blade: b.clone(), operator });
+                let moves = resolve_pass(&start, 0, &PassOp { path: zig_zag(9, None), blade: b.clone(), operator, keyframes: Vec::new() });
                 let mut hf = start.clone();
                 apply_pass(&mut hf, &moves, window, |_| Ok::<(), ()>(())).unwrap();
                 let want = naive_pass(&start, &moves, window);
