@@ -87,10 +87,7 @@ pub fn validate_profile(v: &mut Validator, p: &[[f32; 2]]) {
             return;
         }
         if p[0][0] != -1.0 {
-            v.error(
-                "[0][0]",
-                format!("the first point must be at u = -1, the blade's left edge (got {})", p[0][0]),
-            );
+            v.error("[0][0]", format!("the first point must be at u = -1, the blade's left edge (got {})", p[0][0]));
         }
         let last = p.len() - 1;
         if p[last][0] != 1.0 {

@@ -52,8 +52,21 @@ pub fn estimate(params: &BulldozeParams, terrain: &dyn TerrainLookup) -> Result<
                 // The blade's farthest reach from the path: its half width turned by its angle.
                 let reach = (b.width_m as f64 / 2.0) / (b.angle_deg as f64).to_radians().cos().max(0.1)
                     + (b.offset_m as f64).abs();
-                let moves = pass.path.len().saturating_sub(1) as u64;
-                steps_bytes += moves * (STEP_BYTES + STEP_PROFILE_POINT_BYTES * b.profile.len() as u64);
+                let moves = pass.vertices().saturating_sub(1);
+                // Keyframes record a second profile per move (a blend holds both's points).
+                let points = b.profile.len() + pass.keyframes.iter().map(|k| k.profile.len()).max().unwrap_or(0);
+                steps_bytes += moves * (STEP_BYTES + 2 * STEP_PROFILE_POINT_BYTES * points as u64);
+                if pass.base == super::params::PathBase::Ground {
+                    // The pass-start grid the base reads.
+                    steps_bytes += 4 * cells;
+                }
+                if let Some(c) = &pass.contour {
+                    // Unknown until traced: each move sweeps at most spacing + 2 reach square
+                    // (clipped to the grid), and tracing visits every sample once.
+                    let side = c.spacing_m as f64 + 2.0 * reach;
+                    let per_move = ((side / cell_m).ceil() as u64 + 1).pow(2).min(cells);
+                    work = work.saturating_add(cells).saturating_add(moves.saturating_mul(2 * per_move));
+                }
                 for pair in pass.path.windows(2) {
                     let segment =
                         Bounds::around([(pair[0].x as f64, pair[0].z as f64), (pair[1].x as f64, pair[1].z as f64)]);

@@ -9,6 +9,7 @@
 mod apply;
 mod blade;
 mod combine;
+mod contour;
 mod cost;
 mod params;
 mod path;
@@ -27,6 +28,7 @@ use serde_json::{json, Value};
 
 pub use blade::Blade;
 pub use combine::Operator;
+pub use contour::{ContourPath, Side};
 pub use params::{BulldozeParams, Operation, PassOp, PathVertex, PlanPoint, PrimitiveOp, Window};
 pub use path::{MoveStep, PathPoint};
 pub use primitives::{Berm, BoxShape, Cone, HalfCylinder, Mound, Ramp, Shape, Torus};
@@ -178,6 +180,9 @@ trait Watcher {
     /// Progress after `step` of `total` steps, with a live snapshot of `hf` if one is given
     /// and due; `message` is built only when someone listens.
     fn progress(&self, step: u64, total: u64, message: impl FnOnce() -> String, hf: Option<&Heightfield>);
+    /// An operation that the terrain makes impossible (a contour it does not cross): a job
+    /// stops with a problem naming `field`; without a job the operation is skipped.
+    fn invalid(&self, field: String, message: String) -> Result<(), Self::Stop>;
 }
 
 impl Watcher for RunContext<'_> {
@@ -185,6 +190,10 @@ impl Watcher for RunContext<'_> {
 
     fn check_cancelled(&self) -> Result<(), SimError> {
         RunContext::check_cancelled(self)
+    }
+
+    fn invalid(&self, field: String, message: String) -> Result<(), SimError> {
+        Err(SimError::Invalid { field, message })
     }
 
     fn progress(&self, step: u64, total: u64, message: impl FnOnce() -> String, hf: Option<&Heightfield>) {
@@ -209,6 +218,10 @@ impl Watcher for Unwatched {
     }
 
     fn progress(&self, _step: u64, _total: u64, _message: impl FnOnce() -> String, _hf: Option<&Heightfield>) {}
+
+    fn invalid(&self, _field: String, _message: String) -> Result<(), Infallible> {
+        Ok(())
+    }
 }
 
 /// The grid being edited, reporting to its watcher between steps.
@@ -229,13 +242,28 @@ impl<'a, W: Watcher> Bulldozer<'a, W> {
     /// pass starts; returns the steps to record.
     fn operations(&mut self, operations: &[Operation]) -> Result<Vec<Step>, W::Stop> {
         let mut steps = Vec::new();
-        for op in operations {
+        for (i, op) in operations.iter().enumerate() {
             match op {
                 Operation::Primitive(p) => {
                     self.primitive(p)?;
                     steps.push(Step::Primitive(p.clone()));
                 }
                 Operation::Pass(p) => {
+                    let traced;
+                    let p = match &p.contour {
+                        Some(c) => match contour::contour_vertices(self.hf, c) {
+                            Ok(path) => {
+                                traced = PassOp { path, contour: None, ..p.clone() };
+                                &traced
+                            }
+                            Err(message) => {
+                                let field = format!("operations[{i}].pass.contour");
+                                self.watcher.invalid(field, message)?;
+                                continue;
+                            }
+                        },
+                        None => p,
+                    };
                     let moves = path::resolve_pass(self.hf, self.tally.passes as u32, p);
                     self.pass(&moves)?;
                     steps.extend(moves.into_iter().map(Step::Move));

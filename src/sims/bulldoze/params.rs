@@ -6,6 +6,7 @@ use utoipa::ToSchema;
 
 use super::blade::Blade;
 use super::combine::Operator;
+use super::contour::ContourPath;
 use super::primitives::Shape;
 use super::scopes::{GlobalOp, LocalOp};
 use crate::export::TileGrid;
@@ -123,9 +124,20 @@ pub struct PrimitiveOp {
 #[schema(as = BulldozePass)]
 pub struct PassOp {
     /// The path: at least 2 vertices, no two consecutive ones at the same place. At most the
-    /// server's operation cap (100 000 by default; more is answered with 413).
-    #[schema(min_items = 2)]
+    /// server's operation cap (100 000 by default; more is answered with 413). Exactly one of
+    /// `path` and `contour`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub path: Vec<PathVertex>,
+    /// The path traced along a contour of the terrain as the pass starts, its vertices at the
+    /// contour's height. Exactly one of `path` and `contour`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contour: Option<ContourPath>,
+    /// The blade's base between vertices: `linear` interpolates the vertices' heights; `ground`
+    /// follows the terrain under the blade's centre (as the pass started), offset by the
+    /// vertices' heights above it interpolated linearly — a relative path then rides the
+    /// ground all the way, not only at its vertices.
+    #[serde(default, skip_serializing_if = "PathBase::is_linear")]
+    pub base: PathBase,
     pub blade: Blade,
     /// How each move combines with the surface; `replace` leaves the blade's profile, as a
     /// real bulldozer does. The move's base is the path's height, its relief the profile.
@@ -139,6 +151,22 @@ pub struct PassOp {
     /// is the pointwise linear blend (at every u) by arc length; after the last it holds.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub keyframes: Vec<ProfileKeyframe>,
+}
+
+/// How a move's base runs between its vertices.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+#[schema(as = BulldozePathBase)]
+pub enum PathBase {
+    #[default]
+    Linear,
+    Ground,
+}
+
+impl PathBase {
+    pub fn is_linear(&self) -> bool {
+        *self == PathBase::Linear
+    }
 }
 
 /// The blade's profile at one path vertex.
@@ -232,7 +260,7 @@ impl BulldozeParams {
             .iter()
             .map(|op| match op {
                 Operation::Primitive(_) | Operation::Local(_) | Operation::Global(_) => 1,
-                Operation::Pass(p) => p.path.len().saturating_sub(1) as u64,
+                Operation::Pass(p) => p.vertices().saturating_sub(1),
             })
             .sum()
     }
@@ -290,7 +318,7 @@ impl Validate for BulldozeParams {
             .iter()
             .map(|op| match op {
                 Operation::Primitive(_) | Operation::Global(_) => 1,
-                Operation::Pass(p) => p.path.len() as u64,
+                Operation::Pass(p) => p.vertices(),
                 Operation::Local(l) => l.vertices.len() as u64,
             })
             .sum();
@@ -338,9 +366,26 @@ impl Validate for Operation {
     }
 }
 
+impl PassOp {
+    /// The path's vertices: as listed, or the most a contour may give.
+    pub fn vertices(&self) -> u64 {
+        self.contour.as_ref().map_or(self.path.len() as u64, ContourPath::max_vertices)
+    }
+}
+
 impl Validate for PassOp {
     fn validate(&self, v: &mut Validator, limits: &Limits) {
         v.field("blade", |v| self.blade.validate(v, limits));
+        if let Some(c) = &self.contour {
+            if !self.path.is_empty() {
+                v.error("path", "give either path or contour, not both");
+            }
+            if !self.keyframes.is_empty() {
+                v.error("keyframes", "name vertices of a listed path; a contour's vertices are not known in advance");
+            }
+            v.field("contour", |v| c.validate(v, limits));
+            return;
+        }
         if self.path.len() < 2 {
             v.error("path", format!("needs at least 2 points (got {})", self.path.len()));
         } else if self.path.len() as u64 > limits.max_operations {
@@ -353,7 +398,10 @@ impl Validate for PassOp {
             for (i, k) in self.keyframes.iter().enumerate() {
                 v.index(i, |v| {
                     if k.vertex as usize >= self.path.len() {
-                        v.error("vertex", format!("must name a path vertex (0 to {})", self.path.len().saturating_sub(1)));
+                        v.error(
+                            "vertex",
+                            format!("must name a path vertex (0 to {})", self.path.len().saturating_sub(1)),
+                        );
                     } else if i > 0 && k.vertex <= self.keyframes[i - 1].vertex {
                         v.error("vertex", "keyframes must follow the path, one per vertex at most");
                     }

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use super::apply::{affected_cells, apply_over, Bounds, Footprint, Frame, Patch};
 use super::blade::{Blade, BladeGeometry};
 use super::combine::Operator;
-use super::params::{PassOp, PlanPoint, Window};
+use super::params::{PassOp, PathBase, PlanPoint, Window};
 use crate::terrain::Heightfield;
 
 /// A path vertex with its height resolved: what the sequence records, so that a replay needs
@@ -43,6 +43,10 @@ pub struct MoveStep {
     /// blade's profile to this one linearly with the distance along the segment.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub profile_to: Option<Vec<[f32; 2]>>,
+    /// How the base runs between `from` and `to` (`ground`: over the terrain as the pass
+    /// started, which a replay rebuilds before applying the pass).
+    #[serde(default, skip_serializing_if = "PathBase::is_linear")]
+    pub base: PathBase,
 }
 
 /// The moves of a pass, its relative vertices resolved against `hf` as the pass starts.
@@ -65,6 +69,7 @@ pub fn resolve_pass(hf: &Heightfield, pass_index: u32, pass: &PassOp) -> Vec<Mov
             blade: Blade { profile: profiles[k].clone(), ..pass.blade.clone() },
             operator: pass.operator,
             profile_to: (profiles[k + 1] != profiles[k]).then(|| profiles[k + 1].clone()),
+            base: pass.base,
         })
         .collect()
 }
@@ -75,9 +80,12 @@ fn vertex_profiles(pass: &PassOp) -> Vec<Vec<[f32; 2]>> {
     let path = &pass.path;
     let mut arc = vec![0.0f64];
     for w in path.windows(2) {
-        arc.push(arc.last().expect("starts at 0") + (w[1].x as f64 - w[0].x as f64).hypot(w[1].z as f64 - w[0].z as f64));
+        arc.push(
+            arc.last().expect("starts at 0") + (w[1].x as f64 - w[0].x as f64).hypot(w[1].z as f64 - w[0].z as f64),
+        );
     }
-    let mut keys: Vec<(usize, &[[f32; 2]])> = pass.keyframes.iter().map(|k| (k.vertex as usize, &k.profile[..])).collect();
+    let mut keys: Vec<(usize, &[[f32; 2]])> =
+        pass.keyframes.iter().map(|k| (k.vertex as usize, &k.profile[..])).collect();
     if keys.first().is_none_or(|k| k.0 != 0) {
         keys.insert(0, (0, &pass.blade.profile));
     }
@@ -105,7 +113,7 @@ fn vertex_profiles(pass: &PassOp) -> Vec<Vec<[f32; 2]>> {
 /// A move after a bend also holds the pivot: where the blade, held at the bend's vertex,
 /// turns from the previous segment's heading to this one's. That fills the wedge on the
 /// outside of the bend that neither segment's sweep reaches (base: the vertex's height).
-pub struct MoveGeometry {
+pub struct MoveGeometry<'g> {
     frame: Frame,
     length: f64,
     h0: f64,
@@ -113,6 +121,8 @@ pub struct MoveGeometry {
     blade: BladeGeometry,
     /// The profile at the move's end, when keyframes change it.
     blade_to: Option<BladeGeometry>,
+    /// With a base following the ground: the grid as the pass started.
+    ground: Option<&'g Heightfield>,
     pivot: Option<Pivot>,
     bounds: Bounds,
 }
@@ -129,8 +139,10 @@ struct Pivot {
     reach: f64,
 }
 
-impl MoveGeometry {
-    pub fn new(step: &MoveStep) -> Self {
+impl<'g> MoveGeometry<'g> {
+    /// The move's geometry; `ground` is the grid as the pass started, which a base following
+    /// the ground reads (a copy: the pass's moves write the grid itself).
+    pub fn new(step: &MoveStep, ground: Option<&'g Heightfield>) -> Self {
         let from = (step.from.x as f64, step.from.z as f64);
         let (frame, length) = Frame::between(from, (step.to.x as f64, step.to.z as f64));
         let blade = BladeGeometry::new(&step.blade);
@@ -160,7 +172,23 @@ impl MoveGeometry {
         });
         let blade_to =
             step.profile_to.as_ref().map(|p| BladeGeometry::new(&Blade { profile: p.clone(), ..step.blade.clone() }));
-        Self { frame, length, h0: step.from.height as f64, h1: step.to.height as f64, blade, blade_to, pivot, bounds }
+        let ground = ground.filter(|_| step.base == PathBase::Ground);
+        let (h0, h1) = (step.from.height as f64, step.to.height as f64);
+        let mut g = Self { frame, length, h0, h1, blade, blade_to, ground, pivot, bounds };
+        if g.ground.is_some() {
+            // The vertices' heights above the ground, interpolated between them.
+            (g.h0, g.h1) = (h0 - g.ground_at(0.0), h1 - g.ground_at(length));
+        }
+        g
+    }
+
+    /// The pass-start ground under the blade's centre `s0` along the segment (0 with a linear
+    /// base), bilinear.
+    #[inline]
+    fn ground_at(&self, s0: f64) -> f64 {
+        let Some(g) = self.ground else { return 0.0 };
+        let (x, z) = self.frame.world(s0, 0.0);
+        g.sample(x as f32, z as f32) as f64
     }
 
     /// The blade coordinate u at which the turning blade passes over a point outside both
@@ -211,7 +239,7 @@ impl MoveGeometry {
     }
 }
 
-impl Footprint for MoveGeometry {
+impl Footprint for MoveGeometry<'_> {
     fn bounds(&self) -> Bounds {
         self.bounds
     }
@@ -222,7 +250,7 @@ impl Footprint for MoveGeometry {
         if let Some((u, s0)) = self.blade.locate(s, d) {
             if (0.0..=self.length).contains(&s0) {
                 let t = s0 / self.length;
-                let base = self.h0 + (self.h1 - self.h0) * t;
+                let base = self.h0 + (self.h1 - self.h0) * t + self.ground_at(s0);
                 let relief = match &self.blade_to {
                     Some(to) => (1.0 - t) * self.blade.profile(u) + t * to.profile(u),
                     None => self.blade.profile(u),
@@ -232,7 +260,7 @@ impl Footprint for MoveGeometry {
         }
         let pivot = self.pivot.as_ref()?;
         let u = self.pivot_u(pivot, x, z)?;
-        Some((self.h0, self.blade.profile(u)))
+        Some((self.h0 + self.ground_at(0.0), self.blade.profile(u)))
     }
 }
 
@@ -250,7 +278,8 @@ pub fn apply_pass<E>(
     window: Option<&Window>,
     mut after_move: impl FnMut(usize) -> Result<(), E>,
 ) -> Result<(), E> {
-    let geometry: Vec<MoveGeometry> = moves.iter().map(MoveGeometry::new).collect();
+    let ground = moves.iter().any(|m| m.base == PathBase::Ground).then(|| hf.clone());
+    let geometry: Vec<MoveGeometry> = moves.iter().map(|m| MoveGeometry::new(m, ground.as_ref())).collect();
     let reach = geometry.iter().map(|g| g.bounds).reduce(|a, b| a.union(&b));
     let Some(cells) = reach.and_then(|reach| affected_cells(hf, reach, window)) else {
         // Nothing of the grid in reach: every move leaves it as it is.
@@ -279,7 +308,11 @@ mod tests {
 
     /// Resolve and apply one pass; returns its moves.
     fn bulldoze(hf: &mut Heightfield, path: Vec<PathVertex>, blade: Blade, operator: Operator) -> Vec<MoveStep> {
-        let moves = resolve_pass(hf, 0, &PassOp { path, blade, operator, keyframes: Vec::new() });
+        let moves = resolve_pass(
+            hf,
+            0,
+            &PassOp { path, blade, operator, keyframes: Vec::new(), contour: None, base: PathBase::Linear },
+        );
         apply_pass(hf, &moves, None, |_| Ok::<(), ()>(())).unwrap();
         moves
     }
@@ -330,7 +363,14 @@ mod tests {
         let mut hf = Heightfield::flat(121, 41, 1.0, 0.0);
         let path = vec![vertex(10.0, 20.0, Some(5.0)), vertex(50.0, 20.0, Some(5.0)), vertex(90.0, 20.0, Some(5.0))];
         let keyframes = vec![ProfileKeyframe { vertex: 2, profile: vee.to_vec() }];
-        let pass = PassOp { path, blade: blade(8.0, &flat), operator: Operator::Replace, keyframes };
+        let pass = PassOp {
+            path,
+            blade: blade(8.0, &flat),
+            operator: Operator::Replace,
+            keyframes,
+            contour: None,
+            base: PathBase::Linear,
+        };
         let moves = resolve_pass(&hf, 0, &pass);
         apply_pass(&mut hf, &moves, None, |_| Ok::<(), ()>(())).unwrap();
         // By hand: V(u) = −4 (1 − |u|); the blend at t is 5 + t · V(u), u = d / 4.
@@ -349,6 +389,45 @@ mod tests {
         // Without keyframes nothing is recorded beyond the blade.
         let plain = resolve_pass(&hf, 0, &PassOp { keyframes: Vec::new(), ..pass });
         assert!(plain.iter().all(|m| m.profile_to.is_none()));
+    }
+
+    #[test]
+    fn a_base_following_the_ground_rides_every_bump_between_vertices() {
+        // Bumps every 20 m under a path with vertices 60 m apart: a linear base bridges them,
+        // a ground base follows them, a 2 m cut below the pass-start ground everywhere.
+        let bumps = |x: f32, z: f32| 10.0 + 3.0 * (x * std::f32::consts::PI / 10.0).sin() + 0.02 * z;
+        let start = Heightfield::from_fn(141, 41, 1.0, bumps);
+        let cut = [[-1.0, -2.0], [1.0, -2.0]];
+        let path = vec![vertex(10.0, 20.0, None), vertex(70.0, 20.0, None), vertex(130.0, 20.0, None)];
+        let run = |base: PathBase| {
+            let mut hf = start.clone();
+            let pass = PassOp {
+                path: path.clone(),
+                blade: blade(6.0, &cut),
+                operator: Operator::Replace,
+                keyframes: Vec::new(),
+                contour: None,
+                base,
+            };
+            let moves = resolve_pass(&hf, 0, &pass);
+            apply_pass(&mut hf, &moves, None, |_| Ok::<(), ()>(())).unwrap();
+            hf
+        };
+        let ground = run(PathBase::Ground);
+        let linear = run(PathBase::Linear);
+        let mut bridged = 0.0f32;
+        for col in 10..=130 {
+            for row in 18..=22 {
+                let want = start.get(col, 20) - 2.0;
+                assert!(
+                    close(ground.get(col, row), want as f64, 1e-4),
+                    "({col}, {row}): {} vs {want}",
+                    ground.get(col, row)
+                );
+            }
+            bridged = bridged.max((linear.get(col, 20) - (start.get(col, 20) - 2.0)).abs());
+        }
+        assert!(bridged > 2.0, "a linear base does not follow the bumps ({bridged})");
     }
 
     #[test]
@@ -486,7 +565,7 @@ mod tests {
             })
         };
         for step in moves {
-            let g = MoveGeometry::new(step);
+            let g = MoveGeometry::new(step, Some(start));
             for row in 0..start.rows {
                 for col in 0..start.cols {
                     let (x, z) = (col as f64 * cell, row as f64 * cell);
@@ -517,7 +596,18 @@ mod tests {
         let window = Window { min_x: 5.0, min_z: 12.0, max_x: 30.5, max_z: 40.0 };
         for operator in [Operator::Replace, Operator::Add, Operator::Average, Operator::Max] {
             for window in [None, Some(&window)] {
-                let moves = resolve_pass(&start, 0, &PassOp { path: zig_zag(9, None), blade: b.clone(), operator, keyframes: Vec::new() });
+                let moves = resolve_pass(
+                    &start,
+                    0,
+                    &PassOp {
+                        path: zig_zag(9, None),
+                        blade: b.clone(),
+                        operator,
+                        keyframes: Vec::new(),
+                        contour: None,
+                        base: PathBase::Linear,
+                    },
+                );
                 let mut hf = start.clone();
                 apply_pass(&mut hf, &moves, window, |_| Ok::<(), ()>(())).unwrap();
                 let want = naive_pass(&start, &moves, window);
