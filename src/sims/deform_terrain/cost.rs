@@ -42,6 +42,9 @@ pub fn estimate(params: &DeformTerrainParams, terrain: &dyn TerrainLookup) -> Re
     for c in &params.constraints {
         let (kept, work) = match c {
             Constraint::Preserve(_) | Constraint::Points(_) => (FIELD_BYTES_PER_CELL, 5),
+            Constraint::Terraces(t) => {
+                (FIELD_BYTES_PER_CELL + 2, 5 + t.regions.iter().map(|r| r.polygon_m.len()).sum::<usize>() as u64)
+            }
             Constraint::MatchHeightmap(_) => (FIELD_BYTES_PER_CELL + 8, 10),
             Constraint::Road(r) => (FIELD_BYTES_PER_CELL + 16, 5 + 4 * r.path.len() as u64),
             Constraint::EdgeMatch(_) => (FIELD_BYTES_PER_CELL + 16, 10),

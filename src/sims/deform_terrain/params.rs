@@ -198,6 +198,7 @@ pub enum Constraint {
     Tileable(Tileable),
     Points(Points),
     Preserve(Preserve),
+    Terraces(Terraces),
 }
 
 /// Penalise (h − t)² against a desired heightfield of the same size.
@@ -417,6 +418,43 @@ pub enum TileAxes {
     Z,
 }
 
+/// Terraces and plateaus (the paper's future work: "masks for more than one height
+/// threshold"): regions, each a polygon with its own level. Every sample inside a region wants
+/// the region's level, penalised by (h − level)² over the regions' samples; where regions
+/// overlap the later one's level holds. Samples outside every region are left to the other
+/// constraints (add `preserve` to hold them).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = DeformTerraces)]
+pub struct Terraces {
+    /// 1 to 64 regions; their polygons at most 256 vertices in all (more is answered with 413).
+    // 64 = MAX_REGIONS
+    #[schema(min_items = 1, max_items = 64)]
+    pub regions: Vec<TerraceRegion>,
+    #[serde(default = "one")]
+    #[schema(default = 1.0, minimum = 0.0, maximum = 1000000.0)]
+    pub weight: f64,
+}
+
+/// One level of a terrace mask.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = DeformTerraceRegion)]
+pub struct TerraceRegion {
+    /// The region: a polygon of at least 3 points in metres on the grid (even-odd inside; a
+    /// sample exactly on an edge counts on the polygon's low-x and low-z sides, not on its
+    /// high ones).
+    #[schema(min_items = 3)]
+    pub polygon_m: Vec<PlanPoint>,
+    /// Its height, metres, within ±1 000 000.
+    // ±1e6 = MAX_METRES
+    #[schema(minimum = -1000000.0, maximum = 1000000.0)]
+    pub level_m: f64,
+}
+
+/// Most regions of a terrace mask.
+pub const MAX_REGIONS: usize = 64;
+
 /// The terrain passes through these points (nearest vertex).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
@@ -470,6 +508,7 @@ impl Constraint {
             Constraint::Tileable(_) => "tileable",
             Constraint::Points(_) => "points",
             Constraint::Preserve(_) => "preserve",
+            Constraint::Terraces(_) => "terraces",
         }
     }
 
@@ -482,6 +521,7 @@ impl Constraint {
             Constraint::Tileable(c) => c.weight,
             Constraint::Points(c) => c.weight,
             Constraint::Preserve(c) => c.weight,
+            Constraint::Terraces(c) => c.weight,
         }
     }
 }
@@ -745,6 +785,30 @@ fn validate_constraint(
             band(v, e.band_cells, dims);
         }
         Constraint::Tileable(t) => band(v, t.band_cells, dims),
+        Constraint::Terraces(t) => {
+            if t.regions.is_empty() {
+                v.error("regions", "needs at least one region");
+            } else if t.regions.len() > MAX_REGIONS {
+                v.too_large("regions", format!("more than {MAX_REGIONS} regions"));
+            }
+            if t.regions.iter().map(|r| r.polygon_m.len()).sum::<usize>() > MAX_OUTLINE_VERTICES {
+                v.too_large("regions", format!("more than {MAX_OUTLINE_VERTICES} polygon vertices in all"));
+            }
+            v.field("regions", |v| {
+                for (i, r) in t.regions.iter().enumerate() {
+                    v.index(i, |v| {
+                        if r.polygon_m.len() < 3 {
+                            v.error("polygon_m", "a polygon needs at least 3 vertices");
+                        }
+                        let bad = |x: f64| !x.is_finite() || x.abs() > MAX_METRES;
+                        if r.polygon_m.iter().any(|q| bad(q.x) || bad(q.z)) {
+                            v.error("polygon_m", "coordinates must be finite metres within ±1000000");
+                        }
+                        v.in_range("level_m", r.level_m, -MAX_METRES, MAX_METRES);
+                    });
+                }
+            });
+        }
         Constraint::Points(p) => {
             if p.points.is_empty() {
                 v.error("points", "needs at least one point");

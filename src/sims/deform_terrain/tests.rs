@@ -467,3 +467,32 @@ fn road_json_gives_each_road_centreline_in_metres_with_its_heights_and_gradient(
     let star = run_with(&small_star(), 1);
     assert!(star.artifacts.iter().all(|a| a.name != "road.json"));
 }
+
+#[test]
+fn terraces_hold_each_region_at_its_level() {
+    let square =
+        |x0: f64, x1: f64| json!([{"x": x0, "z": x0}, {"x": x1, "z": x0}, {"x": x1, "z": x1}, {"x": x0, "z": x1}]);
+    let req = json!({"terrain": fractal(129, 7), "constraints": [
+        {"terraces": {"regions": [
+            {"polygon_m": square(20.0, 50.0), "level_m": 90.0},
+            {"polygon_m": [{"x": 70.0, "z": 70.0}, {"x": 120.0, "z": 70.0}, {"x": 70.0, "z": 120.0}], "level_m": 40.0},
+            {"polygon_m": square(30.0, 40.0), "level_m": 70.0}
+        ]}},
+        {"preserve": {"weight": 0.05}}
+    ], "max_iterations": 1500});
+    let out = run_with(&params(req), 3);
+    let f = out.result["constraints"].as_array().unwrap().iter().find(|c| c["kind"] == "terraces").unwrap().clone();
+    let regions = f["regions"].as_array().unwrap();
+    // By hand, with the even-odd rule's half-open edges (a sample on a left or top edge is in,
+    // on a right or bottom edge out): the square holds samples 20..50 a side (30² = 900) less
+    // the later region's 30..40 (10² = 100); the triangle x + z < 190 above (70, 70) holds
+    // Σ over rows 70..120 of (120 − row) = 1275.
+    assert_eq!(regions[0]["cells"], json!(900 - 100));
+    assert_eq!(regions[1]["cells"], json!(1275));
+    assert_eq!(regions[2]["cells"], json!(100));
+    for r in regions {
+        let miss = r["max_error_m"].as_f64().unwrap();
+        assert!(miss <= 0.01 * 120.0, "{r}");
+        assert!(r["rms_error_m"].as_f64().unwrap() <= 0.0025 * 120.0, "{r}");
+    }
+}

@@ -13,6 +13,7 @@ mod points;
 mod preserve;
 mod road;
 mod shape_mask;
+mod terraces;
 mod tileable;
 
 use serde_json::{json, Map, Value};
@@ -145,6 +146,7 @@ pub enum Detail {
     Tileable { x: bool, z: bool },
     Points(Vec<(usize, f64)>),
     Preserve,
+    Terraces(terraces::TerraceDetail),
 }
 
 /// The inputs a constraint reads besides the request: resolved terrains (match target, mask
@@ -200,6 +202,7 @@ pub fn build(constraints: &[Constraint], resolved: &[Resolved], grid: &Grid) -> 
                 Constraint::Tileable(t) => tileable::build(t, grid),
                 Constraint::Points(p) => points::build(p, grid),
                 Constraint::Preserve(p) => preserve::build(p, grid),
+                Constraint::Terraces(t) => terraces::build(t, grid),
             })
         })
         .collect()
@@ -258,6 +261,7 @@ impl Field {
             Detail::Tileable { x, z } => tileable::figures(*x, *z, h, grid),
             Detail::Points(p) => points::figures(p, h, grid),
             Detail::Preserve => preserve::figures(h, grid),
+            Detail::Terraces(d) => terraces::figures(d, h, grid),
         };
         if let Value::Object(extra) = extra {
             out.extend(extra);

@@ -56,7 +56,7 @@ pub fn build(m: &ShapeMask, image: Option<&Heightfield>, grid: &Grid) -> Field {
 }
 
 /// Even-odd test of a point (x, z), metres, against every polygon.
-fn inside_any(polys: &[Vec<PlanPoint>], (x, z): (f64, f64)) -> bool {
+pub(super) fn inside_any(polys: &[Vec<PlanPoint>], (x, z): (f64, f64)) -> bool {
     let mut inside = false;
     for poly in polys {
         let mut j = poly.len() - 1;
