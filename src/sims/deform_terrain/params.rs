@@ -360,6 +360,11 @@ pub struct RoadProfile {
 }
 
 /// Continue another terrain of the same size across shared edges (equation 5).
+///
+/// Edge convention (the same for `tileable`): neighbouring tiles share their edge samples, as
+/// engines' terrain tiles do — this terrain's west column is the neighbour's east column, and
+/// so on; placed side by side, tiles of N samples step N − 1 samples apart. The seam matches
+/// the neighbour in height and in slope (C¹).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 #[schema(as = DeformEdgeMatch)]
@@ -391,6 +396,9 @@ pub enum Edge {
 }
 
 /// Opposite edges match each other so the tile repeats.
+///
+/// Edge convention (the same for `edge_match`): the first and last columns (rows) are the same
+/// samples of the repeating terrain, so the tile of N samples repeats every N − 1.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 #[schema(as = DeformTileable)]

@@ -134,7 +134,9 @@ fn merged_edges_continue_the_neighbour_without_a_steep_seam() {
     let out = run_with(&params(edge_request()), 1);
     let rms = figure(&out, "edge_match", "rms_mismatch_of_relief");
     assert!(rms <= 0.005, "{rms}");
-    let (seam, own) = (figure(&out, "edge_match", "max_seam_slope"), figure(&out, "edge_match", "own_p99_slope"));
+    // Shared samples match in height and the slope runs on across them: the bend at the seam
+    // is no sharper than the terrain's own 99th-percentile bend.
+    let (seam, own) = (figure(&out, "edge_match", "max_seam_kink"), figure(&out, "edge_match", "own_p99_kink"));
     assert!(seam <= own, "seam {seam} vs own p99 {own}");
 }
 

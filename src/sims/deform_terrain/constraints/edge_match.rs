@@ -1,10 +1,13 @@
 //! `edge_match`: continue another terrain across shared edges (equation 5). The neighbour lies
-//! beyond each listed edge. The edge cell wants the neighbour's edge height e continued by one
-//! step, s = e + ((e − e′) + (o₁ − o₀))/2 (e′ the neighbour's sample inside its edge, o this
-//! terrain's original heights in from the edge: the mean of the two sides' slopes); a cell at
-//! distance y wants its own original height shifted by that offset, faded over the band,
-//! target(y) = o_y + (s − o₀)(1 − y/band), weighted W(y) = (1 − y/band)². A linear extrapolation
-//! of the neighbour's last step over the whole band would amplify its noise into ramps.
+//! beyond each listed edge and the two share the edge's samples, as engines' terrain tiles do
+//! (the same convention as `tileable`): this terrain's edge sample is the neighbour's edge
+//! sample e. Inward, a cell at distance y wants its own original height o_y blended to the
+//! neighbour by cubic Hermite terms that vanish with their slopes at the band's end:
+//! target(y) = o_y + (e − o₀)·f(y) + ((e − e′) − (o₁ − o₀))·g(y), f = (1 − s)²(1 + 2s),
+//! g = y(1 − s)², s = y/band (e′ the neighbour's sample one step inside its edge): the seam
+//! matches in height and in slope (C¹), and the terrain's own shape carries the rest. It is
+//! weighted W(y) = (1 − y/band)². A linear extrapolation of the neighbour's last step over the
+//! whole band would amplify its noise into ramps.
 
 use serde_json::{json, Value};
 
@@ -12,10 +15,10 @@ use super::{rms, Detail, Field, Grid, Quadratic};
 use crate::sims::deform_terrain::params::{Edge, EdgeMatch};
 use crate::terrain::Heightfield;
 
-/// What the edge figures need: per shared-edge cell (this cell, the neighbour's edge height,
-/// the extrapolated target).
+/// What the edge figures need: per shared-edge cell (this cell, the cell one step in, the
+/// neighbour's edge height, its slope into the seam per step).
 pub struct EdgeDetail {
-    seam: Vec<(usize, f64, f64)>,
+    seam: Vec<(usize, usize, f64, f64)>,
 }
 
 pub fn build(e: &EdgeMatch, other: &Heightfield, grid: &Grid) -> Field {
@@ -41,22 +44,21 @@ pub fn build(e: &EdgeMatch, other: &Heightfield, grid: &Grid) -> Field {
                 Edge::North => (o(k, rows - 1), o(k, rows - 2)),
                 Edge::South => (o(k, 0), o(k, 1)),
             };
+            let own = |y: usize| grid.original[edge_cell(edge, k, y, cols, rows)];
+            let (offset, kink) = (oe - own(0), (oe - on) - (own(1) - own(0)));
             for y in 0..band.min(along) {
                 let i = edge_cell(edge, k, y, cols, rows);
-                let fade = 1.0 - y as f64 / band as f64;
+                let s = y as f64 / band as f64;
+                let fade = 1.0 - s;
                 let w = fade * fade;
-                // The seam step is the mean of the two sides' last steps; inward, this
-                // terrain's own shape carries the offset, fading over the band.
-                let own = |y: usize| grid.original[edge_cell(edge, k, y, cols, rows)];
-                let seam_target = oe + 0.5 * ((oe - on) + (own(1) - own(0)));
-                let target = own(y) + (seam_target - own(0)) * fade;
+                let target = own(y) + offset * fade * fade * (1.0 + 2.0 * s) + kink * y as f64 * fade * fade;
                 terms.push((i, w, target));
                 weight_sum += w;
                 if y < 2 {
                     interest[i] = true;
                 }
                 if y == 0 {
-                    seam.push((i, oe, target));
+                    seam.push((i, edge_cell(edge, k, 1, cols, rows), oe, oe - on));
                 }
             }
         }
@@ -106,14 +108,38 @@ pub fn p99_slope(h: &[f64], cols: usize, rows: usize, cell_m: f64) -> f64 {
     slopes[((slopes.len() - 1) as f64 * 0.99).round() as usize]
 }
 
-/// RMS mismatch at the seam (against the continued neighbour) as a share of the relief, and
-/// the steepest step across the seam against this terrain's own 99th-percentile slope.
+/// The 99th-percentile change of slope between consecutive steps along rows and columns (the
+/// second difference over the cell size): how sharply the terrain's own slopes bend.
+pub fn p99_kink(h: &[f64], cols: usize, rows: usize, cell_m: f64) -> f64 {
+    let mut kinks = Vec::with_capacity(2 * cols * rows);
+    for r in 0..rows {
+        for c in 0..cols {
+            let i = r * cols + c;
+            if c + 2 < cols {
+                kinks.push((h[i + 2] - 2.0 * h[i + 1] + h[i]).abs() / cell_m);
+            }
+            if r + 2 < rows {
+                kinks.push((h[i + 2 * cols] - 2.0 * h[i + cols] + h[i]).abs() / cell_m);
+            }
+        }
+    }
+    if kinks.is_empty() {
+        return 0.0;
+    }
+    kinks.sort_by(f64::total_cmp);
+    kinks[((kinks.len() - 1) as f64 * 0.99).round() as usize]
+}
+
+/// At the shared edge: the RMS height mismatch as a share of the relief, and the sharpest bend
+/// of slope across it (this side's first step against the neighbour's last) against this
+/// terrain's own 99th-percentile bend and slope.
 pub fn figures(d: &EdgeDetail, h: &[f64], grid: &Grid) -> Value {
-    let mismatch = rms(d.seam.iter().map(|&(i, _, t)| h[i] - t)) / grid.relief;
-    let seam_slope = d.seam.iter().fold(0.0f64, |m, &(i, oe, _)| m.max((h[i] - oe).abs() / grid.cell_m));
+    let mismatch = rms(d.seam.iter().map(|&(i, _, oe, _)| h[i] - oe)) / grid.relief;
+    let kink = d.seam.iter().fold(0.0f64, |m, &(i, j, _, slope)| m.max(((h[j] - h[i]) - slope).abs() / grid.cell_m));
     json!({
         "rms_mismatch_of_relief": mismatch,
-        "max_seam_slope": seam_slope,
+        "max_seam_kink": kink,
+        "own_p99_kink": p99_kink(h, grid.cols, grid.rows, grid.cell_m),
         "own_p99_slope": p99_slope(h, grid.cols, grid.rows, grid.cell_m),
     })
 }
