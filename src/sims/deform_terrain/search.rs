@@ -375,23 +375,24 @@ fn recompute(
     which.len() as u64
 }
 
-/// The changed cells, plus the opposite edge strip their tileable partners lie in.
+/// The changed cells, plus the opposite edge strip their tileable partners lie in: the two
+/// samples nearest each edge, which the pairs and the wrap's slope terms couple.
 fn dirty_rects(rect: Rect, cols: usize, rows: usize, tile_x: bool, tile_z: bool) -> Vec<Rect> {
     let mut out = vec![rect];
-    if tile_x {
-        if rect.c0 == 0 {
-            out.push(Rect { c0: cols - 1, c1: cols - 1, ..rect });
+    if tile_x && cols >= 2 {
+        if rect.c0 <= 1 {
+            out.push(Rect { c0: cols - 2, c1: cols - 1, ..rect });
         }
-        if rect.c1 == cols - 1 {
-            out.push(Rect { c0: 0, c1: 0, ..rect });
+        if rect.c1 >= cols - 2 {
+            out.push(Rect { c0: 0, c1: 1, ..rect });
         }
     }
-    if tile_z {
-        if rect.r0 == 0 {
-            out.push(Rect { r0: rows - 1, r1: rows - 1, ..rect });
+    if tile_z && rows >= 2 {
+        if rect.r0 <= 1 {
+            out.push(Rect { r0: rows - 2, r1: rows - 1, ..rect });
         }
-        if rect.r1 == rows - 1 {
-            out.push(Rect { r0: 0, r1: 0, ..rect });
+        if rect.r1 >= rows - 2 {
+            out.push(Rect { r0: 0, r1: 1, ..rect });
         }
     }
     out

@@ -145,6 +145,27 @@ fn a_tileable_terrain_has_matching_opposite_edges() {
     let out = run_with(&params(tileable_request()), 1);
     let rms = figure(&out, "tileable", "rms_mismatch_of_relief");
     assert!(rms <= 0.005, "{rms}");
+    // C¹: the slope runs on across the wrap — the bend there is within the terrain's own 99th
+    // percentile bend — measured here from the heights, independently of the figures.
+    let npy = out.artifacts.iter().find(|a| a.name == "heightfield.npy").unwrap();
+    let hf = crate::export::read_heightfield_npy(&npy.bytes, 1.0).unwrap();
+    let (n, h) = (hf.cols, |c: usize, r: usize| hf.get(c, r) as f64);
+    let mut worst = 0.0f64;
+    for k in 0..n {
+        worst = worst.max(((h(1, k) - h(0, k)) - (h(n - 1, k) - h(n - 2, k))).abs());
+        worst = worst.max(((h(k, 1) - h(k, 0)) - (h(k, n - 1) - h(k, n - 2))).abs());
+    }
+    let mut bends: Vec<f64> = Vec::new();
+    for r in 0..n {
+        for c in 0..n - 2 {
+            bends.push((h(c + 2, r) - 2.0 * h(c + 1, r) + h(c, r)).abs());
+            bends.push((h(r, c + 2) - 2.0 * h(r, c + 1) + h(r, c)).abs());
+        }
+    }
+    bends.sort_by(f64::total_cmp);
+    let p99 = bends[((bends.len() - 1) as f64 * 0.99).round() as usize];
+    assert!(worst <= p99, "the wrap bends by {worst}, the terrain's own p99 bend is {p99}");
+    assert!((figure(&out, "tileable", "max_wrap_kink") - worst).abs() < 1e-3);
 }
 
 fn bits(artifacts: &[Artifact]) -> Vec<(String, Vec<u8>)> {

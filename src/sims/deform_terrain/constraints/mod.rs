@@ -106,11 +106,39 @@ impl OneSided {
 
 /// Coupled pairs `scale (h_i − h_j)²`: each cell's partner across the grid in X and in Z
 /// (`u32::MAX` for none). A pair is counted from its lower-index cell.
+///
+/// With them, the slope terms of a C¹ wrap, `kink_scale (h_a + h_b − h_c − h_d)²` — the
+/// first step in from one edge against the last step out to the other, (h₁ − h₀) −
+/// (h_{N−1} − h_{N−2}) — one per row (`kinks_x`, members in that row) and per column
+/// (`kinks_z`); empty where the axis does not wrap.
 #[derive(Clone, Debug)]
 pub struct Pairs {
     pub partner_x: Vec<u32>,
     pub partner_z: Vec<u32>,
     pub scale: f64,
+    pub kinks_x: Vec<[usize; 4]>,
+    pub kinks_z: Vec<[usize; 4]>,
+    pub kink_scale: f64,
+}
+
+/// The signs of a slope term's members.
+const KINK_SIGNS: [f64; 4] = [1.0, 1.0, -1.0, -1.0];
+
+impl Pairs {
+    /// The slope terms with a member in `rect`.
+    fn kinks_in<'a>(&'a self, rect: Rect, cols: usize, rows: usize) -> impl Iterator<Item = &'a [usize; 4]> + 'a {
+        let meets = |lo: usize, hi: usize, n: usize| [0, 1, n - 2, n - 1].iter().any(|&l| (lo..=hi).contains(&l));
+        let x = (!self.kinks_x.is_empty() && cols >= 2 && meets(rect.c0, rect.c1, cols))
+            .then(|| &self.kinks_x[rect.r0..=rect.r1]);
+        let z = (!self.kinks_z.is_empty() && rows >= 2 && meets(rect.r0, rect.r1, rows))
+            .then(|| &self.kinks_z[rect.c0..=rect.c1]);
+        x.into_iter().flatten().chain(z.into_iter().flatten())
+    }
+
+    /// A slope term's value.
+    fn kink(m: &[usize; 4], h: &[f64]) -> f64 {
+        m.iter().zip(KINK_SIGNS).map(|(&i, s)| s * h[i]).sum()
+    }
 }
 
 pub const NO_PARTNER: u32 = u32::MAX;
@@ -244,6 +272,13 @@ impl Field {
             }
             sum += row_sum;
         }
+        if let Some(p) = &self.pairs {
+            // Each slope term with a member in the window, once.
+            for m in p.kinks_in(rect, cols, h.len() / cols) {
+                let l = Pairs::kink(m, h);
+                sum += p.kink_scale * l * l;
+            }
+        }
         sum
     }
 
@@ -303,7 +338,7 @@ impl Fitness {
                 one_sided = Some(OneSided { scale: o.scale * f.weight, ..o.clone() });
             }
             if let Some(p) = &f.pairs {
-                pairs = Some(Pairs { scale: p.scale * f.weight, ..p.clone() });
+                pairs = Some(Pairs { scale: p.scale * f.weight, kink_scale: p.kink_scale * f.weight, ..p.clone() });
             }
         }
         let m = (0..n).map(|i| if q[i] > 0.0 { qt[i] / q[i] } else { 0.0 }).collect();
@@ -399,6 +434,17 @@ impl Fitness {
                         pair(r * cols + c, p.partner_z[r * cols + c]);
                     }
                 }
+            }
+            for m in p.kinks_in(rect, cols, self.rows) {
+                let mut e = 0.0;
+                for (&i, sign) in m.iter().zip(KINK_SIGNS) {
+                    let (ic, ir) = (i % cols, i / cols);
+                    if rect.contains(ic, ir) {
+                        e += sign * kernel.at(ic as i64 - col as i64, ir as i64 - row as i64);
+                    }
+                }
+                a += p.kink_scale * e * e;
+                b += p.kink_scale * e * Pairs::kink(m, h);
             }
         }
 

@@ -33,6 +33,10 @@ fn every_constraint() -> Vec<Constraint> {
             json!({"points": {"points": [{"x": 10.0, "z": 10.0, "height": 5.0}, {"x": 33.0, "z": 20.0, "height": -4.0}]}}),
         ),
         c(json!({"preserve": {"weight": 0.5}})),
+        c(json!({"terraces": {"regions": [
+            {"polygon_m": [{"x": 3.0, "z": 3.0}, {"x": 15.0, "z": 3.0}, {"x": 15.0, "z": 15.0}], "level_m": 2.0},
+            {"polygon_m": [{"x": 20.0, "z": 12.0}, {"x": 36.0, "z": 12.0}, {"x": 36.0, "z": 26.0}, {"x": 20.0, "z": 26.0}], "level_m": -1.0}
+        ], "weight": 1.5}})),
         c(json!({"match_heightmap": {"target": {"job": "0190a0f4-4a9e-7c3e-8000-000000000001"}, "weight": 0.25}})),
     ]
 }

@@ -1,5 +1,7 @@
 //! `tileable`: opposite edges match each other, (h(0, r) − h(N − 1, r))² and the same for
-//! rows, so the tile repeats without a seam.
+//! rows, so the tile repeats without a seam; and the slope runs on across the wrap (C¹), the
+//! first step in from one edge against the last step out to the other,
+//! ((h₁ − h₀) − (h_{N−1} − h_{N−2}))², so no crease shows where the tiles meet.
 
 use serde_json::{json, Value};
 
@@ -29,7 +31,18 @@ pub fn build(t: &Tileable, grid: &Grid) -> Field {
             count += 1;
         }
     }
-    let width = (t.band_cells as usize / 8).max(1);
+    // The slope terms reach two samples in from each edge.
+    let width = (t.band_cells as usize / 8).max(2);
+    let kinks_x: Vec<[usize; 4]> = if x && cols >= 2 {
+        (0..rows).map(|r| [r * cols + 1, r * cols + cols - 2, r * cols, r * cols + cols - 1]).collect()
+    } else {
+        Vec::new()
+    };
+    let kinks_z: Vec<[usize; 4]> = if z && rows >= 2 {
+        (0..cols).map(|c| [cols + c, (rows - 2) * cols + c, c, (rows - 1) * cols + c]).collect()
+    } else {
+        Vec::new()
+    };
     let mut interest = vec![false; n];
     for r in 0..rows {
         for c in 0..cols {
@@ -44,7 +57,7 @@ pub fn build(t: &Tileable, grid: &Grid) -> Field {
         weight: t.weight,
         quadratic: None,
         one_sided: None,
-        pairs: Some(Pairs { partner_x, partner_z, scale }),
+        pairs: Some(Pairs { partner_x, partner_z, scale, kinks_x, kinks_z, kink_scale: scale }),
         interest,
         anchors: true,
         detail: Detail::Tileable { x, z },
@@ -61,8 +74,22 @@ pub fn figures(x: bool, z: bool, h: &[f64], grid: &Grid) -> Value {
     if z {
         diffs.extend((0..cols).map(|c| h[c] - h[(rows - 1) * cols + c]));
     }
+    // The bend of slope across the wrap, per step over the cell size, as edge_match measures
+    // its seam.
+    let mut kinks = Vec::new();
+    if x && cols >= 2 {
+        kinks.extend((0..rows).map(|r| {
+            let i = r * cols;
+            (h[i + 1] - h[i]) - (h[i + cols - 1] - h[i + cols - 2])
+        }));
+    }
+    if z && rows >= 2 {
+        kinks.extend((0..cols).map(|c| (h[cols + c] - h[c]) - (h[(rows - 1) * cols + c] - h[(rows - 2) * cols + c])));
+    }
     json!({
         "rms_mismatch_of_relief": rms(diffs.iter().copied()) / grid.relief,
         "max_mismatch_of_relief": diffs.iter().fold(0.0f64, |m, d| m.max(d.abs())) / grid.relief,
+        "max_wrap_kink": kinks.iter().fold(0.0f64, |m, d| m.max(d.abs())) / grid.cell_m,
+        "own_p99_kink": super::edge_match::p99_kink(h, cols, rows, grid.cell_m),
     })
 }
