@@ -365,6 +365,10 @@ fn finish(
     if let Some(i) = h.iter().position(|v| !v.is_finite()) {
         return Err(SimError::Failed(format!("non-finite height at sample {i}")));
     }
+    // sequence.bin replays the search's heights; the seam filter follows in run and replay.
+    let packed = pack(problem, &sequence, h);
+    let filtered = filter_seams(problem, h);
+    let h = filtered.as_deref().unwrap_or(h);
     let hf = to_heightfield(h, grid.cols, grid.rows, grid.cell_m);
     let log = FitnessLog {
         constraints: fields.iter().map(|f| f.name).collect(),
@@ -373,7 +377,6 @@ fn finish(
     };
     let fitness_json = serde_json::to_vec(&log).map_err(|e| SimError::Failed(e.to_string()))?;
     let sequence_bytes = serde_json::to_vec_pretty(&sequence).map_err(|e| SimError::Failed(e.to_string()))?.len();
-    let packed = pack(problem, &sequence, h);
     let roads = constraints::road_material(fields, grid.cells());
     let sea_level_m = constraints::water_level(fields).unwrap_or(0.0) as f32;
     let options = HeightfieldExport { material: roads.as_deref(), sea_level_m, ..output };
@@ -430,6 +433,21 @@ fn finish(
         artifacts.push(Artifact::new("road.json", "application/json", bytes));
     }
     Ok(Outcome { result: Value::Object(result), sequence, artifacts })
+}
+
+/// The heights with the 3 × 1 seam filter of every `edge_match` that asks for it, if any does.
+fn filter_seams(problem: &Problem, h: &[f64]) -> Option<Vec<f64>> {
+    let edges: Vec<Edge> = problem
+        .params
+        .constraints
+        .iter()
+        .filter_map(|c| match c {
+            Constraint::EdgeMatch(e) if e.seam_filter => Some(e.edges.clone()),
+            _ => None,
+        })
+        .flatten()
+        .collect();
+    (!edges.is_empty()).then(|| constraints::seam_filter(h, problem.cols, problem.rows, &edges))
 }
 
 /// `sequence.bin` of the sequence that ended at `h`, within the requested tolerance (absent:

@@ -382,6 +382,13 @@ pub struct EdgeMatch {
     #[serde(default = "one")]
     #[schema(default = 1.0, minimum = 0.0, maximum = 1000000.0)]
     pub weight: f64,
+    /// The paper's Figure 7 finish: after the search, a 3 × 1 mean filter across the seam on
+    /// the two samples next to each shared edge (each takes the mean of itself and its two
+    /// neighbours across the seam, all as the search left them); the shared edge samples stay
+    /// the neighbour's. `sequence.bin` replays the search; the filter follows it, in a replay
+    /// as in the run.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub seam_filter: bool,
 }
 
 /// An edge of the grid: west = column 0, east = last column, north = row 0, south = last row.

@@ -519,3 +519,35 @@ fn terraces_hold_each_region_at_its_level() {
         assert!(r["rms_error_m"].as_f64().unwrap() <= 0.0025 * 120.0, "{r}");
     }
 }
+
+#[test]
+fn the_seam_filter_averages_the_two_samples_next_to_the_seam_and_nothing_else() {
+    // By hand on a 5 × 3 grid, west edge: samples 1 and 2 of each row become the mean of
+    // their row's samples 0–2 and 1–3, from the unfiltered heights.
+    let h: Vec<f64> = (0..15).map(|i| ((i * i) % 7) as f64).collect();
+    let f = constraints::seam_filter(&h, 5, 3, &[Edge::West]);
+    for r in 0..3 {
+        let row = &h[r * 5..r * 5 + 5];
+        assert_eq!(f[r * 5], row[0]);
+        assert_eq!(f[r * 5 + 1], (row[0] + row[1] + row[2]) / 3.0);
+        assert_eq!(f[r * 5 + 2], (row[1] + row[2] + row[3]) / 3.0);
+        assert_eq!(&f[r * 5 + 3..r * 5 + 5], &row[3..5]);
+    }
+    // In a job: the same search, then the filter on columns 1 and 2 only.
+    let plain = run_with(&params(edge_request()), 1);
+    let mut req = edge_request();
+    req["constraints"][0]["edge_match"]["seam_filter"] = json!(true);
+    let filtered = run_with(&params(req), 1);
+    assert_eq!(plain.sequence, filtered.sequence);
+    let (a, b) = (final_heights(&plain), final_heights(&filtered));
+    let cols = 129;
+    for (i, (&x, &y)) in a.iter().zip(&b).enumerate() {
+        let c = i % cols;
+        if c == 1 || c == 2 {
+            let want = (a[i - 1] + a[i] + a[i + 1]) / 3.0;
+            assert!((y - want).abs() < 1e-4, "sample {i}: {y} vs {want}");
+        } else {
+            assert_eq!(x, y, "sample {i}");
+        }
+    }
+}

@@ -77,6 +77,30 @@ pub fn build(e: &EdgeMatch, other: &Heightfield, grid: &Grid) -> Field {
     }
 }
 
+/// The 3 × 1 mean filter across the seam of each edge (Figure 7): samples 1 and 2 in from the
+/// edge each become the mean of themselves and their neighbours towards and away from the
+/// edge, all read before the filter; the edge samples (shared with the neighbour) stay.
+pub fn seam_filter(h: &[f64], cols: usize, rows: usize, edges: &[Edge]) -> Vec<f64> {
+    let mut out = h.to_vec();
+    for &edge in edges {
+        let along = match edge {
+            Edge::West | Edge::East => rows,
+            Edge::North | Edge::South => cols,
+        };
+        let across = match edge {
+            Edge::West | Edge::East => cols,
+            Edge::North | Edge::South => rows,
+        };
+        for k in 0..along {
+            for y in 1..=2.min(across.saturating_sub(2)) {
+                let at = |y: usize| edge_cell(edge, k, y, cols, rows);
+                out[at(y)] = (h[at(y - 1)] + h[at(y)] + h[at(y + 1)]) / 3.0;
+            }
+        }
+    }
+    out
+}
+
 /// The cell `y` in from `edge` at position `k` along it.
 fn edge_cell(edge: Edge, k: usize, y: usize, cols: usize, rows: usize) -> usize {
     match edge {

@@ -8,6 +8,8 @@
 //! under a deformation is evaluated over the kernel's window only.
 
 mod edge_match;
+
+pub use edge_match::seam_filter;
 mod match_heightmap;
 mod points;
 mod preserve;
