@@ -55,8 +55,15 @@ pub enum Side {
 
 impl ContourPath {
     /// The most vertices the path can have.
+    /// (A spacing that is not positive, or a length that is not finite, counts as without
+    /// bound; validation refuses both.)
     pub fn max_vertices(&self) -> u64 {
-        (self.length_m as f64 / self.spacing_m as f64).ceil().min(u64::MAX as f64) as u64 + 1
+        let n = self.length_m as f64 / self.spacing_m as f64;
+        if n.is_finite() && n >= 0.0 {
+            (n.ceil().min(1e18) as u64).saturating_add(1)
+        } else {
+            u64::MAX
+        }
     }
 
     pub fn validate(&self, v: &mut Validator, limits: &Limits) {
@@ -333,5 +340,23 @@ mod tests {
         let steps = apply_operations(&mut edited, &ops, None);
         assert_eq!(steps.len(), v.len() - 1);
         assert!(steps.iter().all(|s| matches!(s, Step::Move(m) if m.from.height == 20.0 && m.to.height == 20.0)));
+    }
+
+    #[test]
+    fn a_zero_or_vanishing_spacing_is_refused_not_counted_to_overflow() {
+        use crate::jobs::{JobKind, Kind, RequestError};
+        // Found by schemathesis: 5e-324 / 0 made the vertex count overflow.
+        for (length, spacing) in [(5e-324, 0.0), (10.0, 0.0), (1e6, 1e-30)] {
+            let body = json!({"terrain": {"fractal": {}}, "operations": [{"pass": {
+                "contour": {"height_m": 0.0, "start": {"x": 0.0, "z": 0.0}, "length_m": length, "spacing_m": spacing},
+                "blade": {"width_m": 2.0}}}]});
+            match Kind::<super::super::Bulldoze>::default().prepare(body, &Limits::default()) {
+                Err(RequestError::Invalid { errors, .. }) => {
+                    assert!(errors.iter().any(|e| e.field.starts_with("operations")), "{errors:?}")
+                }
+                Err(RequestError::Malformed(m)) => panic!("{m}"),
+                Ok(_) => panic!("{length} / {spacing} accepted"),
+            }
+        }
     }
 }

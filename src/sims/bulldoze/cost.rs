@@ -28,8 +28,25 @@ pub fn estimate(params: &BulldozeParams, terrain: &dyn TerrainLookup) -> Result<
         Some(res) => resampled_dimensions(extent.cols, extent.rows, extent.cell_size_m as f32, res),
         None => (extent.cols, extent.rows),
     };
+    // A refine resamples to a finer grid: the finest bounds the grid's memory and every
+    // operation's samples.
+    let finest = params
+        .operations
+        .iter()
+        .filter_map(|op| match op {
+            Operation::Refine(r) if r.resolution.is_finite() && r.resolution > 0.0 => Some(r.resolution),
+            _ => None,
+        })
+        .fold(None, |a: Option<f32>, r| Some(a.map_or(r, |a| a.min(r))));
+    let (cols, rows) = match finest {
+        Some(res) => {
+            let (c, r) = resampled_dimensions(extent.cols, extent.rows, extent.cell_size_m as f32, res);
+            (c.max(cols), r.max(rows))
+        }
+        None => (cols, rows),
+    };
     let cells = cols.saturating_mul(rows);
-    let cell_m = params.resolution.map_or(extent.cell_size_m, f64::from);
+    let cell_m = params.resolution.map_or(extent.cell_size_m, f64::from).min(finest.map_or(f64::INFINITY, f64::from));
     let grid_field = if params.resolution.is_some() { "resolution" } else { "terrain" };
 
     let mut steps_bytes = 0u64;
@@ -42,6 +59,11 @@ pub fn estimate(params: &BulldozeParams, terrain: &dyn TerrainLookup) -> Result<
                 work = work.saturating_add(clip(shape_bounds(&p.shape)));
             }
             Operation::Local(l) => steps_bytes += STEP_BYTES + 100 * l.vertices.len() as u64,
+            // The resampling visits every sample of the finer grid.
+            Operation::Refine(_) => {
+                steps_bytes += STEP_BYTES;
+                work = work.saturating_add(cells);
+            }
             // Every sample once, as the grid's own work counts it.
             Operation::Global(_) => {
                 steps_bytes += STEP_BYTES;
@@ -55,7 +77,8 @@ pub fn estimate(params: &BulldozeParams, terrain: &dyn TerrainLookup) -> Result<
                 let moves = pass.vertices().saturating_sub(1);
                 // Keyframes record a second profile per move (a blend holds both's points).
                 let points = b.profile.len() + pass.keyframes.iter().map(|k| k.profile.len()).max().unwrap_or(0);
-                steps_bytes += moves * (STEP_BYTES + 2 * STEP_PROFILE_POINT_BYTES * points as u64);
+                steps_bytes = steps_bytes
+                    .saturating_add(moves.saturating_mul(STEP_BYTES + 2 * STEP_PROFILE_POINT_BYTES * points as u64));
                 if pass.base == super::params::PathBase::Ground {
                     // The pass-start grid the base reads.
                     steps_bytes += 4 * cells;

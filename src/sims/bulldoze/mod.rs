@@ -14,6 +14,7 @@ mod cost;
 mod params;
 mod path;
 mod primitives;
+mod refine;
 mod scopes;
 mod sequence;
 
@@ -32,6 +33,7 @@ pub use contour::{ContourPath, Side};
 pub use params::{BulldozeParams, Operation, PassOp, PathVertex, PlanPoint, PrimitiveOp, Window};
 pub use path::{MoveStep, PathPoint};
 pub use primitives::{Berm, BoxShape, Cone, HalfCylinder, Mound, Ramp, Shape, Torus};
+pub use refine::Refine;
 pub use scopes::{Clamp, Exaggerate, GlobalOp, LocalOp, LocalVertex};
 pub use sequence::{BulldozeSequence, Step};
 
@@ -77,7 +79,8 @@ impl Simulation for Bulldoze {
 
 /// A finished edit: the grid before and after, what was applied, and its record.
 struct Edit {
-    initial: Vec<f32>,
+    /// The grid before the edit, at its starting resolution.
+    initial: Heightfield,
     hf: Heightfield,
     tally: Tally,
     sequence: BulldozeSequence,
@@ -86,14 +89,15 @@ struct Edit {
 fn run_edit(params: &BulldozeParams, ctx: &RunContext) -> Result<Edit, SimError> {
     let terrain = ctx.resolve_terrain(&params.terrain)?;
     let mut hf = at_resolution(terrain, params.resolution, ctx)?;
-    let initial = hf.heights_m.clone();
+    let initial = hf.clone();
+    let start_resolution_m = hf.cell_size_m;
     let mut dozer = Bulldozer::new(&mut hf, params.window, params.step_count(), ctx);
     let steps = dozer.operations(&params.operations)?;
     let tally = dozer.tally;
     check_heights(&hf)?;
     let sequence = BulldozeSequence {
         terrain: params.terrain.clone(),
-        resolution_m: hf.cell_size_m,
+        resolution_m: start_resolution_m,
         window: params.window,
         steps,
     };
@@ -107,7 +111,7 @@ fn replay_edit(sequence: &BulldozeSequence, until_step: Option<u64>, ctx: &RunCo
     let steps = &sequence.steps[..k];
     let terrain = ctx.resolve_terrain(&sequence.terrain)?;
     let mut hf = at_resolution(terrain, Some(sequence.resolution_m), ctx)?;
-    let initial = hf.heights_m.clone();
+    let initial = hf.clone();
     let mut dozer = Bulldozer::new(&mut hf, sequence.window, k as u64, ctx);
     for group in sequence::groups(steps) {
         match group {
@@ -115,6 +119,7 @@ fn replay_edit(sequence: &BulldozeSequence, until_step: Option<u64>, ctx: &RunCo
             Group::Pass(moves) => dozer.pass(&moves)?,
             Group::Local(l) => dozer.local(l)?,
             Group::Global(g) => dozer.global(g)?,
+            Group::Refine(r) => _ = dozer.refine(r, "refine".into())?,
         }
     }
     let tally = dozer.tally;
@@ -183,6 +188,10 @@ trait Watcher {
     /// An operation that the terrain makes impossible (a contour it does not cross): a job
     /// stops with a problem naming `field`; without a job the operation is skipped.
     fn invalid(&self, field: String, message: String) -> Result<(), Self::Stop>;
+    /// The limits the edit keeps to.
+    fn limits(&self) -> crate::validate::Limits {
+        crate::validate::Limits::default()
+    }
 }
 
 impl Watcher for RunContext<'_> {
@@ -194,6 +203,10 @@ impl Watcher for RunContext<'_> {
 
     fn invalid(&self, field: String, message: String) -> Result<(), SimError> {
         Err(SimError::Invalid { field, message })
+    }
+
+    fn limits(&self) -> crate::validate::Limits {
+        self.limits.clone()
     }
 
     fn progress(&self, step: u64, total: u64, message: impl FnOnce() -> String, hf: Option<&Heightfield>) {
@@ -228,6 +241,8 @@ impl Watcher for Unwatched {
 struct Bulldozer<'a, W: Watcher> {
     hf: &'a mut Heightfield,
     window: Option<Window>,
+    /// The grid cap a refine must keep to.
+    limits: crate::validate::Limits,
     total: u64,
     tally: Tally,
     watcher: &'a W,
@@ -235,7 +250,8 @@ struct Bulldozer<'a, W: Watcher> {
 
 impl<'a, W: Watcher> Bulldozer<'a, W> {
     fn new(hf: &'a mut Heightfield, window: Option<Window>, total: u64, watcher: &'a W) -> Self {
-        Self { hf, window, total, tally: Tally::default(), watcher }
+        let limits = watcher.limits();
+        Self { hf, window, limits, total, tally: Tally::default(), watcher }
     }
 
     /// Apply operations in order, resolving each pass's path against the surface as the
@@ -276,6 +292,11 @@ impl<'a, W: Watcher> Bulldozer<'a, W> {
                     self.global(g)?;
                     steps.push(Step::Global(g.clone()));
                 }
+                Operation::Refine(r) => {
+                    if self.refine(r, format!("operations[{i}].refine.resolution"))? {
+                        steps.push(Step::Refine(*r));
+                    }
+                }
             }
         }
         Ok(steps)
@@ -301,6 +322,29 @@ impl<'a, W: Watcher> Bulldozer<'a, W> {
         self.watcher.check_cancelled()?;
         scopes::apply_global(self.hf, g, self.window.as_ref());
         self.single_step(|| "global".to_string())
+    }
+
+    /// Resample to a finer resolution and narrow the window; whether it was applied (a grid
+    /// too fine for the cap, or a coarser resolution, is `invalid` under `field`).
+    fn refine(&mut self, r: &Refine, field: String) -> Result<bool, W::Stop> {
+        self.watcher.check_cancelled()?;
+        let hf = &*self.hf;
+        let (cols, rows) = params::resampled_dimensions(hf.cols as u64, hf.rows as u64, hf.cell_size_m, r.resolution);
+        let problem = if r.resolution > hf.cell_size_m {
+            Some(format!("must not be coarser than the grid's {} m", hf.cell_size_m))
+        } else {
+            check_resampled(cols, rows, &self.limits).map(|(message, _)| message)
+        };
+        if let Some(message) = problem {
+            self.watcher.invalid(field, message)?;
+            return Ok(false);
+        }
+        if r.resolution != hf.cell_size_m {
+            *self.hf = hf.resampled(r.resolution);
+        }
+        self.window = Some(refine::intersect(self.window, r.window));
+        self.single_step(|| format!("refine to {} m", r.resolution))?;
+        Ok(true)
     }
 
     /// Count a one-step operation of a scope without a primitive's footprint and report it.
@@ -334,7 +378,16 @@ impl Edit {
     /// The bulldozer's own figures: counts of what was applied, and how the grid changed.
     fn figures(&self) -> serde_json::Map<String, Value> {
         let cell_area = self.hf.cell_size_m as f64 * self.hf.cell_size_m as f64;
-        let (changed, cut, fill) = change_totals(&self.initial, &self.hf);
+        // A refined grid is compared with the start resampled to it.
+        let same = self.initial.cols == self.hf.cols && self.initial.rows == self.hf.rows;
+        let resampled;
+        let initial = if same {
+            &self.initial.heights_m
+        } else {
+            resampled = self.initial.resampled(self.hf.cell_size_m);
+            &resampled.heights_m
+        };
+        let (changed, cut, fill) = change_totals(initial, &self.hf);
         let t = self.tally;
         [
             ("operations", json!(t.primitives + t.passes + t.scoped)),

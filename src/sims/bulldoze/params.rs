@@ -8,6 +8,7 @@ use super::blade::Blade;
 use super::combine::Operator;
 use super::contour::ContourPath;
 use super::primitives::Shape;
+use super::refine::Refine;
 use super::scopes::{GlobalOp, LocalOp};
 use crate::export::TileGrid;
 use crate::terrain::TerrainSource;
@@ -89,6 +90,8 @@ pub enum Operation {
     Local(LocalOp),
     /// A height transform of every vertex.
     Global(GlobalOp),
+    /// From here on, a finer resolution and a window: detail worked inside a coarser whole.
+    Refine(Refine),
 }
 
 fn default_primitive_operator() -> Operator {
@@ -259,10 +262,10 @@ impl BulldozeParams {
         self.operations
             .iter()
             .map(|op| match op {
-                Operation::Primitive(_) | Operation::Local(_) | Operation::Global(_) => 1,
+                Operation::Primitive(_) | Operation::Local(_) | Operation::Global(_) | Operation::Refine(_) => 1,
                 Operation::Pass(p) => p.vertices().saturating_sub(1),
             })
-            .sum()
+            .fold(0u64, u64::saturating_add)
     }
 }
 
@@ -317,11 +320,11 @@ impl Validate for BulldozeParams {
             .operations
             .iter()
             .map(|op| match op {
-                Operation::Primitive(_) | Operation::Global(_) => 1,
+                Operation::Primitive(_) | Operation::Global(_) | Operation::Refine(_) => 1,
                 Operation::Pass(p) => p.vertices(),
                 Operation::Local(l) => l.vertices.len() as u64,
             })
-            .sum();
+            .fold(0u64, u64::saturating_add);
         if steps > limits.max_operations {
             v.too_large(
                 "operations",
@@ -336,6 +339,34 @@ impl Validate for BulldozeParams {
                 v.index(i, |v| op.validate(v, limits));
             }
         });
+        // Each refine's grid, when the terrain's size is known: finer than the one before, and
+        // within the cap.
+        let dims = self.terrain.known_dimensions().zip(self.terrain.known_cell_size());
+        if let Some(((cols, rows), cell)) = dims.filter(|(_, cell)| cell.is_finite() && *cell > 0.0) {
+            let mut current = self.resolution.filter(|r| r.is_finite() && *r > 0.0).unwrap_or(cell);
+            v.field("operations", |v| {
+                for (i, op) in self.operations.iter().enumerate() {
+                    let Operation::Refine(r) = op else { continue };
+                    if !(r.resolution.is_finite() && r.resolution > 0.0) {
+                        continue;
+                    }
+                    v.index(i, |v| {
+                        v.field("refine", |v| {
+                            if r.resolution > current {
+                                v.error("resolution", format!("must not be coarser than the grid's {current} m"));
+                            }
+                            let (c, rr) = resampled_dimensions(cols, rows, cell, r.resolution);
+                            match check_resampled(c, rr, limits) {
+                                Some((message, true)) => v.too_large("resolution", message),
+                                Some((message, false)) => v.error("resolution", message),
+                                None => {}
+                            }
+                        })
+                    });
+                    current = current.min(r.resolution);
+                }
+            });
+        }
     }
 }
 
@@ -362,6 +393,7 @@ impl Validate for Operation {
             Operation::Pass(p) => v.field("pass", |v| p.validate(v, limits)),
             Operation::Local(l) => v.field("local", |v| l.validate(v, limits)),
             Operation::Global(g) => v.field("global", |v| g.validate(v, limits)),
+            Operation::Refine(r) => v.field("refine", |v| r.validate(v, limits)),
         }
     }
 }

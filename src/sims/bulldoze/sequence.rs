@@ -5,6 +5,7 @@ use serde::{Deserialize, Serialize};
 
 use super::params::{PrimitiveOp, Window};
 use super::path::MoveStep;
+use super::refine::Refine;
 use super::scopes::{GlobalOp, LocalOp};
 use crate::jobs::Sequence;
 use crate::terrain::TerrainSource;
@@ -15,7 +16,7 @@ use crate::terrain::TerrainSource;
 pub struct BulldozeSequence {
     /// The starting terrain, as requested.
     pub terrain: TerrainSource,
-    /// Metres between samples of the grid the steps were applied to.
+    /// Metres between samples of the grid the steps start on (a `refine` step resamples it).
     pub resolution_m: f32,
     pub window: Option<Window>,
     /// One step per primitive and per move, in the order applied.
@@ -30,6 +31,7 @@ pub enum Step {
     Move(MoveStep),
     Local(LocalOp),
     Global(GlobalOp),
+    Refine(Refine),
 }
 
 impl Sequence for BulldozeSequence {
@@ -44,6 +46,7 @@ pub enum Group<'a> {
     Pass(Vec<MoveStep>),
     Local(&'a LocalOp),
     Global(&'a GlobalOp),
+    Refine(&'a Refine),
 }
 
 /// Split steps into primitives and passes (runs of moves with the same pass number).
@@ -62,6 +65,10 @@ pub fn groups(steps: &[Step]) -> Vec<Group<'_>> {
             }
             Step::Global(g) => {
                 out.push(Group::Global(g));
+                i += 1;
+            }
+            Step::Refine(r) => {
+                out.push(Group::Refine(r));
                 i += 1;
             }
             Step::Move(first) => {

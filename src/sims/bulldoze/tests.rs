@@ -73,7 +73,7 @@ fn truncated(p: &BulldozeParams, k: u64) -> BulldozeParams {
             break;
         }
         match op {
-            Operation::Primitive(_) | Operation::Local(_) | Operation::Global(_) => {
+            Operation::Primitive(_) | Operation::Local(_) | Operation::Global(_) | Operation::Refine(_) => {
                 operations.push(op.clone());
                 left -= 1;
             }

@@ -113,45 +113,36 @@ fn edge_cell(edge: Edge, k: usize, y: usize, cols: usize, rows: usize) -> usize 
 
 /// The 99th-percentile slope (rise over run between neighbouring samples) of a grid.
 pub fn p99_slope(h: &[f64], cols: usize, rows: usize, cell_m: f64) -> f64 {
-    let mut slopes = Vec::with_capacity(2 * cols * rows);
-    for r in 0..rows {
-        for c in 0..cols {
-            let i = r * cols + c;
-            if c + 1 < cols {
-                slopes.push((h[i + 1] - h[i]).abs() / cell_m);
-            }
-            if r + 1 < rows {
-                slopes.push((h[i + cols] - h[i]).abs() / cell_m);
-            }
-        }
-    }
-    if slopes.is_empty() {
-        return 0.0;
-    }
-    slopes.sort_by(f64::total_cmp);
-    slopes[((slopes.len() - 1) as f64 * 0.99).round() as usize]
+    p99_difference(h, cols, rows, cell_m, 1)
 }
 
 /// The 99th-percentile change of slope between consecutive steps along rows and columns (the
 /// second difference over the cell size): how sharply the terrain's own slopes bend.
 pub fn p99_kink(h: &[f64], cols: usize, rows: usize, cell_m: f64) -> f64 {
-    let mut kinks = Vec::with_capacity(2 * cols * rows);
+    p99_difference(h, cols, rows, cell_m, 2)
+}
+
+/// The 99th percentile of |first| (order 1) or |second| (order 2) differences along rows and
+/// columns, over the cell size.
+fn p99_difference(h: &[f64], cols: usize, rows: usize, cell_m: f64, order: usize) -> f64 {
+    let diff = |a: f64, b: f64, c: f64| if order == 1 { b - a } else { c - 2.0 * b + a };
+    let mut values = Vec::with_capacity(2 * cols * rows);
     for r in 0..rows {
         for c in 0..cols {
             let i = r * cols + c;
-            if c + 2 < cols {
-                kinks.push((h[i + 2] - 2.0 * h[i + 1] + h[i]).abs() / cell_m);
+            if c + order < cols {
+                values.push(diff(h[i], h[i + 1], h[i + order]).abs() / cell_m);
             }
-            if r + 2 < rows {
-                kinks.push((h[i + 2 * cols] - 2.0 * h[i + cols] + h[i]).abs() / cell_m);
+            if r + order < rows {
+                values.push(diff(h[i], h[i + cols], h[i + order * cols]).abs() / cell_m);
             }
         }
     }
-    if kinks.is_empty() {
+    if values.is_empty() {
         return 0.0;
     }
-    kinks.sort_by(f64::total_cmp);
-    kinks[((kinks.len() - 1) as f64 * 0.99).round() as usize]
+    values.sort_by(f64::total_cmp);
+    values[((values.len() - 1) as f64 * 0.99).round() as usize]
 }
 
 /// At the shared edge: the RMS height mismatch as a share of the relief, and the sharpest bend
