@@ -51,10 +51,7 @@ pub fn simplify_within(mesh: &Mesh, bound_m: f32) -> Lod {
         );
         let simple = compact(mesh, &indices);
         let deviation = max_deviation(mesh, &simple, spacing);
-        // The simplifier can leave slivers with collinear corners where the surface runs
-        // exactly linear over many samples (a grid resampled from a coarser one): a finer
-        // target keeps more of the grid and none of them.
-        if deviation <= bound_m && simple.degeneracies().0 == 0 {
+        if deviation <= bound_m {
             return Lod {
                 mesh: simple,
                 target_m: target,
