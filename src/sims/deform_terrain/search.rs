@@ -17,7 +17,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::constraints::{Field, Fitness};
+use super::constraints::{Best, Field, Fitness};
 use super::kernel::{self, Kernel, Rect};
 use super::prediction;
 use super::sequence::Deformation;
@@ -61,6 +61,10 @@ pub fn unit_displacements(count: usize) -> Vec<f64> {
     }
     (0..count).map(|k| -1.0 + 2.0 * k as f64 / (count - 1) as f64).filter(|u| u.abs() > 1e-12).collect()
 }
+
+/// How far down the improving entries are sorted up front, per deformation in a batch: the
+/// batch passes over entries whose windows meet those already taken.
+const HEAD_PER_BATCH: usize = 32;
 
 /// Windows larger than this many cells a side are estimated on a sparser lattice.
 const EXACT_SIDE: usize = 25;
@@ -128,6 +132,9 @@ struct Entry {
     delta: f64,
     fresh: bool,
     confidence: f64,
+    /// The quadratic part's curvature at this place and stride (NaN until first evaluated):
+    /// it never changes, so it is summed once.
+    curvature: f64,
 }
 
 /// Why the search stopped.
@@ -179,14 +186,17 @@ pub fn search<W: Watch>(
                 delta: 0.0,
                 fresh: false,
                 confidence: 1.0,
+                curvature: f64::NAN,
             })
         })
         .collect();
-    let eval = |h: &[f64], e: &Entry| {
+    let mut residual = fitness.residual(h);
+    let eval = |h: &[f64], residual: &[f64], e: &Entry| {
         let k = e.radius as usize;
         let kernel = &s.kernels[k];
         fitness.best_change(
             h,
+            residual,
             e.col as usize,
             e.row as usize,
             kernel,
@@ -194,10 +204,15 @@ pub fn search<W: Watch>(
             &s.deltas[k],
             s.d_max[k],
             true,
+            (!e.curvature.is_nan()).then_some(e.curvature),
         )
     };
+    // In row order (as the vertices come), so the entries of a band of rows are a range.
+    table.sort_by_key(|e| (e.row, e.col, e.radius));
+    let row_start: Vec<usize> = (0..=rows).map(|r| table.partition_point(|e| (e.row as usize) < r)).collect();
+    let widest = s.kernels.iter().map(|k| k.radius).max().unwrap_or(0);
     let all: Vec<usize> = (0..table.len()).collect();
-    let mut evaluations = recompute_watched(h, &mut table, &all, &eval, watch)?;
+    let mut evaluations = recompute_watched(h, &residual, &mut table, &all, &eval, watch)?;
     let mut operations = Vec::new();
     let mut stop = Stop::MaxIterations;
     let mut improving: Vec<usize> = Vec::with_capacity(table.len());
@@ -205,12 +220,13 @@ pub fn search<W: Watch>(
     let window =
         |e: &Entry| Rect::around(e.col as usize, e.row as usize, s.kernels[e.radius as usize].radius, cols, rows);
     // The exact change of an estimated entry at its chosen displacement (None: exact already).
-    let exact = |h: &[f64], e: &Entry| {
+    let exact = |h: &[f64], residual: &[f64], e: &Entry| {
         let kernel = &s.kernels[e.radius as usize];
         (stride(kernel.radius) > 1).then(|| {
             fitness
                 .best_change(
                     h,
+                    residual,
                     e.col as usize,
                     e.row as usize,
                     kernel,
@@ -218,8 +234,9 @@ pub fn search<W: Watch>(
                     &[e.delta],
                     s.d_max[e.radius as usize],
                     false,
+                    None,
                 )
-                .0
+                .change
         })
     };
 
@@ -234,27 +251,36 @@ pub fn search<W: Watch>(
         improving.extend((0..table.len()).filter(|&i| table[i].fresh && table[i].change < 0.0));
         if improving.is_empty() {
             let stale: Vec<usize> = (0..table.len()).filter(|&i| !table[i].fresh).collect();
-            evaluations += recompute_watched(h, &mut table, &stale, &eval, watch)?;
+            evaluations += recompute_watched(h, &residual, &mut table, &stale, &eval, watch)?;
             improving.extend((0..table.len()).filter(|&i| table[i].change < 0.0));
         }
-        improving.sort_by(|&a, &b| table[a].change.total_cmp(&table[b].change).then(a.cmp(&b)));
+        // Best first. Only the head is ever read unless the batch runs past it, so the head is
+        // selected and sorted, and the rest only when reached (the order is total: the same
+        // as sorting everything).
+        let top = ((s.top_fraction * table.len() as f64).ceil() as usize).max(1);
+        let mut sorted = improving.len().min(top.max(HEAD_PER_BATCH * s.batch));
+        if sorted < improving.len() {
+            improving.select_nth_unstable_by(sorted, best_first(&table));
+        }
+        improving[..sorted].sort_unstable_by(best_first(&table));
         let chosen = loop {
             if improving.is_empty() {
                 break None;
             }
-            let pick = if rng.random::<f64>() < s.p {
-                0
-            } else {
-                let top = ((s.top_fraction * table.len() as f64).ceil() as usize).clamp(1, improving.len());
-                rng.random_range(0..top)
-            };
+            let pick = if rng.random::<f64>() < s.p { 0 } else { rng.random_range(0..top.min(improving.len())) };
             let i = improving[pick];
             let e = table[i];
-            if let Some(change) = exact(h, &e) {
+            if let Some(change) = exact(h, &residual, &e) {
                 evaluations += 1;
                 table[i].change = change;
                 if change >= 0.0 {
                     improving.remove(pick);
+                    sorted -= 1;
+                    if sorted < top.min(improving.len()) {
+                        // The draw may reach past the sorted head now: sort the rest.
+                        improving[sorted..].sort_unstable_by(best_first(&table));
+                        sorted = improving.len();
+                    }
                     continue;
                 }
             }
@@ -270,16 +296,21 @@ pub fn search<W: Watch>(
         let mut batch = vec![e];
         let mut dirty = dirty_rects(window(&e), cols, rows, s.tile_x, s.tile_z);
         if s.batch > 1 {
-            for &j in improving.iter() {
+            for k in 0..improving.len() {
                 if batch.len() >= s.batch {
                     break;
                 }
+                if k == sorted {
+                    improving[sorted..].sort_unstable_by(best_first(&table));
+                    sorted = improving.len();
+                }
+                let j = improving[k];
                 let t = table[j];
                 let w = window(&t);
                 if j == first || t.change >= 0.0 || dirty.iter().any(|d| d.intersects(&w)) {
                     continue;
                 }
-                if let Some(change) = exact(h, &t) {
+                if let Some(change) = exact(h, &residual, &t) {
                     evaluations += 1;
                     table[j].change = change;
                     if change >= 0.0 {
@@ -303,17 +334,23 @@ pub fn search<W: Watch>(
                 radius_cells: kernel.radius as u32,
                 radius_m: kernel.radius as f64 * s.cell_m,
             };
-            tracker.apply(h, &op, kernel);
+            let rect = tracker.apply(h, &op, kernel);
+            fitness.refresh_residual(&mut residual, h, rect);
             operations.push(op);
         }
 
         // Invalidate what the change can reach; recompute (with prediction, only the likely).
+        // Only entries within the widest radius of a changed row can reach it.
+        for d in &dirty {
+            let (lo, hi) = (d.r0.saturating_sub(widest), (d.r1 + widest).min(rows - 1));
+            for t in &mut table[row_start[lo]..row_start[hi + 1]] {
+                if t.fresh && window(t).intersects(d) {
+                    t.fresh = false;
+                }
+            }
+        }
         let mut todo = Vec::new();
         for (i, t) in table.iter_mut().enumerate() {
-            let w = window(t);
-            if dirty.iter().any(|d| d.intersects(&w)) {
-                t.fresh = false;
-            }
             if !t.fresh {
                 if !s.prediction || t.confidence >= prediction::THRESHOLD {
                     todo.push(i);
@@ -322,13 +359,14 @@ pub fn search<W: Watch>(
                 }
             }
         }
-        evaluations += recompute(h, &mut table, &todo, &eval);
+        evaluations += recompute(h, &residual, &mut table, &todo, &eval);
         if s.prediction {
-            let (mut best, mut worst) = (f64::INFINITY, f64::NEG_INFINITY);
-            for t in table.iter().filter(|t| t.fresh) {
-                best = best.min(t.change);
-                worst = worst.max(t.change);
-            }
+            // The worst is taken as "no change" (0): a candidate that cannot improve the terrain
+            // is no nearer the top for harming it less than another, and with the table's true
+            // worst — some far-off entry whose every displacement hurts — every improvement
+            // ranked near full confidence, so on roads nothing was ever skipped.
+            let best = table.iter().filter(|t| t.fresh).fold(0.0f64, |b, t| b.min(t.change));
+            let worst = 0.0;
             for &i in &todo {
                 table[i].confidence = prediction::confidence(table[i].change, best, worst, s.prediction_constant);
             }
@@ -338,6 +376,11 @@ pub fn search<W: Watch>(
     Ok(Searched { operations, iterations, evaluations, stop })
 }
 
+/// Entries by their change, best first; ties by index, so the order is total.
+fn best_first(table: &[Entry]) -> impl Fn(&usize, &usize) -> std::cmp::Ordering + '_ {
+    |a, b| table[*a].change.total_cmp(&table[*b].change).then(a.cmp(b))
+}
+
 /// Recompute the listed entries in parallel; returns how many were evaluated.
 /// Entries recomputed between looks at the stop request: a whole table can take seconds.
 const ENTRIES_PER_CHECK: usize = 1 << 16;
@@ -345,31 +388,34 @@ const ENTRIES_PER_CHECK: usize = 1 << 16;
 /// [`recompute`] in chunks, looking at `watch` between them.
 fn recompute_watched<W: Watch>(
     h: &[f64],
+    residual: &[f64],
     table: &mut [Entry],
     which: &[usize],
-    eval: &(impl Fn(&[f64], &Entry) -> (f64, f64) + Sync),
+    eval: &(impl Fn(&[f64], &[f64], &Entry) -> Best + Sync),
     watch: &W,
 ) -> Result<u64, W::Stop> {
     let mut n = 0;
     for chunk in which.chunks(ENTRIES_PER_CHECK) {
         watch.check()?;
-        n += recompute(h, table, chunk, eval);
+        n += recompute(h, residual, table, chunk, eval);
     }
     Ok(n)
 }
 
 fn recompute(
     h: &[f64],
+    residual: &[f64],
     table: &mut [Entry],
     which: &[usize],
-    eval: &(impl Fn(&[f64], &Entry) -> (f64, f64) + Sync),
+    eval: &(impl Fn(&[f64], &[f64], &Entry) -> Best + Sync),
 ) -> u64 {
     let snapshot: &[Entry] = table;
-    let results: Vec<(f64, f64)> = which.par_iter().map(|&i| eval(h, &snapshot[i])).collect();
-    for (&i, (change, delta)) in which.iter().zip(results) {
+    let results: Vec<Best> = which.par_iter().map(|&i| eval(h, residual, &snapshot[i])).collect();
+    for (&i, best) in which.iter().zip(results) {
         let t = &mut table[i];
-        t.change = change;
-        t.delta = delta;
+        t.change = best.change;
+        t.delta = best.delta;
+        t.curvature = best.curvature;
         t.fresh = true;
     }
     which.len() as u64

@@ -347,14 +347,36 @@ impl Fitness {
         Self { cols, rows, q, m, one_sided, pairs }
     }
 
+    /// The weighted residual `q (h − m)` of every cell: the quadratic part's slope, which
+    /// [`Fitness::best_change`] correlates with the kernel.
+    pub fn residual(&self, h: &[f64]) -> Vec<f64> {
+        h.iter().zip(&self.q).zip(&self.m).map(|((&h, &q), &m)| q * (h - m)).collect()
+    }
+
+    /// Bring `residual` up to date with `h` over `rect` (after a deformation there).
+    pub fn refresh_residual(&self, residual: &mut [f64], h: &[f64], rect: Rect) {
+        for r in rect.r0..=rect.r1 {
+            let (i0, i1) = (r * self.cols + rect.c0, r * self.cols + rect.c1);
+            for (((o, &h), &q), &m) in
+                residual[i0..=i1].iter_mut().zip(&h[i0..=i1]).zip(&self.q[i0..=i1]).zip(&self.m[i0..=i1])
+            {
+                *o = q * (h - m);
+            }
+        }
+    }
+
     /// The best change in F over `deltas` (and the closed-form optimum of the quadratic part,
-    /// clamped to ±`d_max`) of a deformation at (col, row) with `kernel`: (ΔF, δ). With
-    /// `stride` > 1 only every stride-th cell (through the centre) is summed, scaled by
-    /// stride², as an estimate. Sums run in a fixed order; nothing is allocated.
+    /// clamped to ±`d_max`) of a deformation at (col, row) with `kernel`. With `stride` > 1
+    /// only every stride-th cell (through the centre) is summed, scaled by stride², as an
+    /// estimate. `residual` is [`Fitness::residual`] of `h`. The curvature `a` of the quadratic
+    /// part (Σ q K², plus the pairs') depends on the weights and the kernel only, never on the
+    /// heights: pass the one an earlier call at the same place and stride returned, and it is
+    /// not summed again. Sums run in a fixed order; nothing is allocated.
     #[allow(clippy::too_many_arguments)]
     pub fn best_change(
         &self,
         h: &[f64],
+        residual: &[f64],
         col: usize,
         row: usize,
         kernel: &Kernel,
@@ -362,7 +384,8 @@ impl Fitness {
         deltas: &[f64],
         d_max: f64,
         with_optimum: bool,
-    ) -> (f64, f64) {
+        curvature: Option<f64>,
+    ) -> Best {
         let cols = self.cols;
         let rad = kernel.radius as i64;
         let rect = Rect::around(col, row, kernel.radius, cols, self.rows);
@@ -385,21 +408,14 @@ impl Fitness {
             let (c0, c1) = ((col as i64 + dx0) as usize, (col as i64 + dx1) as usize);
             (krow, r * cols + c0, r * cols + c1)
         };
+        // b = Σ K·q(h − m), and a = Σ q K² when it is not known yet.
         let (mut a, mut b) = (0.0, 0.0);
         let mut dz = dz0;
         while dz <= dz1 {
             let (krow, i0, i1) = row_slices(dz);
-            let (hs, qs, ms) = (&h[i0..=i1], &self.q[i0..=i1], &self.m[i0..=i1]);
-            for (((&k, &hi), &qi), &mi) in krow
-                .iter()
-                .step_by(stride)
-                .zip(hs.iter().step_by(stride))
-                .zip(qs.iter().step_by(stride))
-                .zip(ms.iter().step_by(stride))
-            {
-                let qk = qi * k;
-                a += qk * k;
-                b += qk * (hi - mi);
+            b += dot(krow, &residual[i0..=i1], stride);
+            if curvature.is_none() {
+                a += dot3(krow, krow, &self.q[i0..=i1], stride);
             }
             dz += s;
         }
@@ -450,6 +466,7 @@ impl Fitness {
             }
         }
 
+        let a = curvature.unwrap_or(a);
         let mut trial = [0.0f64; MAX_DELTAS];
         let mut n = deltas.len().min(MAX_DELTAS - 1);
         trial[..n].copy_from_slice(&deltas[..n]);
@@ -497,14 +514,57 @@ impl Fitness {
             }
         }
 
-        let mut best = (f64::INFINITY, 0.0);
+        let mut best = Best { change: f64::INFINITY, delta: 0.0, curvature: a };
         for (&d, &df) in trial.iter().zip(&change[..n]) {
-            if df < best.0 {
-                best = (df, d);
+            if df < best.change {
+                (best.change, best.delta) = (df, d);
             }
         }
         best
     }
+}
+
+/// What [`Fitness::best_change`] found: the change in F, the displacement that makes it, and
+/// the curvature to pass back next time.
+#[derive(Clone, Copy, Debug)]
+pub struct Best {
+    pub change: f64,
+    pub delta: f64,
+    pub curvature: f64,
+}
+
+/// Σ x·y over every `stride`-th element, in four interleaved partial sums (a fixed order the
+/// compiler can keep in registers, whatever the thread).
+#[inline]
+fn dot(x: &[f64], y: &[f64], stride: usize) -> f64 {
+    let n = x.len().min(y.len());
+    let (x, y) = (&x[..n], &y[..n]);
+    let mut acc = [0.0f64; 4];
+    let mut i = 0;
+    while i + 3 * stride < n {
+        for (l, a) in acc.iter_mut().enumerate() {
+            *a += x[i + l * stride] * y[i + l * stride];
+        }
+        i += 4 * stride;
+    }
+    while i < n {
+        acc[0] += x[i] * y[i];
+        i += stride;
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3])
+}
+
+/// Σ x·y·z over every `stride`-th element, as [`dot`].
+#[inline]
+fn dot3(x: &[f64], y: &[f64], z: &[f64], stride: usize) -> f64 {
+    let n = x.len().min(y.len()).min(z.len());
+    let mut sum = 0.0;
+    let mut i = 0;
+    while i < n {
+        sum += x[i] * y[i] * z[i];
+        i += stride;
+    }
+    sum
 }
 
 /// The sea level the pictures show: the first shape mask's water level, if there is a mask.

@@ -70,7 +70,8 @@ fn the_windowed_change_equals_the_full_recomputation() {
         let delta = rng.random_range(-8.0..8.0);
         let kernel = Kernel::new(radius);
         let before = total(&fields, &h, cols, rows);
-        let (change, d) = fitness.best_change(&h, col, row, &kernel, 1, &[delta], 8.0, false);
+        let best = fitness.best_change(&h, &fitness.residual(&h), col, row, &kernel, 1, &[delta], 8.0, false, None);
+        let (change, d) = (best.change, best.delta);
         assert_eq!(d, delta);
         let mut after_h = h.clone();
         let amplitude = after_h[row * cols + col] + delta;
@@ -102,7 +103,8 @@ fn the_closed_form_displacement_is_the_best_of_the_quadratic_part() {
     let fitness = Fitness::new(&fields, cols, rows);
     let kernel = Kernel::new(5);
     let want = 50.0 - h0[15 * cols + 15];
-    let (change, d) = fitness.best_change(&h0, 15, 15, &kernel, 1, &[1.0, -1.0], 100.0, true);
+    let best = fitness.best_change(&h0, &fitness.residual(&h0), 15, 15, &kernel, 1, &[1.0, -1.0], 100.0, true, None);
+    let (change, d) = (best.change, best.delta);
     assert!((d - want).abs() < 1e-9, "{d} vs {want}");
     assert!((change + fields[0].value(&h0, cols, rows)).abs() < 1e-12);
 }
