@@ -26,10 +26,10 @@ fn star_1025() -> (DeformTerrainParams, u64) {
     let (mut p, seed) = example("star-island.json");
     let mut v = serde_json::to_value(&p).unwrap();
     v["terrain"]["fractal"]["size"] = 1025.into();
-    for poly in v["constraints"][0]["shape_mask"]["mask"]["polygons"].as_array_mut().unwrap() {
+    for poly in v["constraints"][0]["shape_mask"]["mask"]["polygons_m"].as_array_mut().unwrap() {
         for pt in poly.as_array_mut().unwrap() {
-            for c in pt.as_array_mut().unwrap() {
-                *c = (c.as_f64().unwrap() * 4.0).into();
+            for axis in ["x", "z"] {
+                pt[axis] = (pt[axis].as_f64().unwrap() * 4.0).into();
             }
         }
     }
@@ -46,7 +46,7 @@ fn report(label: &str, p: &DeformTerrainParams, seed: u64) {
     let r = run(p, seed);
     let figures: Vec<Value> = r["constraints"].as_array().unwrap().to_vec();
     eprintln!(
-        "{label}: {:.2} s, fitness {:.3e} (from {:.3e}), {} iterations, {} operations, {} evaluations, stopped {}, sequence {} B vs png {} B, {}",
+        "{label}: {:.2} s, fitness {:.3e} (from {:.3e}), {} iterations, {} operations, {} evaluations, stopped {}, sequence.bin {} B vs png {} B, {}",
         started.elapsed().as_secs_f64(),
         r["fitness"].as_f64().unwrap(),
         r["fitness_initial"].as_f64().unwrap(),
@@ -54,7 +54,7 @@ fn report(label: &str, p: &DeformTerrainParams, seed: u64) {
         r["operations"],
         r["evaluations"],
         r["stopped"],
-        r["sequence_bytes"],
+        r["sequence_bin"]["bytes"],
         r["heightmap_png_bytes"],
         serde_json::to_string(&figures).unwrap()
     );
@@ -63,7 +63,14 @@ fn report(label: &str, p: &DeformTerrainParams, seed: u64) {
 fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("deform_terrain_257");
     group.sample_size(10);
-    for name in ["star-island.json", "s-road.json", "merge-edges.json", "star-island-roads.json"] {
+    for name in [
+        "star-island.json",
+        "s-road.json",
+        "merge-edges.json",
+        "star-island-roads.json",
+        "tileable.json",
+        "terraces.json",
+    ] {
         for prediction in [true, false] {
             let (mut p, seed) = example(name);
             p.prediction = prediction;

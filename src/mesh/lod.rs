@@ -8,8 +8,14 @@
 //! sides of a carved coast, a column's base on the ground) never move, so pieces that meet stay
 //! joined at every level.
 
+use std::collections::HashMap;
+
 use super::deviation::{max_deviation, mean_triangle_side};
+use super::types::zero_area;
 use super::Mesh;
+
+/// Rounds of mending slivers (a split can leave a new one where corners line up again).
+const MEND_ROUNDS: usize = 4;
 
 /// Halvings of meshoptimizer's target before a level falls back to the full mesh.
 const RETRIES: usize = 6;
@@ -49,7 +55,7 @@ pub fn simplify_within(mesh: &Mesh, bound_m: f32) -> Lod {
             meshopt::SimplifyOptions::ErrorAbsolute | meshopt::SimplifyOptions::LockBorder,
             Some(&mut error),
         );
-        let simple = compact(mesh, &indices);
+        let simple = compact(mesh, &mend_slivers(indices, &mesh.positions));
         let deviation = max_deviation(mesh, &simple, spacing);
         if deviation <= bound_m {
             return Lod {
@@ -63,6 +69,65 @@ pub fn simplify_within(mesh: &Mesh, bound_m: f32) -> Lod {
         target *= 0.5;
     }
     Lod { mesh: mesh.clone(), target_m: 0.0, simplifier_error_m: 0.0, deviation_m: 0.0, sample_spacing_m: spacing }
+}
+
+/// `indices` without zero-area triangles, the surface unchanged. meshoptimizer can leave a
+/// sliver whose three corners lie on one line where the surface runs exactly straight (a
+/// refined grid resampled bilinearly, a locked straight border). The sliver is dropped, and
+/// the triangle across its longest edge — which has the sliver's middle corner on that edge,
+/// a T-junction — is split there in two, so the mesh stays watertight and its count of
+/// triangles does not grow.
+fn mend_slivers(mut indices: Vec<u32>, positions: &[[f32; 3]]) -> Vec<u32> {
+    let p = |i: u32| positions[i as usize];
+    let is_sliver = |t: &[u32]| zero_area(p(t[0]), p(t[1]), p(t[2]));
+    for round in 0..=MEND_ROUNDS {
+        if !indices.chunks_exact(3).any(is_sliver) {
+            break;
+        }
+        if round == MEND_ROUNDS {
+            // What is left after the rounds is dropped unmended: zero area covers nothing.
+            return indices.chunks_exact(3).filter(|t| !is_sliver(t)).flatten().copied().collect();
+        }
+        let triangles: Vec<[u32; 3]> = indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+        let across: HashMap<(u32, u32), usize> = triangles
+            .iter()
+            .enumerate()
+            .flat_map(|(n, t)| [((t[0], t[1]), n), ((t[1], t[2]), n), ((t[2], t[0]), n)])
+            .collect();
+        let mut dead = vec![false; triangles.len()];
+        let mut split = Vec::new();
+        for (n, t) in triangles.iter().enumerate() {
+            if dead[n] || !is_sliver(t) {
+                continue;
+            }
+            // The longest edge (from, to) and the corner between its ends.
+            let length = |a: u32, b: u32| {
+                let (a, b) = (p(a), p(b));
+                (0..3).map(|k| (f64::from(a[k]) - f64::from(b[k])).powi(2)).sum::<f64>()
+            };
+            let k = (0..3)
+                .max_by(|&i, &j| length(t[i], t[(i + 1) % 3]).total_cmp(&length(t[j], t[(j + 1) % 3])))
+                .unwrap_or(0);
+            let (from, to, middle) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            // The neighbour runs the edge the other way: (to, from, far) → (to, middle, far) and
+            // (middle, from, far), the same winding.
+            // Without one the long edge is the mesh's border, and the sliver just goes; one split
+            // already this round waits for the next, when its halves are the neighbours.
+            match across.get(&(to, from)) {
+                Some(&m) if dead[m] || m == n => continue,
+                Some(&m) => {
+                    dead[m] = true;
+                    let o = triangles[m];
+                    let far = o.into_iter().find(|&v| v != to && v != from).unwrap_or(o[0]);
+                    split.extend([to, middle, far, middle, from, far]);
+                }
+                None => {}
+            }
+            dead[n] = true;
+        }
+        indices = triangles.iter().zip(&dead).filter(|(_, &d)| !d).flat_map(|(t, _)| *t).chain(split).collect();
+    }
+    indices
 }
 
 /// How far apart the deviation's samples lie: half the bound, but no closer than the full
@@ -148,6 +213,43 @@ mod tests {
             v
         };
         assert_eq!(border(&lod.mesh), border(&full), "every border vertex kept, bit for bit");
+    }
+
+    #[test]
+    fn a_sliver_is_dropped_and_the_triangle_across_it_split_at_its_middle_corner() {
+        // A, B, C on one line (a sliver A B C), D on one side, E on the other; the sliver's
+        // long edge C A is D's triangle's edge A C, with B on it: a T-junction once the sliver
+        // is gone.
+        let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 0.0, 1.0], [1.0, 0.0, -1.0]];
+        let (a, b, c, d, e) = (0, 1, 2, 3, 4);
+        let mended = mend_slivers(vec![a, b, c, a, c, d, b, a, e, c, b, e], &positions);
+        let triangles: Vec<&[u32]> = mended.chunks_exact(3).collect();
+        assert_eq!(triangles.len(), 4, "{mended:?}");
+        assert!(triangles.iter().all(|t| !zero_area(
+            positions[t[0] as usize],
+            positions[t[1] as usize],
+            positions[t[2] as usize]
+        )));
+        // The area (all in the y = 0 plane, wound one way) is the two halves' 1 + 1, and the
+        // only edges used once are the outline D C, A D, A E, E C: no T-junction at B.
+        let area: f64 = triangles
+            .iter()
+            .map(|t| {
+                let q = |i: u32| positions[i as usize].map(f64::from);
+                let (p0, p1, p2) = (q(t[0]), q(t[1]), q(t[2]));
+                0.5 * ((p1[2] - p0[2]) * (p2[0] - p0[0]) - (p1[0] - p0[0]) * (p2[2] - p0[2]))
+            })
+            .sum();
+        assert!((area.abs() - 2.0).abs() < 1e-12, "{area}");
+        let mut edges: Vec<(u32, u32)> = triangles
+            .iter()
+            .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+            .map(|(x, y)| (x.min(y), x.max(y)))
+            .collect();
+        edges.sort_unstable();
+        let once: Vec<(u32, u32)> =
+            edges.chunk_by(|x, y| x == y).filter(|run| run.len() == 1).map(|run| run[0]).collect();
+        assert_eq!(once, vec![(a, d), (a, e), (c, d), (c, e)]);
     }
 
     #[test]

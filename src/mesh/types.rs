@@ -96,14 +96,11 @@ impl Mesh {
     /// vertices beyond the first at each position. Physics engines and lightmappers reject
     /// meshes with either; every mesh Landform writes has (0, 0).
     pub fn degeneracies(&self) -> (usize, usize) {
-        let p = |i: u32| self.positions[i as usize].map(f64::from);
         let zero_area = self
             .indices
             .chunks_exact(3)
             .filter(|t| {
-                let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
-                let (u, v) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
-                u[1] * v[2] - u[2] * v[1] == 0.0 && u[2] * v[0] - u[0] * v[2] == 0.0 && u[0] * v[1] - u[1] * v[0] == 0.0
+                zero_area(self.positions[t[0] as usize], self.positions[t[1] as usize], self.positions[t[2] as usize])
             })
             .count();
         let mut keys: Vec<[u32; 3]> = self.positions.iter().map(|q| q.map(|c| (c + 0.0).to_bits())).collect();
@@ -172,6 +169,14 @@ impl Scene {
     pub fn single(name: impl Into<String>, mesh: Mesh) -> Self {
         Self { nodes: vec![SceneNode::new(name, mesh, MaterialKind::default())] }
     }
+}
+
+/// Whether a triangle's corners have an exactly zero cross product (computed in f64 from the
+/// f32 positions, so exact): collinear or coincident corners.
+pub fn zero_area(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> bool {
+    let (a, b, c) = (a.map(f64::from), b.map(f64::from), c.map(f64::from));
+    let (u, v) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
+    u[1] * v[2] - u[2] * v[1] == 0.0 && u[2] * v[0] - u[0] * v[2] == 0.0 && u[0] * v[1] - u[1] * v[0] == 0.0
 }
 
 #[cfg(test)]

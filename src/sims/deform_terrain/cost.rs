@@ -11,9 +11,10 @@ use crate::terrain::TerrainLookup;
 
 /// Cell evaluations per second at best (with a margin for machines several times faster).
 const EVALUATIONS_PER_SECOND: f64 = 2e9;
-/// Bytes per cell every job holds: original and working heights (f64), the fitness sums, the
-/// interest and candidate marks, and transients while fields are built.
-const GRID_BYTES_PER_CELL: u64 = 60;
+/// Bytes per cell every job holds: original and working heights (f64), the fitness sums and
+/// the search's weighted residual, the interest and candidate marks, and transients while
+/// fields are built.
+const GRID_BYTES_PER_CELL: u64 = 68;
 /// Bytes per cell a constraint's field keeps (weights, targets, interest), and the largest
 /// transient while one is built.
 const FIELD_BYTES_PER_CELL: u64 = 25;

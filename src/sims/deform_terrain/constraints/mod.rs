@@ -318,6 +318,12 @@ pub struct Fitness {
     pairs: Option<Pairs>,
 }
 
+/// The closed-form displacement is over-relaxed, as in successive over-relaxation: the
+/// search's steps are coordinate steps on overlapping kernels, and stepping past each one's
+/// own optimum (any factor below 2 still lowers F) reaches a given fitness in fewer
+/// operations — about a fifth fewer on the S-road.
+pub const OVER_RELAXATION: f64 = 1.5;
+
 /// The most displacements one evaluation tries (sampled ones plus the closed-form optimum).
 pub const MAX_DELTAS: usize = 128;
 
@@ -366,7 +372,7 @@ impl Fitness {
     }
 
     /// The best change in F over `deltas` (and the closed-form optimum of the quadratic part,
-    /// clamped to ±`d_max`) of a deformation at (col, row) with `kernel`. With `stride` > 1
+    /// times [`OVER_RELAXATION`], clamped to ±`d_max`) of a deformation at (col, row) with `kernel`. With `stride` > 1
     /// only every stride-th cell (through the centre) is summed, scaled by stride², as an
     /// estimate. `residual` is [`Fitness::residual`] of `h`. The curvature `a` of the quadratic
     /// part (Σ q K², plus the pairs') depends on the weights and the kernel only, never on the
@@ -471,7 +477,7 @@ impl Fitness {
         let mut n = deltas.len().min(MAX_DELTAS - 1);
         trial[..n].copy_from_slice(&deltas[..n]);
         if with_optimum && a > 0.0 {
-            let opt = (-b / a).clamp(-d_max, d_max);
+            let opt = (-b / a * OVER_RELAXATION).clamp(-d_max, d_max);
             if opt != 0.0 && opt.is_finite() {
                 trial[n] = opt;
                 n += 1;

@@ -102,11 +102,14 @@ fn the_closed_form_displacement_is_the_best_of_the_quadratic_part() {
     let fields = build(&[c], &[None], &grid).unwrap();
     let fitness = Fitness::new(&fields, cols, rows);
     let kernel = Kernel::new(5);
-    let want = 50.0 - h0[15 * cols + 15];
+    // One point: the optimum moves it exactly onto its height, removing all of F; the step
+    // taken is ω times that, which removes (2ω − ω²) of F.
+    let (w, optimum) = (OVER_RELAXATION, 50.0 - h0[15 * cols + 15]);
     let best = fitness.best_change(&h0, &fitness.residual(&h0), 15, 15, &kernel, 1, &[1.0, -1.0], 100.0, true, None);
     let (change, d) = (best.change, best.delta);
-    assert!((d - want).abs() < 1e-9, "{d} vs {want}");
-    assert!((change + fields[0].value(&h0, cols, rows)).abs() < 1e-12);
+    assert!((d - w * optimum).abs() < 1e-9, "{d} vs {}", w * optimum);
+    let f = fields[0].value(&h0, cols, rows);
+    assert!((change + (2.0 * w - w * w) * f).abs() < 1e-12 * f.max(1.0), "{change} vs {f}");
 }
 
 #[test]
