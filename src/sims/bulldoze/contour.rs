@@ -153,9 +153,15 @@ impl Level<'_> {
     fn exit(&self, (c, r): (usize, usize), entry: Edge) -> Option<Edge> {
         // Edges and the corners at their ends: top a–b, right b–d, bottom e–d, left a–e.
         let (top, right, bottom, left) = (Edge::H(c, r), Edge::V(c + 1, r), Edge::H(c, r + 1), Edge::V(c, r));
-        let crossing: Vec<Edge> =
-            [top, right, bottom, left].into_iter().filter(|&e| e != entry && self.crossing(e).is_some()).collect();
-        match crossing.len() {
+        // The other edges the contour crosses, without allocating per cell.
+        let (mut crossing, mut n) = ([top; 4], 0);
+        for e in [top, right, bottom, left] {
+            if e != entry && self.crossing(e).is_some() {
+                crossing[n] = e;
+                n += 1;
+            }
+        }
+        match n {
             1 => Some(crossing[0]),
             3 => {
                 // A saddle: the corners on the other side of the centre are cut off, each by
