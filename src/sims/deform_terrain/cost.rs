@@ -12,15 +12,17 @@ use crate::terrain::TerrainLookup;
 /// Cell evaluations per second at best (with a margin for machines several times faster).
 const EVALUATIONS_PER_SECOND: f64 = 2e9;
 /// Bytes per cell every job holds: original and working heights (f64), the fitness sums and
-/// the search's weighted residual, the interest and candidate marks, and transients while
-/// fields are built.
-const GRID_BYTES_PER_CELL: u64 = 68;
+/// the search's weighted residual, one iteration's changes of it (the batch's windows are
+/// disjoint, so at most one value a cell), the interest and candidate marks, and transients
+/// while fields are built.
+const GRID_BYTES_PER_CELL: u64 = 76;
 /// Bytes per cell a constraint's field keeps (weights, targets, interest), and the largest
 /// transient while one is built.
 const FIELD_BYTES_PER_CELL: u64 = 25;
 const BUILD_BYTES_PER_CELL: u64 = 40;
-/// Bytes per candidate-table entry during the search.
-const TABLE_ENTRY_BYTES: u64 = 80;
+/// Bytes per candidate-table entry during the search: the entry (64), its place in the
+/// per-row index, and the lists of improving, waiting and recomputed entries.
+const TABLE_ENTRY_BYTES: u64 = 112;
 /// Bytes per recorded operation: the operation, its history record and its lines of
 /// `sequence.json` and `fitness.json` (each while growing), plus per constraint.
 const OPERATION_BYTES: u64 = 700;

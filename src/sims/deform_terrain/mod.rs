@@ -105,7 +105,10 @@ impl Simulation for DeformTerrain {
         }
         let mut tracker = Tracker::new(&fields, &h, grid.cols, grid.rows);
         let watch = JobWatch { ctx, cols: grid.cols, rows: grid.rows, cell_m: grid.cell_m };
+        let started = std::time::Instant::now();
         let searched = search::search(&mut h, &fitness, &mut tracker, &vertices, &settings, seed, &watch)?;
+        // Wall time goes to the log only: artifacts stay the same bytes run after run.
+        tracing::debug!(search_ms = started.elapsed().as_millis() as u64, entries, "deform-terrain search done");
         let history = std::mem::take(&mut tracker.history);
         let sequence = DeformSequence { terrain: params.terrain.clone(), operations: searched.operations.clone() };
         let run = RunFigures { searched: Some(&searched), candidates: vertices.len(), prediction: params.prediction };

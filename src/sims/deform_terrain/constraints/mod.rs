@@ -371,7 +371,76 @@ impl Fitness {
         }
     }
 
-    /// The best change in F over `deltas` (and the closed-form optimum of the quadratic part,
+    /// Whether every term is the quadratic part's (no one-sided mask, no tileable pairs): then
+    /// a candidate's change depends on the heights only through its sum b = Σ K·residual, which
+    /// can be brought up to date from the residual's changes ([`Fitness::lattice_sum`]) and
+    /// turned into the best change by [`Fitness::change_from_sums`].
+    pub fn residual_only(&self) -> bool {
+        self.one_sided.is_none() && self.pairs.is_none()
+    }
+
+    /// The lattice step [`Fitness::best_change`] sums a window on: `stride`, or every cell of a
+    /// window the border clips (a lattice through the centre could miss the edge line).
+    pub fn lattice_step(&self, col: usize, row: usize, radius: usize, stride: usize) -> usize {
+        let rect = Rect::around(col, row, radius, self.cols, self.rows);
+        let clipped = rect.c1 - rect.c0 != 2 * radius || rect.r1 - rect.r0 != 2 * radius;
+        if clipped {
+            1
+        } else {
+            stride
+        }
+    }
+
+    /// Σ K·v over the lattice of the window at (col, row) that falls inside `rect`, scaled as
+    /// [`Fitness::best_change`] scales its sums; `values` covers `rect` row by row. With the
+    /// residual's change over a deformed window, this is the change of a candidate's b there.
+    pub fn lattice_sum(
+        &self,
+        values: &[f64],
+        rect: Rect,
+        col: usize,
+        row: usize,
+        kernel: &Kernel,
+        stride: usize,
+    ) -> f64 {
+        let s = self.lattice_step(col, row, kernel.radius, stride);
+        let window = Rect::around(col, row, kernel.radius, self.cols, self.rows);
+        let (r0, r1) = (rect.r0.max(window.r0), rect.r1.min(window.r1));
+        let (c0, c1) = (rect.c0.max(window.c0), rect.c1.min(window.c1));
+        if r0 > r1 || c0 > c1 {
+            return 0.0;
+        }
+        // The first lattice line at or after `lo`: lattice lines pass through the centre.
+        let first = |lo: usize, centre: usize| lo + (centre as i64 - lo as i64).rem_euclid(s as i64) as usize;
+        let (rad, side, width) = (kernel.radius, kernel.side(), rect.c1 - rect.c0 + 1);
+        let c_first = first(c0, col);
+        if c_first > c1 {
+            return 0.0;
+        }
+        let c_last = c1 - (c1 - c_first) % s;
+        let mut sum = 0.0;
+        let mut r = first(r0, row);
+        while r <= r1 {
+            // Kernel weights and values along the row's lattice, as two slices walked at the
+            // stride: no bounds checks inside, four partial sums.
+            let (k0, v0) = ((r + rad - row) * side + rad, (r - rect.r0) * width);
+            let kernel_row = &kernel.weights[k0 + c_first - col..=k0 + c_last - col];
+            let values_row = &values[v0 + c_first - rect.c0..=v0 + c_last - rect.c0];
+            sum += dot(kernel_row, values_row, s);
+            r += s;
+        }
+        sum * (s * s) as f64
+    }
+
+    /// The best change over `deltas` (and the closed-form optimum) from the quadratic part's
+    /// sums alone, as [`Fitness::best_change`] finds it when [`Fitness::residual_only`].
+    pub fn change_from_sums(&self, a: f64, b: f64, deltas: &[f64], d_max: f64, with_optimum: bool) -> Best {
+        debug_assert!(self.residual_only());
+        let sampled = &deltas[..deltas.len().min(MAX_DELTAS - 1)];
+        quadratic_best(a, b, sampled, closed_form(a, b, d_max, with_optimum))
+    }
+
+    /// The best change in F over `deltas` (sorted ascending) (and the closed-form optimum of the quadratic part,
     /// times [`OVER_RELAXATION`], clamped to ±`d_max`) of a deformation at (col, row) with `kernel`. With `stride` > 1
     /// only every stride-th cell (through the centre) is summed, scaled by stride², as an
     /// estimate. `residual` is [`Fitness::residual`] of `h`. The curvature `a` of the quadratic
@@ -395,10 +464,7 @@ impl Fitness {
         let cols = self.cols;
         let rad = kernel.radius as i64;
         let rect = Rect::around(col, row, kernel.radius, cols, self.rows);
-        // A window clipped by the border is summed exactly: a lattice through the centre can
-        // miss the edge line, where edge constraints live.
-        let clipped = rect.c1 - rect.c0 != 2 * kernel.radius || rect.r1 - rect.r0 != 2 * kernel.radius;
-        let stride = if clipped { 1 } else { stride };
+        let stride = self.lattice_step(col, row, kernel.radius, stride);
         let s = stride as i64;
         let lo = |v: usize| -((v as i64).min(rad) / s) * s;
         let hi = |v: usize, n: usize| ((n as i64 - 1 - v as i64).min(rad) / s) * s;
@@ -473,58 +539,87 @@ impl Fitness {
         }
 
         let a = curvature.unwrap_or(a);
-        let mut trial = [0.0f64; MAX_DELTAS];
-        let mut n = deltas.len().min(MAX_DELTAS - 1);
-        trial[..n].copy_from_slice(&deltas[..n]);
-        if with_optimum && a > 0.0 {
-            let opt = (-b / a * OVER_RELAXATION).clamp(-d_max, d_max);
-            if opt != 0.0 && opt.is_finite() {
-                trial[n] = opt;
-                n += 1;
+        let n = deltas.len().min(MAX_DELTAS - 1);
+        let sampled = &deltas[..n];
+        debug_assert!(sampled.windows(2).all(|w| w[0] <= w[1]), "displacements are sampled in order");
+        let optimum = closed_form(a, b, d_max, with_optimum);
+        let Some(m) = &self.one_sided else {
+            return quadratic_best(a, b, sampled, optimum);
+        };
+        let quadratic = |d: f64| a * d * d + 2.0 * b * d;
+        let mut best = Best { change: f64::INFINITY, delta: 0.0, curvature: a, b };
+        let mut consider = |d: f64, change: f64| {
+            if change < best.change {
+                (best.change, best.delta) = (change, d);
             }
-        }
-        let trial = &trial[..n];
-        let mut change = [0.0f64; MAX_DELTAS];
-        for (d, out) in trial.iter().zip(change.iter_mut()) {
-            *out = a * d * d + 2.0 * b * d;
-        }
-
-        if let Some(m) = &self.one_sided {
-            let d_abs = trial.iter().fold(0.0f64, |acc, d| acc.max(d.abs()));
-            let mut extra = [0.0f64; MAX_DELTAS];
-            let mut dz = dz0;
-            while dz <= dz1 {
-                let (krow, i0, i1) = row_slices(dz);
-                let (hs, sides) = (&h[i0..=i1], &m.side[i0..=i1]);
-                for ((&k, &hi), &side) in
-                    krow.iter().step_by(stride).zip(hs.iter().step_by(stride)).zip(sides.iter().step_by(stride))
-                {
-                    if k <= 0.0 || side == 0 {
-                        continue;
-                    }
-                    // Signed shortfall: penalty = max(0, g − σ·δ·k)² with σ = +1 land, −1 sea.
-                    let (g, sign) = if side > 0 { (m.lo - hi, 1.0) } else { (hi - m.hi, -1.0) };
-                    if g + d_abs * k > 0.0 {
-                        let before = g.max(0.0);
-                        let before = before * before;
-                        for (d, e) in trial.iter().zip(extra.iter_mut()) {
-                            let after = (g - sign * d * k).max(0.0);
-                            *e += after * after - before;
-                        }
-                    }
+        };
+        // One-sided: a sample's penalty after a displacement d is max(0, g − σkd)², zero past
+        // its breakpoint g/(σk) and a quadratic in d before it. The sampled displacements are
+        // sorted, so each sample adds its quadratic's coefficients to a run of them — those
+        // below the breakpoint for land, above it for sea — marked at the run's end and summed
+        // once, instead of evaluating every displacement at every sample. The closed-form
+        // optimum, out of that order, is evaluated directly.
+        let d_abs = sampled.iter().chain(&optimum).fold(0.0f64, |acc, d| acc.max(d.abs()));
+        let mut land = [[0.0f64; 3]; MAX_DELTAS];
+        let mut sea = [[0.0f64; 3]; MAX_DELTAS];
+        let (mut before_sum, mut at_optimum) = (0.0, 0.0);
+        let mut dz = dz0;
+        while dz <= dz1 {
+            let (krow, i0, i1) = row_slices(dz);
+            let (hs, sides) = (&h[i0..=i1], &m.side[i0..=i1]);
+            for ((&k, &hi), &side) in
+                krow.iter().step_by(stride).zip(hs.iter().step_by(stride)).zip(sides.iter().step_by(stride))
+            {
+                if k <= 0.0 || side == 0 {
+                    continue;
                 }
-                dz += s;
+                // Signed shortfall: penalty = max(0, g − σ·δ·k)² with σ = +1 land, −1 sea.
+                let (g, sign) = if side > 0 { (m.lo - hi, 1.0) } else { (hi - m.hi, -1.0) };
+                if g + d_abs * k <= 0.0 {
+                    continue;
+                }
+                let before = g.max(0.0);
+                before_sum += before * before;
+                if let Some(d) = optimum {
+                    let after = (g - sign * d * k).max(0.0);
+                    at_optimum += after * after;
+                }
+                // (g − σkd)² = g² − 2gσk·d + k²·d²
+                let coefficients = [g * g, -2.0 * g * sign * k, k * k];
+                let breakpoint = g / (sign * k);
+                let (runs, end) = if side > 0 {
+                    (&mut land, sampled.partition_point(|&d| d < breakpoint))
+                } else {
+                    (&mut sea, sampled.partition_point(|&d| d <= breakpoint))
+                };
+                for (run, c) in runs[end].iter_mut().zip(coefficients) {
+                    *run += c;
+                }
             }
-            for (out, e) in change[..n].iter_mut().zip(&extra[..n]) {
-                *out += m.scale * scale * e;
-            }
+            dz += s;
         }
-
-        let mut best = Best { change: f64::INFINITY, delta: 0.0, curvature: a };
-        for (&d, &df) in trial.iter().zip(&change[..n]) {
-            if df < best.change {
-                (best.change, best.delta) = (df, d);
+        // Land's runs cover the displacements before their end, sea's those from it on.
+        let mut covering = [0.0f64; 3];
+        let mut penalty = [0.0f64; MAX_DELTAS];
+        for t in (0..n).rev() {
+            for (c, l) in covering.iter_mut().zip(land[t + 1]) {
+                *c += l;
             }
+            penalty[t] = covering[0] + covering[1] * sampled[t] + covering[2] * sampled[t] * sampled[t];
+        }
+        covering = [0.0; 3];
+        for t in 0..n {
+            for (c, s) in covering.iter_mut().zip(sea[t]) {
+                *c += s;
+            }
+            penalty[t] += covering[0] + covering[1] * sampled[t] + covering[2] * sampled[t] * sampled[t];
+        }
+        let one_sided = |penalty: f64| m.scale * scale * (penalty - before_sum);
+        for (&d, &p) in sampled.iter().zip(&penalty[..n]) {
+            consider(d, quadratic(d) + one_sided(p));
+        }
+        if let Some(d) = optimum {
+            consider(d, quadratic(d) + one_sided(at_optimum));
         }
         best
     }
@@ -537,6 +632,37 @@ pub struct Best {
     pub change: f64,
     pub delta: f64,
     pub curvature: f64,
+    /// The quadratic part's sum b = Σ K·q(h − m) (scaled on the lattice, with the pairs').
+    pub b: f64,
+}
+
+/// The over-relaxed closed-form optimum of the quadratic part a·d² + 2b·d, clamped to ±d_max.
+fn closed_form(a: f64, b: f64, d_max: f64, with_optimum: bool) -> Option<f64> {
+    if !(with_optimum && a > 0.0) {
+        return None;
+    }
+    let opt = (-b / a * OVER_RELAXATION).clamp(-d_max, d_max);
+    (opt != 0.0 && opt.is_finite()).then_some(opt)
+}
+
+/// The best of the quadratic part over the sampled displacements (sorted) and the optimum, the
+/// first of equals kept. With a > 0 the parabola's samples fall away towards its vertex −b/a,
+/// so only the two samples around it can be the best.
+fn quadratic_best(a: f64, b: f64, sampled: &[f64], optimum: Option<f64>) -> Best {
+    let mut best = Best { change: f64::INFINITY, delta: 0.0, curvature: a, b };
+    let near = if a > 0.0 {
+        let above = sampled.partition_point(|&d| d < -b / a);
+        &sampled[above.saturating_sub(1)..(above + 1).min(sampled.len())]
+    } else {
+        sampled
+    };
+    for &d in near.iter().chain(&optimum) {
+        let change = a * d * d + 2.0 * b * d;
+        if change < best.change {
+            (best.change, best.delta) = (change, d);
+        }
+    }
+    best
 }
 
 /// Σ x·y over every `stride`-th element, in four interleaved partial sums (a fixed order the

@@ -93,6 +93,38 @@ fn the_windowed_change_equals_the_full_recomputation() {
 }
 
 #[test]
+fn the_best_of_many_displacements_is_the_best_full_recomputation() {
+    // The shape mask's one-sided penalties are summed over runs of the sorted displacements;
+    // each displacement's change must still be what recomputing F from scratch gives, so the
+    // best of the list is the best of the full recomputations.
+    let (cols, rows) = (40, 33);
+    let h0: Vec<f64> = terrain(cols, rows, 0.0).heights_m.iter().map(|&v| v as f64).collect();
+    let fields = fields_for(&h0, cols, rows);
+    let fitness = Fitness::new(&fields, cols, rows);
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    for trial in 0..120 {
+        let radius = rng.random_range(1..12usize);
+        let (col, row) = (rng.random_range(0..cols), rng.random_range(0..rows));
+        let d_max = rng.random_range(0.5..30.0);
+        let count = rng.random_range(1..30usize);
+        let deltas: Vec<f64> = (0..count).map(|k| d_max * (2.0 * k as f64 / count as f64 - 1.0)).collect();
+        let kernel = Kernel::new(radius);
+        let before = total(&fields, &h0, cols, rows);
+        let best = fitness.best_change(&h0, &fitness.residual(&h0), col, row, &kernel, 1, &deltas, d_max, false, None);
+        let full = |delta: f64| {
+            let mut h = h0.clone();
+            let amplitude = h[row * cols + col] + delta;
+            apply(&mut h, cols, rows, col, row, amplitude, &kernel);
+            total(&fields, &h, cols, rows) - before
+        };
+        let expected = deltas.iter().map(|&d| full(d)).fold(f64::INFINITY, f64::min);
+        let tol = 1e-9 * before.abs() + 1e-12;
+        assert!((best.change - expected).abs() <= tol, "trial {trial}: {} vs {expected}", best.change);
+        assert!((full(best.delta) - expected).abs() <= tol, "trial {trial}: displacement {}", best.delta);
+    }
+}
+
+#[test]
 fn the_closed_form_displacement_is_the_best_of_the_quadratic_part() {
     let (cols, rows) = (30, 30);
     let h0: Vec<f64> = terrain(cols, rows, 0.4).heights_m.iter().map(|&v| v as f64).collect();
@@ -105,7 +137,7 @@ fn the_closed_form_displacement_is_the_best_of_the_quadratic_part() {
     // One point: the optimum moves it exactly onto its height, removing all of F; the step
     // taken is ω times that, which removes (2ω − ω²) of F.
     let (w, optimum) = (OVER_RELAXATION, 50.0 - h0[15 * cols + 15]);
-    let best = fitness.best_change(&h0, &fitness.residual(&h0), 15, 15, &kernel, 1, &[1.0, -1.0], 100.0, true, None);
+    let best = fitness.best_change(&h0, &fitness.residual(&h0), 15, 15, &kernel, 1, &[-1.0, 1.0], 100.0, true, None);
     let (change, d) = (best.change, best.delta);
     assert!((d - w * optimum).abs() < 1e-9, "{d} vs {}", w * optimum);
     let f = fields[0].value(&h0, cols, rows);
@@ -150,4 +182,66 @@ fn the_shape_mask_counts_each_side_with_its_margin() {
     assert!((f.value(&h0, cols, rows) - expect).abs() < 1e-15);
     let figures = f.figures(&h0, &grid);
     assert_eq!(figures["correct_side_share"], json!(0.0));
+}
+
+#[test]
+fn a_sum_brought_up_to_date_equals_one_summed_again() {
+    // With only quadratic penalties the search keeps each entry's sum b and adds the kernel's
+    // lattice sum over each deformed window's residual change; that must equal summing b again
+    // on the deformed terrain, on the full window and on every estimate lattice, near the
+    // border (where the lattice is the full window) and inside.
+    let (cols, rows) = (48, 41);
+    let h0: Vec<f64> = terrain(cols, rows, 0.4).heights_m.iter().map(|&v| v as f64).collect();
+    let other = terrain(cols, rows, 1.3);
+    let constraints: Vec<Constraint> = every_constraint()
+        .into_iter()
+        .filter(|c| !matches!(c, Constraint::ShapeMask(_) | Constraint::Tileable(_)))
+        .collect();
+    let resolved: Vec<Resolved> = constraints
+        .iter()
+        .map(|c| matches!(c, Constraint::EdgeMatch(_) | Constraint::MatchHeightmap(_)).then(|| other.clone()))
+        .collect();
+    let grid = Grid { cols, rows, cell_m: 1.0, original: &h0, relief: 40.0 };
+    let fields = build(&constraints, &resolved, &grid).unwrap();
+    let fitness = Fitness::new(&fields, cols, rows);
+    assert!(fitness.residual_only());
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let deltas: Vec<f64> = (0..24).map(|k| 6.0 * (2.0 * k as f64 / 23.0 - 1.0)).collect();
+    for trial in 0..200 {
+        let mut h = h0.clone();
+        let kernel = Kernel::new(rng.random_range(1..14usize));
+        let (col, row) = (rng.random_range(0..cols), rng.random_range(0..rows));
+        let stride = rng.random_range(1..5usize);
+        let before =
+            fitness.best_change(&h, &fitness.residual(&h), col, row, &kernel, stride, &deltas, 6.0, true, None);
+        let mut residual = fitness.residual(&h);
+        let mut b = before.b;
+        // Two deformations near the entry, each its own change, as in one iteration's batch.
+        for _ in 0..2 {
+            let op = Kernel::new(rng.random_range(1..9usize));
+            let (c, r) = (
+                (col as i64 + rng.random_range(-12..=12i64)).clamp(0, cols as i64 - 1) as usize,
+                (row as i64 + rng.random_range(-12..=12i64)).clamp(0, rows as i64 - 1) as usize,
+            );
+            let rect = Rect::around(c, r, op.radius, cols, rows);
+            let old: Vec<f64> = (rect.r0..=rect.r1)
+                .flat_map(|y| (rect.c0..=rect.c1).map(move |x| (x, y)))
+                .map(|(x, y)| residual[y * cols + x])
+                .collect();
+            let amplitude = h[r * cols + c] + rng.random_range(-5.0..5.0);
+            apply(&mut h, cols, rows, c, r, amplitude, &op);
+            fitness.refresh_residual(&mut residual, &h, rect);
+            let change: Vec<f64> = (rect.r0..=rect.r1)
+                .flat_map(|y| (rect.c0..=rect.c1).map(move |x| (x, y)))
+                .zip(&old)
+                .map(|((x, y), o)| residual[y * cols + x] - o)
+                .collect();
+            b += fitness.lattice_sum(&change, rect, col, row, &kernel, stride);
+        }
+        let again = fitness.best_change(&h, &fitness.residual(&h), col, row, &kernel, stride, &deltas, 6.0, true, None);
+        let tol = 1e-9 * (again.b.abs() + before.b.abs() + 1.0);
+        assert!((b - again.b).abs() <= tol, "trial {trial}: {b} vs {}", again.b);
+        let from_sums = fitness.change_from_sums(again.curvature, b, &deltas, 6.0, true);
+        assert!((from_sums.change - again.change).abs() <= 1e-9 * (again.change.abs() + 1e-12), "trial {trial}");
+    }
 }
