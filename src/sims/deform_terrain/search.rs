@@ -17,7 +17,11 @@
 //! not the estimate's — and if it is then no longer ahead of the entry after it, it goes back
 //! to its place in the order (lazy greedy), so what is applied is chosen on exact changes.
 //! (Checking only the estimate's displacement, over-relaxed, failed 97–99 % of the checks on
-//! the examples and left those entries to be estimated, reached and refused again.) With
+//! the examples and left those entries to be estimated, reached and refused again.) An
+//! entry's estimates are ranked scaled by what its last check found of them (the exact change
+//! over the estimate), a scale that goes back towards 1 at each recomputation: a wide window
+//! whose lattice overstates it does not crowd the head iteration after iteration, and is still
+//! looked at again later. With
 //! only quadratic penalties an entry's change depends on the heights through one sum b, which
 //! is brought up to date from the residual's change over each deformed window rather than
 //! summed again.
@@ -155,6 +159,9 @@ struct Entry {
     b: f64,
     /// Whether `change` and `delta` are the exact ones on the full window, as of now.
     checked: bool,
+    /// What the last exact check found of this entry's estimate: the exact best change over the
+    /// estimated one. Estimates are ranked scaled by it (1 until checked).
+    trust: f64,
 }
 
 /// One row of one radius's entries, in column order.
@@ -217,6 +224,7 @@ pub fn search<W: Watch>(
                 exact_curvature: f64::NAN,
                 b: f64::NAN,
                 checked: false,
+                trust: 1.0,
             })
         })
         .collect();
@@ -284,6 +292,10 @@ pub fn search<W: Watch>(
                 (!e.exact_curvature.is_nan()).then_some(e.exact_curvature),
             );
             e.exact_curvature = best.curvature;
+            let estimate = e.change / e.trust;
+            if estimate < 0.0 {
+                e.trust = (best.change / estimate).clamp(TRUST_RANGE.0, TRUST_RANGE.1);
+            }
             e.change = best.change;
             e.delta = best.delta;
             e.checked = true;
@@ -567,10 +579,17 @@ fn update_sums(
     store(table, which, results)
 }
 
+/// How much of the way back to 1 an estimate's scale goes at each recomputation, so an entry
+/// whose estimate once misled is looked at again.
+const TRUST_RELAXATION: f64 = 0.2;
+/// How far an estimate's scale may go.
+const TRUST_RANGE: (f64, f64) = (0.02, 2.0);
+
 fn store(table: &mut [Entry], which: &[usize], results: Vec<Best>) -> u64 {
     for (&i, best) in which.iter().zip(results) {
         let t = &mut table[i];
-        t.change = best.change;
+        t.change = best.change * t.trust;
+        t.trust += (1.0 - t.trust) * TRUST_RELAXATION;
         t.delta = best.delta;
         t.curvature = best.curvature;
         t.b = best.b;
