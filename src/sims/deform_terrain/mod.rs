@@ -109,7 +109,7 @@ impl Simulation for DeformTerrain {
         // The search runs on a thread of the pool: its parallel recomputations, a thousand or
         // more of them, are then taken up by the pool's threads at once instead of each waking
         // them from outside and waiting to be woken back (on the S-road that hand-over was a
-        // tenth of the run).
+        // fifth of the search).
         let (searched, ()) =
             rayon::join(|| search::search(&mut h, &fitness, &mut tracker, &vertices, &settings, seed, &watch), || ());
         let searched = searched?;
@@ -118,17 +118,9 @@ impl Simulation for DeformTerrain {
         let history = std::mem::take(&mut tracker.history);
         let sequence = DeformSequence { terrain: params.terrain.clone(), operations: searched.operations.clone() };
         let run = RunFigures { searched: Some(&searched), candidates: vertices.len(), prediction: params.prediction };
-        finish(
-            &problem,
-            &fields,
-            &h,
-            &history,
-            &interest,
-            &settings,
-            sequence,
-            run,
-            HeightfieldExport::new(&ctx.mesh, params.tiles),
-        )
+        // The exports too, for the same reason as the search.
+        let export = HeightfieldExport::new(&ctx.mesh, params.tiles);
+        rayon::join(|| finish(&problem, &fields, &h, &history, &interest, &settings, sequence, run, export), || ()).0
     }
 
     fn replay(
