@@ -581,7 +581,7 @@ fn update_sums(
 
 /// How much of the way back to 1 an estimate's scale goes at each recomputation, so an entry
 /// whose estimate once misled is looked at again.
-const TRUST_RELAXATION: f64 = 0.2;
+const TRUST_RELAXATION: f64 = 0.1;
 /// How far an estimate's scale may go.
 const TRUST_RANGE: (f64, f64) = (0.02, 2.0);
 
