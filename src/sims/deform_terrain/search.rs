@@ -339,17 +339,15 @@ pub fn search<W: Watch>(
                 evaluations += 1;
                 checks += 1;
                 if change >= 0.0 {
-                    improving.remove(pick);
-                    sorted -= 1;
-                    if sorted < top.min(improving.len()) {
-                        // The draw may reach past the sorted head now.
-                        sorted = sort_more(&mut improving, sorted, top, &table);
-                    }
-                    continue;
+                    drop_from_head(&mut improving, pick, &mut sorted);
+                } else if !(pick == 0 && reinsert(&mut improving, 0, &mut sorted, &table)) {
+                    break Some((i, table[i]));
                 }
-                if pick == 0 && reinsert(&mut improving, 0, &mut sorted, &table) {
-                    continue;
+                if sorted < top.min(improving.len()) {
+                    // The draw may reach past the sorted head now.
+                    sorted = sort_more(&mut improving, sorted, top, &table);
                 }
+                continue;
             }
             break Some((i, table[i]));
         };
@@ -492,25 +490,27 @@ fn sort_more(improving: &mut [usize], sorted: usize, more: usize, table: &[Entry
 /// Move `improving[at]`, whose change was just made exact, back to its place in the sorted
 /// head if it is no longer ahead of the entry after it (or out of the head, into the unsorted
 /// rest, if it falls past it). Returns whether it moved.
-fn reinsert(improving: &mut Vec<usize>, at: usize, sorted: &mut usize, table: &[Entry]) -> bool {
+fn reinsert(improving: &mut [usize], at: usize, sorted: &mut usize, table: &[Entry]) -> bool {
     let order = best_first(table);
     let i = improving[at];
-    let Some(&next) = improving.get(at + 1) else {
-        return false;
-    };
-    if at + 1 >= *sorted || order(&i, &next) != std::cmp::Ordering::Greater {
+    if at + 1 >= *sorted || order(&i, &improving[at + 1]) != std::cmp::Ordering::Greater {
         return false;
     }
-    improving.remove(at);
-    let head = &improving[at..*sorted - 1];
-    let place = at + head.partition_point(|x| order(x, &i) == std::cmp::Ordering::Less);
-    if place < *sorted - 1 {
-        improving.insert(place, i);
-    } else {
-        improving.push(i);
+    // Only the head between its old and new place moves (the rest can be long).
+    let place = at + 1 + improving[at + 1..*sorted].partition_point(|x| order(x, &i) == std::cmp::Ordering::Less);
+    improving[at..place].rotate_left(1);
+    if place == *sorted {
+        // It falls past the head: the first of the unsorted rest.
         *sorted -= 1;
     }
     true
+}
+
+/// Drop `improving[at]` (in the sorted head), moving only the head after it.
+fn drop_from_head(improving: &mut Vec<usize>, at: usize, sorted: &mut usize) {
+    improving[at..*sorted].rotate_left(1);
+    improving.swap_remove(*sorted - 1);
+    *sorted -= 1;
 }
 
 /// Entries by their change, best first; ties by index, so the order is total.
