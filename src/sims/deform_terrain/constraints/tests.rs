@@ -42,8 +42,12 @@ fn every_constraint() -> Vec<Constraint> {
 }
 
 fn fields_for(h0: &[f64], cols: usize, rows: usize) -> Vec<Field> {
+    fields_of(every_constraint(), h0, cols, rows)
+}
+
+/// The fields of `constraints` on `h0`, the edge and match targets another terrain.
+fn fields_of(constraints: Vec<Constraint>, h0: &[f64], cols: usize, rows: usize) -> Vec<Field> {
     let other = terrain(cols, rows, 1.3);
-    let constraints = every_constraint();
     let resolved: Vec<Resolved> = constraints
         .iter()
         .map(|c| matches!(c, Constraint::EdgeMatch(_) | Constraint::MatchHeightmap(_)).then(|| other.clone()))
@@ -192,17 +196,11 @@ fn a_sum_brought_up_to_date_equals_one_summed_again() {
     // border (where the lattice is the full window) and inside.
     let (cols, rows) = (48, 41);
     let h0: Vec<f64> = terrain(cols, rows, 0.4).heights_m.iter().map(|&v| v as f64).collect();
-    let other = terrain(cols, rows, 1.3);
-    let constraints: Vec<Constraint> = every_constraint()
+    let quadratic: Vec<Constraint> = every_constraint()
         .into_iter()
         .filter(|c| !matches!(c, Constraint::ShapeMask(_) | Constraint::Tileable(_)))
         .collect();
-    let resolved: Vec<Resolved> = constraints
-        .iter()
-        .map(|c| matches!(c, Constraint::EdgeMatch(_) | Constraint::MatchHeightmap(_)).then(|| other.clone()))
-        .collect();
-    let grid = Grid { cols, rows, cell_m: 1.0, original: &h0, relief: 40.0 };
-    let fields = build(&constraints, &resolved, &grid).unwrap();
+    let fields = fields_of(quadratic, &h0, cols, rows);
     let fitness = Fitness::new(&fields, cols, rows);
     assert!(fitness.residual_only());
     let mut rng = ChaCha8Rng::seed_from_u64(11);
