@@ -114,11 +114,13 @@ export function frameDifference(a, b) {
   return d / a.grid.length;
 }
 
-/** Submit the preset shown on a kind's page; resolves with the new job's id. */
-export async function runPreset(page, kind, preset) {
+/** Submit the preset shown on a kind's page, after `edit` (if given) changed its fields;
+ * resolves with the new job's id. */
+export async function runPreset(page, kind, preset, edit) {
   await page.goto(`/#/new/${kind}`);
   await page.waitForSelector(`form[aria-label="New ${kind} job"]`);
   if (preset) await page.selectOption('#preset', { label: preset });
+  if (edit) await edit(page);
   await page.click('button[type=submit].primary');
   await page.waitForURL(/#\/jobs\/[0-9a-f-]{36}$/, { timeout: 30000 });
   return page.url().split('/').pop();

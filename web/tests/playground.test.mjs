@@ -250,7 +250,11 @@ test('accessibility: no serious or critical axe-core violations on the form, job
 
 test('live snapshots appear as the job runs, and cancel stops it', async () => {
   const page = await newPage(browser, server.url);
-  const id = await runPreset(page, 'deform-terrain', 's-road');
+  // The S-road converges in about a second now: six times its iterations (96 000 operations,
+  // within the server's cap) keep it running long enough to be watched and cancelled.
+  const id = await runPreset(page, 'deform-terrain', 's-road', (p) =>
+    p.locator('[data-path="max_iterations"] input').fill('6000'),
+  );
   await page.waitForFunction(() => {
     const img = document.querySelector('#live-snapshot');
     return Number(img?.dataset.count ?? 0) >= 1 && img.complete && img.naturalWidth > 0;
