@@ -413,12 +413,9 @@ pub fn search<W: Watch>(
                 radius_m: kernel.radius as f64 * s.cell_m,
             };
             let rect = tracker.apply(h, &op, kernel);
-            let before = incremental.then(|| window_of(&residual, rect, cols));
-            fitness.refresh_residual(&mut residual, h, rect);
-            if let Some(mut change) = before {
-                for (d, now) in change.iter_mut().zip(window_of(&residual, rect, cols)) {
-                    *d = now - *d;
-                }
+            let mut change = Vec::new();
+            fitness.refresh_residual(&mut residual, h, rect, incremental.then_some(&mut change));
+            if incremental {
                 changes.push((rect, change));
             }
             operations.push(op);
@@ -598,6 +595,8 @@ const TRUST_RANGE: (f64, f64) = (0.02, 2.0);
 fn store(table: &mut [Entry], keys: &mut [f64], which: &[usize], results: Vec<Best>) -> u64 {
     for (&i, best) in which.iter().zip(results) {
         let t = &mut table[i];
+        // Only an estimate's check moves its scale away from 1; an entry summed on its full
+        // window keeps 1, which the relaxation leaves as it is.
         t.change = best.change * t.trust;
         t.trust += (1.0 - t.trust) * TRUST_RELAXATION;
         t.delta = best.delta;
@@ -607,11 +606,6 @@ fn store(table: &mut [Entry], keys: &mut [f64], which: &[usize], results: Vec<Be
         t.checked = false;
     }
     which.len() as u64
-}
-
-/// `values` over `rect`, row by row.
-fn window_of(values: &[f64], rect: Rect, cols: usize) -> Vec<f64> {
-    (rect.r0..=rect.r1).flat_map(|r| &values[r * cols + rect.c0..=r * cols + rect.c1]).copied().collect()
 }
 
 /// The changed cells, plus the opposite edge strip their tileable partners lie in: the two

@@ -359,14 +359,19 @@ impl Fitness {
         h.iter().zip(&self.q).zip(&self.m).map(|((&h, &q), &m)| q * (h - m)).collect()
     }
 
-    /// Bring `residual` up to date with `h` over `rect` (after a deformation there).
-    pub fn refresh_residual(&self, residual: &mut [f64], h: &[f64], rect: Rect) {
+    /// Bring `residual` up to date with `h` over `rect` (after a deformation there); with
+    /// `change`, append the residual's change over `rect` to it, row by row, in the same pass.
+    pub fn refresh_residual(&self, residual: &mut [f64], h: &[f64], rect: Rect, mut change: Option<&mut Vec<f64>>) {
         for r in rect.r0..=rect.r1 {
             let (i0, i1) = (r * self.cols + rect.c0, r * self.cols + rect.c1);
             for (((o, &h), &q), &m) in
                 residual[i0..=i1].iter_mut().zip(&h[i0..=i1]).zip(&self.q[i0..=i1]).zip(&self.m[i0..=i1])
             {
-                *o = q * (h - m);
+                let now = q * (h - m);
+                if let Some(change) = change.as_deref_mut() {
+                    change.push(now - *o);
+                }
+                *o = now;
             }
         }
     }

@@ -222,18 +222,14 @@ fn a_sum_brought_up_to_date_equals_one_summed_again() {
                 (row as i64 + rng.random_range(-12..=12i64)).clamp(0, rows as i64 - 1) as usize,
             );
             let rect = Rect::around(c, r, op.radius, cols, rows);
-            let old: Vec<f64> = (rect.r0..=rect.r1)
-                .flat_map(|y| (rect.c0..=rect.c1).map(move |x| (x, y)))
-                .map(|(x, y)| residual[y * cols + x])
-                .collect();
+            let old: Vec<f64> = cells(rect).map(|(x, y)| residual[y * cols + x]).collect();
             let amplitude = h[r * cols + c] + rng.random_range(-5.0..5.0);
             apply(&mut h, cols, rows, c, r, amplitude, &op);
-            fitness.refresh_residual(&mut residual, &h, rect);
-            let change: Vec<f64> = (rect.r0..=rect.r1)
-                .flat_map(|y| (rect.c0..=rect.c1).map(move |x| (x, y)))
-                .zip(&old)
-                .map(|((x, y), o)| residual[y * cols + x] - o)
-                .collect();
+            let mut change = Vec::new();
+            fitness.refresh_residual(&mut residual, &h, rect, Some(&mut change));
+            let now = fitness.residual(&h);
+            let expected: Vec<f64> = cells(rect).zip(&old).map(|((x, y), o)| now[y * cols + x] - o).collect();
+            assert_eq!(change, expected, "trial {trial}: the change refresh_residual reports");
             b += fitness.lattice_sum(&change, rect, col, row, &kernel, stride);
         }
         let again = fitness.best_change(&h, &fitness.residual(&h), col, row, &kernel, stride, &deltas, 6.0, true, None);
@@ -242,4 +238,9 @@ fn a_sum_brought_up_to_date_equals_one_summed_again() {
         let from_sums = fitness.change_from_sums(again.curvature, b, &deltas, 6.0, true);
         assert!((from_sums.change - again.change).abs() <= 1e-9 * (again.change.abs() + 1e-12), "trial {trial}");
     }
+}
+
+/// The cells of `rect`, row by row.
+fn cells(rect: Rect) -> impl Iterator<Item = (usize, usize)> {
+    (rect.r0..=rect.r1).flat_map(move |y| (rect.c0..=rect.c1).map(move |x| (x, y)))
 }
