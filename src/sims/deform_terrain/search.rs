@@ -458,10 +458,10 @@ pub fn search<W: Watch>(
             }
         }
         waiting.take_due(iteration, &mut todo);
-        evaluations += recompute(h, &residual, &mut table, &mut keys, &todo, &eval);
-        evaluations += update_sums(fitness, &changes, &mut table, &mut keys, &update, s);
         updates += update.len() as u64;
+        let summed = todo.len();
         todo.extend(update);
+        evaluations += refresh(h, &residual, &mut table, &mut keys, &todo, summed, &eval, fitness, &changes, s);
         if s.prediction {
             // The worst is taken as "no change" (0): a candidate that cannot improve the terrain
             // is no nearer the top for harming it less than another, and with the table's true
@@ -557,33 +557,51 @@ fn recompute(
     store(table, keys, which, results)
 }
 
-/// Bring the listed entries' sums up to date with the residual's `changes` (each a window and
-/// the change over it, row by row) and take their best change from them: exact, as a
-/// recomputation, when the fitness is residual-only. Returns how many were updated.
-fn update_sums(
-    fitness: &Fitness,
-    changes: &[(Rect, Vec<f64>)],
+/// Recompute the first `summed` of the listed entries and bring the rest's sums up to date
+/// ([`updated`]), in one parallel pass: one hand-over to the pool an iteration rather than
+/// two. Returns how many entries were evaluated.
+#[allow(clippy::too_many_arguments)]
+fn refresh(
+    h: &[f64],
+    residual: &[f64],
     table: &mut [Entry],
     keys: &mut [f64],
     which: &[usize],
+    summed: usize,
+    eval: &(impl Fn(&[f64], &[f64], &Entry) -> Best + Sync),
+    fitness: &Fitness,
+    changes: &[(Rect, Vec<f64>)],
     s: &Settings,
 ) -> u64 {
     let snapshot: &[Entry] = table;
     let results: Vec<Best> = which
         .par_iter()
-        .map(|&i| {
+        .enumerate()
+        .map(|(k, &i)| {
             let e = &snapshot[i];
-            let k = e.radius as usize;
-            let kernel = &s.kernels[k];
-            let (col, row) = (e.col as usize, e.row as usize);
-            let window = Rect::around(col, row, kernel.radius, fitness.cols, fitness.rows);
-            let b = changes.iter().filter(|(rect, _)| rect.intersects(&window)).fold(e.b, |b, (rect, change)| {
-                b + fitness.lattice_sum(change, *rect, col, row, kernel, stride(kernel.radius))
-            });
-            fitness.change_from_sums(e.curvature, b, &s.deltas[k], s.d_max[k], true)
+            if k < summed {
+                eval(h, residual, e)
+            } else {
+                updated(fitness, changes, e, s)
+            }
         })
         .collect();
     store(table, keys, which, results)
+}
+
+/// An entry's best change from its sum b brought up to date with the residual's `changes`
+/// (each a window and the change over it, row by row): exact, as a recomputation, when the
+/// fitness is residual-only.
+fn updated(fitness: &Fitness, changes: &[(Rect, Vec<f64>)], e: &Entry, s: &Settings) -> Best {
+    let k = e.radius as usize;
+    let kernel = &s.kernels[k];
+    let (col, row) = (e.col as usize, e.row as usize);
+    let window = Rect::around(col, row, kernel.radius, fitness.cols, fitness.rows);
+    let b = changes
+        .iter()
+        .filter(|(rect, _)| rect.intersects(&window))
+        .fold(e.b, |b, (rect, change)| b + fitness.lattice_sum(change, *rect, col, row, kernel, stride(kernel.radius)));
+    fitness.change_from_sums(e.curvature, b, &s.deltas[k], s.d_max[k], true)
 }
 
 /// How much of the way back to 1 an estimate's scale goes at each recomputation, so an entry
