@@ -21,6 +21,7 @@ pub fn confidence(change: f64, best: f64, worst: f64, c: f64) -> f64 {
 /// when the candidate is.
 pub struct Waiting {
     slots: Vec<Vec<usize>>,
+    c: f64,
 }
 
 impl Waiting {
@@ -28,14 +29,14 @@ impl Waiting {
     /// and none longer than the search matters.
     pub fn new(c: f64, iterations: u64) -> Self {
         let longest = (THRESHOLD / c).ceil().min(iterations as f64) as usize;
-        Self { slots: vec![Vec::new(); longest + 2] }
+        Self { slots: vec![Vec::new(); longest + 2], c }
     }
 
     /// Let candidate `i`, at confidence `conf` (below the threshold), wait from iteration
     /// `now`. One that would fall due after the search is not kept: it is recomputed only if
     /// the whole table is.
-    pub fn wait(&mut self, i: usize, conf: f64, c: f64, now: u64) {
-        let n = ((THRESHOLD - conf) / c).ceil().max(1.0);
+    pub fn wait(&mut self, i: usize, conf: f64, now: u64) {
+        let n = ((THRESHOLD - conf) / self.c).ceil().max(1.0);
         if n < (self.slots.len() - 1) as f64 {
             let len = self.slots.len() as u64;
             self.slots[((now + n as u64) % len) as usize].push(i);
@@ -69,8 +70,8 @@ mod tests {
     fn a_candidate_falls_due_when_its_confidence_would_reach_the_threshold() {
         // C = 0.1: from 0.25, three raises reach 0.55 ≥ 0.5; from 0.45, one.
         let mut w = Waiting::new(0.1, 100);
-        w.wait(7, 0.25, 0.1, 10);
-        w.wait(8, 0.45, 0.1, 10);
+        w.wait(7, 0.25, 10);
+        w.wait(8, 0.45, 10);
         let mut out = Vec::new();
         for now in 11..=12 {
             w.take_due(now, &mut out);
@@ -80,7 +81,7 @@ mod tests {
         assert_eq!(out, [8, 7]);
         // Past the search's end: not kept.
         let mut short = Waiting::new(0.001, 5);
-        short.wait(1, 0.0, 0.001, 1);
+        short.wait(1, 0.0, 1);
         let mut out = Vec::new();
         (0..20).for_each(|now| short.take_due(now, &mut out));
         assert!(out.is_empty());

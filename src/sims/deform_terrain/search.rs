@@ -148,7 +148,6 @@ struct Entry {
     col: u32,
     row: u32,
     radius: u8,
-    change: f64,
     delta: f64,
     confidence: f64,
     /// The quadratic part's curvature at this place and stride (NaN until first evaluated):
@@ -159,7 +158,8 @@ struct Entry {
     /// The quadratic part's sum b as of the last iteration; NaN once the entry has missed an
     /// iteration's changes (prediction let it wait) and must be summed again.
     b: f64,
-    /// Whether `change` and `delta` are the exact ones on the full window, as of now.
+    /// Whether the entry's key (its change) and `delta` are the exact ones on the full window,
+    /// as of now.
     checked: bool,
     /// What the last exact check found of this entry's estimate: the exact best change over the
     /// estimated one. Estimates are ranked scaled by it (1 until checked).
@@ -218,7 +218,6 @@ pub fn search<W: Watch>(
                 col: c as u32,
                 row: r as u32,
                 radius: k as u8,
-                change: 0.0,
                 delta: 0.0,
                 confidence: 1.0,
                 curvature: f64::NAN,
@@ -265,7 +264,7 @@ pub fn search<W: Watch>(
     // over 8 bytes an entry instead of through the table's cache lines.
     let mut keys = vec![f64::INFINITY; table.len()];
     let all: Vec<usize> = (0..table.len()).collect();
-    let mut evaluations = recompute_watched(h, &residual, &mut table, &mut keys, &all, &eval, watch)?;
+    let mut evaluations = recompute_watched(&mut table, &mut keys, &all, &|e| eval(h, &residual, e), watch)?;
     let mut operations = Vec::new();
     let mut stop = Stop::MaxIterations;
     let mut improving: Vec<usize> = Vec::with_capacity(table.len());
@@ -279,8 +278,8 @@ pub fn search<W: Watch>(
     let window =
         |e: &Entry| Rect::around(e.col as usize, e.row as usize, s.kernels[e.radius as usize].radius, cols, rows);
     // The exact best change of an estimated entry, on its full window (None: exact already),
-    // kept in the entry (the full window's curvature too, as the estimate's is).
-    let exact = |h: &[f64], residual: &[f64], e: &mut Entry| {
+    // kept as its key and in the entry (the full window's curvature too, as the estimate's is).
+    let exact = |h: &[f64], residual: &[f64], e: &mut Entry, key: &mut f64| {
         let k = e.radius as usize;
         let kernel = &s.kernels[k];
         (stride(kernel.radius) > 1 && !e.checked).then(|| {
@@ -297,11 +296,11 @@ pub fn search<W: Watch>(
                 (!e.exact_curvature.is_nan()).then_some(e.exact_curvature),
             );
             e.exact_curvature = best.curvature;
-            let estimate = e.change / e.trust;
+            let estimate = *key / e.trust;
             if estimate < 0.0 {
                 e.trust = (best.change / estimate).clamp(TRUST_RANGE.0, TRUST_RANGE.1);
             }
-            e.change = best.change;
+            *key = best.change;
             e.delta = best.delta;
             e.checked = true;
             best.change
@@ -323,7 +322,7 @@ pub fn search<W: Watch>(
         improving.extend((0..keys.len()).filter(|&i| keys[i] < 0.0));
         if improving.is_empty() {
             let stale: Vec<usize> = (0..keys.len()).filter(|&i| keys[i] == f64::INFINITY).collect();
-            evaluations += recompute_watched(h, &residual, &mut table, &mut keys, &stale, &eval, watch)?;
+            evaluations += recompute_watched(&mut table, &mut keys, &stale, &|e| eval(h, &residual, e), watch)?;
             waiting.clear();
             improving.extend((0..keys.len()).filter(|&i| keys[i] < 0.0));
         }
@@ -341,8 +340,7 @@ pub fn search<W: Watch>(
             }
             let pick = if rng.random::<f64>() < s.p { 0 } else { rng.random_range(0..top.min(improving.len())) };
             let i = improving[pick];
-            if let Some(change) = exact(h, &residual, &mut table[i]) {
-                keys[i] = change;
+            if let Some(change) = exact(h, &residual, &mut table[i], &mut keys[i]) {
                 evaluations += 1;
                 checks += 1;
                 if change >= 0.0 {
@@ -381,8 +379,7 @@ pub fn search<W: Watch>(
                     k += 1;
                     continue;
                 }
-                if let Some(change) = exact(h, &residual, &mut table[j]) {
-                    keys[j] = change;
+                if let Some(change) = exact(h, &residual, &mut table[j], &mut keys[j]) {
                     evaluations += 1;
                     checks += 1;
                     if change >= 0.0 {
@@ -450,7 +447,7 @@ pub fn search<W: Watch>(
             let t = &mut table[i];
             if s.prediction && t.confidence < prediction::THRESHOLD {
                 t.b = f64::NAN;
-                waiting.wait(i, t.confidence, s.prediction_constant, iteration);
+                waiting.wait(i, t.confidence, iteration);
             } else if incremental && !t.b.is_nan() {
                 update.push(i);
             } else {
@@ -461,7 +458,9 @@ pub fn search<W: Watch>(
         updates += update.len() as u64;
         let summed = todo.len();
         todo.extend(update);
-        evaluations += refresh(h, &residual, &mut table, &mut keys, &todo, summed, &eval, fitness, &changes, s);
+        let sum = |e: &Entry| eval(h, &residual, e);
+        let update = |e: &Entry| updated(fitness, &changes, e, s);
+        evaluations += refresh(&mut table, &mut keys, &todo, summed, &sum, &update);
         if s.prediction {
             // The worst is taken as "no change" (0): a candidate that cannot improve the terrain
             // is no nearer the top for harming it less than another, and with the table's true
@@ -470,7 +469,7 @@ pub fn search<W: Watch>(
             let best = keys.iter().fold(0.0f64, |b, &k| b.min(k));
             let worst = 0.0;
             for &i in &todo {
-                table[i].confidence = prediction::confidence(table[i].change, best, worst, s.prediction_constant);
+                table[i].confidence = prediction::confidence(keys[i], best, worst, s.prediction_constant);
             }
         }
         watch.progress(iteration, s.max_iterations as u64, tracker.total(), h);
@@ -522,69 +521,42 @@ fn best_first(keys: &[f64]) -> impl Fn(&usize, &usize) -> std::cmp::Ordering + '
     |a, b| keys[*a].total_cmp(&keys[*b]).then(a.cmp(b))
 }
 
-/// Recompute the listed entries in parallel; returns how many were evaluated.
 /// Entries recomputed between looks at the stop request: a whole table can take seconds.
 const ENTRIES_PER_CHECK: usize = 1 << 16;
 
-/// [`recompute`] in chunks, looking at `watch` between them.
+/// Sum the listed entries again (`sum`), in chunks, looking at `watch` between them; returns
+/// how many were evaluated.
 fn recompute_watched<W: Watch>(
-    h: &[f64],
-    residual: &[f64],
     table: &mut [Entry],
     keys: &mut [f64],
     which: &[usize],
-    eval: &(impl Fn(&[f64], &[f64], &Entry) -> Best + Sync),
+    sum: &(impl Fn(&Entry) -> Best + Sync),
     watch: &W,
 ) -> Result<u64, W::Stop> {
     let mut n = 0;
     for chunk in which.chunks(ENTRIES_PER_CHECK) {
         watch.check()?;
-        n += recompute(h, residual, table, keys, chunk, eval);
+        n += refresh(table, keys, chunk, chunk.len(), sum, sum);
     }
     Ok(n)
 }
 
-fn recompute(
-    h: &[f64],
-    residual: &[f64],
-    table: &mut [Entry],
-    keys: &mut [f64],
-    which: &[usize],
-    eval: &(impl Fn(&[f64], &[f64], &Entry) -> Best + Sync),
-) -> u64 {
-    let snapshot: &[Entry] = table;
-    let results: Vec<Best> = which.par_iter().map(|&i| eval(h, residual, &snapshot[i])).collect();
-    store(table, keys, which, results)
-}
-
-/// Recompute the first `summed` of the listed entries and bring the rest's sums up to date
-/// ([`updated`]), in one parallel pass: one hand-over to the pool an iteration rather than
+/// Sum the first `summed` of the listed entries again (`sum`) and bring the rest's sums up to
+/// date (`update`), in one parallel pass: one hand-over to the pool an iteration rather than
 /// two. Returns how many entries were evaluated.
-#[allow(clippy::too_many_arguments)]
 fn refresh(
-    h: &[f64],
-    residual: &[f64],
     table: &mut [Entry],
     keys: &mut [f64],
     which: &[usize],
     summed: usize,
-    eval: &(impl Fn(&[f64], &[f64], &Entry) -> Best + Sync),
-    fitness: &Fitness,
-    changes: &[(Rect, Vec<f64>)],
-    s: &Settings,
+    sum: &(impl Fn(&Entry) -> Best + Sync),
+    update: &(impl Fn(&Entry) -> Best + Sync),
 ) -> u64 {
     let snapshot: &[Entry] = table;
     let results: Vec<Best> = which
         .par_iter()
         .enumerate()
-        .map(|(k, &i)| {
-            let e = &snapshot[i];
-            if k < summed {
-                eval(h, residual, e)
-            } else {
-                updated(fitness, changes, e, s)
-            }
-        })
+        .map(|(k, &i)| if k < summed { sum(&snapshot[i]) } else { update(&snapshot[i]) })
         .collect();
     store(table, keys, which, results)
 }
@@ -615,12 +587,11 @@ fn store(table: &mut [Entry], keys: &mut [f64], which: &[usize], results: Vec<Be
         let t = &mut table[i];
         // Only an estimate's check moves its scale away from 1; an entry summed on its full
         // window keeps 1, which the relaxation leaves as it is.
-        t.change = best.change * t.trust;
+        keys[i] = best.change * t.trust;
         t.trust += (1.0 - t.trust) * TRUST_RELAXATION;
         t.delta = best.delta;
         t.curvature = best.curvature;
         t.b = best.b;
-        keys[i] = t.change;
         t.checked = false;
     }
     which.len() as u64
