@@ -11,7 +11,7 @@
 
 use serde_json::{json, Value};
 
-use super::{rms, Detail, Field, Grid, Quadratic};
+use super::{rms, Anchors, Detail, Field, Grid, Quadratic};
 use crate::sims::deform_terrain::params::{Edge, EdgeMatch};
 use crate::terrain::Heightfield;
 
@@ -72,7 +72,7 @@ pub fn build(e: &EdgeMatch, other: &Heightfield, grid: &Grid) -> Field {
         one_sided: None,
         pairs: None,
         interest,
-        anchors: true,
+        anchors: Anchors::Interest,
         detail: Detail::EdgeMatch(EdgeDetail { seam }),
     }
 }

@@ -2,7 +2,7 @@
 
 use serde_json::{json, Value};
 
-use super::{rms, Detail, Field, Grid, Quadratic};
+use super::{rms, Anchors, Detail, Field, Grid, Quadratic};
 use crate::sims::deform_terrain::params::MatchHeightmap;
 use crate::terrain::Heightfield;
 
@@ -17,7 +17,7 @@ pub fn build(m: &MatchHeightmap, target: &Heightfield, grid: &Grid) -> Field {
         one_sided: None,
         pairs: None,
         interest: vec![false; n],
-        anchors: false,
+        anchors: Anchors::None,
         detail: Detail::MatchHeightmap,
     }
 }

@@ -160,11 +160,22 @@ pub struct Field {
     pub pairs: Option<Pairs>,
     /// Cells that drive candidate refinement (Figure 2) and define "far" cells.
     pub interest: Vec<bool>,
-    /// Whether every cell of interest is itself a candidate vertex (Figure 2's path
-    /// vertices): for narrow features (roads, seams, points) that a coarser lattice of
-    /// centres cannot fit cell by cell.
-    pub anchors: bool,
+    /// Which cells of interest are candidate vertices themselves (Figure 2's path vertices).
+    pub anchors: Anchors,
     pub detail: Detail,
+}
+
+/// Which cells of interest anchor small deformations of their own.
+pub enum Anchors {
+    /// None: the lattice of centres fits the constraint.
+    None,
+    /// Every one, with every small radius: narrow features (roads, seams, points) that a
+    /// coarser lattice of centres cannot fit cell by cell.
+    Interest,
+    /// Every one, but only those marked (a region's edge) with every small radius, the rest
+    /// with the smallest few: areas whose edges must come out sharp, while their inside is
+    /// fitted by the lattice's centres and needs only the finest detail cell by cell.
+    Edges(Vec<bool>),
 }
 
 /// What a constraint's figures are computed from.
@@ -753,11 +764,18 @@ pub fn interest(fields: &[Field], cells: usize) -> Vec<bool> {
     out
 }
 
-/// The cells of interest that are candidate vertices themselves, as (col, row).
-pub fn anchors(fields: &[Field], cols: usize) -> Vec<(usize, usize)> {
+/// The cells of interest that are candidate vertices themselves, as (col, row, edge): an edge
+/// cell takes every small radius, the others the smallest few.
+pub fn anchors(fields: &[Field], cols: usize) -> Vec<(usize, usize, bool)> {
     let mut out = Vec::new();
-    for f in fields.iter().filter(|f| f.anchors) {
-        out.extend(f.interest.iter().enumerate().filter(|(_, &i)| i).map(|(i, _)| (i % cols, i / cols)));
+    for f in fields {
+        let edge = |i: usize| match &f.anchors {
+            Anchors::Edges(edges) => edges[i],
+            _ => true,
+        };
+        if !matches!(f.anchors, Anchors::None) {
+            out.extend(f.interest.iter().enumerate().filter(|(_, &x)| x).map(|(i, _)| (i % cols, i / cols, edge(i))));
+        }
     }
     out
 }

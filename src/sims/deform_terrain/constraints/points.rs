@@ -3,7 +3,7 @@
 
 use serde_json::{json, Value};
 
-use super::{Detail, Field, Grid, Quadratic};
+use super::{Anchors, Detail, Field, Grid, Quadratic};
 use crate::sims::deform_terrain::params::Points;
 
 pub fn build(p: &Points, grid: &Grid) -> Field {
@@ -28,7 +28,7 @@ pub fn build(p: &Points, grid: &Grid) -> Field {
         one_sided: None,
         pairs: None,
         interest,
-        anchors: true,
+        anchors: Anchors::Interest,
         detail: Detail::Points(targets),
     }
 }

@@ -2,7 +2,7 @@
 
 use serde_json::{json, Value};
 
-use super::{rms, Detail, Field, Grid, Quadratic};
+use super::{rms, Anchors, Detail, Field, Grid, Quadratic};
 use crate::sims::deform_terrain::params::Preserve;
 
 pub fn build(p: &Preserve, grid: &Grid) -> Field {
@@ -15,7 +15,7 @@ pub fn build(p: &Preserve, grid: &Grid) -> Field {
         one_sided: None,
         pairs: None,
         interest: vec![false; n],
-        anchors: false,
+        anchors: Anchors::None,
         detail: Detail::Preserve,
     }
 }

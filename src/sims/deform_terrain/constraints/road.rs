@@ -7,7 +7,7 @@
 
 use serde_json::{json, Value};
 
-use super::{Detail, Field, Grid, Quadratic};
+use super::{Anchors, Detail, Field, Grid, Quadratic};
 use crate::sims::deform_terrain::params::{Road, RoadHeight, RoadPreserve};
 
 /// What the road's figures need.
@@ -123,7 +123,7 @@ pub fn build(road: &Road, grid: &Grid, combined: bool) -> Field {
         one_sided: None,
         pairs: None,
         interest,
-        anchors: true,
+        anchors: Anchors::Interest,
         detail: Detail::Road(RoadDetail { cells, centreline, profile, step_m, width_m: road.width_m }),
     }
 }

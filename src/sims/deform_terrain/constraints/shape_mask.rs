@@ -4,7 +4,7 @@
 
 use serde_json::{json, Value};
 
-use super::{Detail, Field, Grid, OneSided};
+use super::{Anchors, Detail, Field, Grid, OneSided};
 use crate::sims::deform_terrain::params::{MaskShape, PlanPoint, ShapeMask};
 use crate::terrain::Heightfield;
 
@@ -50,7 +50,7 @@ pub fn build(m: &ShapeMask, image: Option<&Heightfield>, grid: &Grid) -> Field {
         }),
         pairs: None,
         interest,
-        anchors: false,
+        anchors: Anchors::None,
         detail: Detail::ShapeMask { water_level, margin },
     }
 }

@@ -1,12 +1,13 @@
 //! `terraces`: regions at their own levels — terraces and plateaus, the paper's "masks for
 //! more than one height threshold". A sample inside a region wants its level (the last region
 //! containing it wins), penalised by (h − level)² normalised over the regions' samples; the
-//! regions' samples anchor small deformations, so their edges come out sharp.
+//! regions' samples anchor small deformations — those on a region's edge every small radius,
+//! so the steps come out sharp, the rest the smallest few.
 
 use serde_json::{json, Value};
 
 use super::shape_mask::inside_any;
-use super::{Detail, Field, Grid, Quadratic};
+use super::{Anchors, Detail, Field, Grid, Quadratic};
 use crate::sims::deform_terrain::params::Terraces;
 
 /// (sample, level) of every sample in a region, and each region's samples.
@@ -40,6 +41,22 @@ pub fn build(t: &Terraces, grid: &Grid) -> Field {
     for &(i, _) in &targets {
         interest[i] = true;
     }
+    // A sample is on an edge where a neighbour along a row or column wants another level or
+    // none: there the terrain steps, and the small kernels fit the step cell by cell.
+    let want = |i: usize| level[i].map(|k| t.regions[k].level_m);
+    let (cols, rows) = (grid.cols, grid.rows);
+    let edges: Vec<bool> = (0..n)
+        .map(|i| {
+            let (c, r) = (i % cols, i / cols);
+            let neighbours = [
+                (c > 0).then(|| i - 1),
+                (c + 1 < cols).then(|| i + 1),
+                (r > 0).then(|| i - cols),
+                (r + 1 < rows).then(|| i + cols),
+            ];
+            level[i].is_some() && neighbours.into_iter().flatten().any(|j| want(j) != want(i))
+        })
+        .collect();
     Field {
         name: "terraces",
         weight: t.weight,
@@ -47,7 +64,7 @@ pub fn build(t: &Terraces, grid: &Grid) -> Field {
         one_sided: None,
         pairs: None,
         interest,
-        anchors: true,
+        anchors: Anchors::Edges(edges),
         detail: Detail::Terraces(TerraceDetail { targets, regions }),
     }
 }

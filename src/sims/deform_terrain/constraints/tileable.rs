@@ -5,7 +5,7 @@
 
 use serde_json::{json, Value};
 
-use super::{rms, Detail, Field, Grid, Pairs, NO_PARTNER};
+use super::{rms, Anchors, Detail, Field, Grid, Pairs, NO_PARTNER};
 use crate::sims::deform_terrain::params::{TileAxes, Tileable};
 
 pub fn build(t: &Tileable, grid: &Grid) -> Field {
@@ -59,7 +59,7 @@ pub fn build(t: &Tileable, grid: &Grid) -> Field {
         one_sided: None,
         pairs: Some(Pairs { partner_x, partner_z, scale, kinks_x, kinks_z, kink_scale: scale }),
         interest,
-        anchors: true,
+        anchors: Anchors::Interest,
         detail: Detail::Tileable { x, z },
     }
 }
