@@ -60,6 +60,73 @@ pub fn candidate_vertices(
     out
 }
 
+/// A wide kernel is offered on a lattice of about a quarter of its radius rather than at
+/// every refined vertex: two such kernels a few cells apart are nearly the same deformation,
+/// and each entry a deformation reaches is summed again. Near a narrow feature (a road, a
+/// seam, a point) a wide kernel's exact place still matters, so there it keeps every vertex.
+/// Terraces at 257²: 59 400 -> 56 000 entries, a fifth fewer sums and half the exact checks,
+/// search 1.43 -> 1.08 s, fitness 3.756e-4 -> 3.755e-4 (2 here: 1.03 s, 3.763e-4).
+const RADIUS_PER_STEP: usize = 4;
+
+/// The lattice step a kernel of `radius` cells is offered on away from narrow features: the
+/// largest power of two at most radius / [`RADIUS_PER_STEP`], at least 1 and at most `coarse`.
+pub fn radius_step(radius: usize, coarse: usize) -> usize {
+    let want = (radius / RADIUS_PER_STEP).clamp(1, coarse.max(1));
+    1 << want.ilog2()
+}
+
+/// The radii a lattice vertex takes, bit k for `radii[k]` (offered on the lattice of
+/// `steps[k]`): on the coarse lattice every one; elsewhere those whose step divides both its
+/// column and row, and those reaching a narrow feature `narrow` cells away.
+pub fn radii_at(
+    at: (usize, usize),
+    grid: (usize, usize),
+    coarse: usize,
+    radii: &[usize],
+    steps: &[usize],
+    narrow: u32,
+) -> u32 {
+    let ((col, row), (cols, rows)) = (at, grid);
+    let on_coarse = |v: usize, n: usize| v % coarse == 0 || v + 1 == n;
+    let coarse_vertex = on_coarse(col, cols) && on_coarse(row, rows);
+    radii
+        .iter()
+        .zip(steps)
+        .enumerate()
+        .filter(|&(_, (&radius, &step))| {
+            coarse_vertex || (col % step == 0 && row % step == 0) || narrow as usize <= radius
+        })
+        .fold(0, |mask, (k, _)| mask | 1 << k)
+}
+
+/// Chessboard distance in cells from every cell to the nearest marked one (`u32::MAX` where
+/// none is marked): two passes over the 8-neighbourhood, exact for this metric.
+pub fn distance_to(marked: &[bool], cols: usize, rows: usize) -> Vec<u32> {
+    let mut d: Vec<u32> = marked.iter().map(|&m| if m { 0 } else { u32::MAX }).collect();
+    let near = |d: &[u32], c: i64, r: i64| {
+        if c < 0 || r < 0 || c >= cols as i64 || r >= rows as i64 {
+            u32::MAX
+        } else {
+            d[r as usize * cols + c as usize].saturating_add(1)
+        }
+    };
+    for r in 0..rows as i64 {
+        for c in 0..cols as i64 {
+            let best = [(-1, 0), (-1, -1), (0, -1), (1, -1)].iter().map(|&(dc, dr)| near(&d, c + dc, r + dr)).min();
+            let i = r as usize * cols + c as usize;
+            d[i] = d[i].min(best.unwrap_or(u32::MAX));
+        }
+    }
+    for r in (0..rows as i64).rev() {
+        for c in (0..cols as i64).rev() {
+            let best = [(1, 0), (1, 1), (0, 1), (-1, 1)].iter().map(|&(dc, dr)| near(&d, c + dc, r + dr)).min();
+            let i = r as usize * cols + c as usize;
+            d[i] = d[i].min(best.unwrap_or(u32::MAX));
+        }
+    }
+    d
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -78,5 +145,43 @@ mod tests {
         sorted.sort_by_key(|&(c, r)| (r, c));
         sorted.dedup();
         assert_eq!(sorted, v);
+    }
+
+    #[test]
+    fn wide_kernels_sit_on_a_coarser_lattice_away_from_narrow_features() {
+        // Radii 2, 8, 20, 32 on a 257² grid with a coarse spacing of 16: steps 1, 2, 4, 8.
+        let radii = [2, 8, 20, 32];
+        let steps: Vec<usize> = radii.iter().map(|&r| radius_step(r, 16)).collect();
+        assert_eq!(steps, [1, 2, 4, 8]);
+        assert_eq!(radius_step(500, 16), 16);
+        let far = u32::MAX;
+        let at = |c, r, narrow| radii_at((c, r), (257, 257), 16, &radii, &steps, narrow);
+        assert_eq!(at(6, 10, far), 0b0011, "on the lattice of 2, not of 4");
+        assert_eq!(at(12, 4, far), 0b0111);
+        assert_eq!(at(24, 40, far), 0b1111);
+        assert_eq!(at(2, 6, far), 0b0011);
+        assert_eq!(at(3, 6, far), 0b0001);
+        // The coarse lattice, its last line included, takes every radius.
+        assert_eq!(at(256, 48, far), 0b1111);
+        // A narrow feature within a kernel's radius: that kernel keeps this vertex.
+        assert_eq!(at(6, 10, 20), 0b1111);
+        assert_eq!(at(6, 10, 25), 0b1011);
+        assert_eq!(at(6, 10, 33), 0b0011);
+    }
+
+    #[test]
+    fn distances_to_marked_cells_are_chessboard_distances() {
+        let (cols, rows) = (7, 5);
+        let mut marked = vec![false; cols * rows];
+        marked[cols + 1] = true;
+        marked[3 * cols + 5] = true;
+        let d = distance_to(&marked, cols, rows);
+        for r in 0..rows {
+            for c in 0..cols {
+                let want = [(1usize, 1usize), (5, 3)].iter().map(|&(mc, mr)| c.abs_diff(mc).max(r.abs_diff(mr))).min();
+                assert_eq!(d[r * cols + c] as usize, want.unwrap(), "({c}, {r})");
+            }
+        }
+        assert!(distance_to(&[false; 4], 2, 2).iter().all(|&x| x == u32::MAX));
     }
 }

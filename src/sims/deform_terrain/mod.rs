@@ -28,7 +28,7 @@ pub use sequence::{DeformSequence, Deformation};
 use crate::export::{Artifact, HeightfieldExport};
 use crate::jobs::{Outcome, RunContext, SimError, Simulation};
 use crate::terrain::{Heightfield, TerrainSource};
-use constraints::{Field, Fitness, Grid};
+use constraints::{Anchor, Field, Fitness, Grid};
 use search::{Record, Searched, Settings, Stop, Tracker, Watch};
 
 /// The `deform-terrain` job kind.
@@ -90,19 +90,32 @@ impl Simulation for DeformTerrain {
         let lattice =
             candidates::candidate_vertices(&interest, grid.cols, grid.rows, coarse, params.min_spacing_cells as usize);
         // Anchors fit narrow features cell by cell, so they take the small radii only (the
-        // inside of an area the smallest few); the lattice's vertices take every radius.
-        let small = settings.kernels.len().min(ANCHOR_RADII);
-        let inside = settings.kernels.len().min(INSIDE_ANCHOR_RADII);
-        let mut vertices: Vec<(usize, usize, usize)> =
-            lattice.iter().map(|&(c, r)| (c, r, settings.kernels.len())).collect();
-        vertices.extend(
-            constraints::anchors(&fields, grid.cols)
-                .into_iter()
-                .map(|(c, r, edge)| (c, r, if edge { small } else { inside })),
-        );
-        vertices.sort_by_key(|&(c, r, n)| (r, c, std::cmp::Reverse(n)));
-        vertices.dedup_by_key(|v| (v.0, v.1));
-        let entries: usize = vertices.iter().map(|v| v.2).sum();
+        // inside of an area the smallest few); the lattice's vertices take every radius their
+        // place allows (the wide ones a coarser lattice, away from narrow features).
+        let small = (1u32 << settings.kernels.len().min(ANCHOR_RADII)) - 1;
+        let inside = (1u32 << settings.kernels.len().min(INSIDE_ANCHOR_RADII)) - 1;
+        let anchors = constraints::anchors(&fields, grid.cols);
+        let mut narrow = vec![false; grid.cells()];
+        for &(c, r, _) in anchors.iter().filter(|a| a.2 == Anchor::Narrow) {
+            narrow[r * grid.cols + c] = true;
+        }
+        let narrow = candidates::distance_to(&narrow, grid.cols, grid.rows);
+        let radii: Vec<usize> = settings.kernels.iter().map(|k| k.radius).collect();
+        let steps: Vec<usize> = radii.iter().map(|&r| candidates::radius_step(r, coarse)).collect();
+        let place = |c: usize, r: usize| {
+            candidates::radii_at((c, r), (grid.cols, grid.rows), coarse, &radii, &steps, narrow[r * grid.cols + c])
+        };
+        let mut vertices: Vec<(usize, usize, u32)> = lattice.iter().map(|&(c, r)| (c, r, place(c, r))).collect();
+        vertices.extend(anchors.into_iter().map(|(c, r, a)| (c, r, if a == Anchor::Inside { inside } else { small })));
+        vertices.sort_by_key(|&(c, r, _)| (r, c));
+        vertices.dedup_by(|later, kept| {
+            let same = (later.0, later.1) == (kept.0, kept.1);
+            if same {
+                kept.2 |= later.2;
+            }
+            same
+        });
+        let entries: usize = vertices.iter().map(|v| v.2.count_ones() as usize).sum();
         if entries > MAX_TABLE_ENTRIES {
             return Err(SimError::Invalid {
                 field: "coarse_spacing_cells".into(),

@@ -198,13 +198,13 @@ pub trait Watch {
     fn progress(&self, iteration: u64, total: u64, fitness: f64, h: &[f64]);
 }
 
-/// Run the search from `h`, applying through `tracker`; each vertex (col, row, n) is tried
-/// with the n smallest radii.
+/// Run the search from `h`, applying through `tracker`; each vertex (col, row, radii) is tried
+/// with the radii whose bits are set.
 pub fn search<W: Watch>(
     h: &mut [f64],
     fitness: &Fitness,
     tracker: &mut Tracker,
-    vertices: &[(usize, usize, usize)],
+    vertices: &[(usize, usize, u32)],
     s: &Settings,
     seed: u64,
     watch: &W,
@@ -214,7 +214,7 @@ pub fn search<W: Watch>(
     let mut table: Vec<Entry> = vertices
         .iter()
         .flat_map(|&(c, r, radii)| {
-            (0..radii.min(s.kernels.len())).map(move |k| Entry {
+            (0..s.kernels.len()).filter(move |k| radii & (1 << k) != 0).map(move |k| Entry {
                 col: c as u32,
                 row: r as u32,
                 radius: k as u8,

@@ -764,17 +764,28 @@ pub fn interest(fields: &[Field], cells: usize) -> Vec<bool> {
     out
 }
 
-/// The cells of interest that are candidate vertices themselves, as (col, row, edge): an edge
-/// cell takes every small radius, the others the smallest few.
-pub fn anchors(fields: &[Field], cols: usize) -> Vec<(usize, usize, bool)> {
+/// A cell of interest that is a candidate vertex itself.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Anchor {
+    /// On a narrow feature (a road, a seam, a point).
+    Narrow,
+    /// On an area's edge.
+    Edge,
+    /// Inside an area.
+    Inside,
+}
+
+/// The cells of interest that are candidate vertices themselves, as (col, row, what).
+pub fn anchors(fields: &[Field], cols: usize) -> Vec<(usize, usize, Anchor)> {
     let mut out = Vec::new();
     for f in fields {
-        let edge = |i: usize| match &f.anchors {
-            Anchors::Edges(edges) => edges[i],
-            _ => true,
+        let what = |i: usize| match &f.anchors {
+            Anchors::Edges(edges) if edges[i] => Anchor::Edge,
+            Anchors::Edges(_) => Anchor::Inside,
+            _ => Anchor::Narrow,
         };
         if !matches!(f.anchors, Anchors::None) {
-            out.extend(f.interest.iter().enumerate().filter(|(_, &x)| x).map(|(i, _)| (i % cols, i / cols, edge(i))));
+            out.extend(f.interest.iter().enumerate().filter(|(_, &x)| x).map(|(i, _)| (i % cols, i / cols, what(i))));
         }
     }
     out
