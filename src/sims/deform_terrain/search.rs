@@ -149,14 +149,12 @@ struct Entry {
     row: u32,
     radius: u8,
     delta: f64,
-    confidence: f64,
     /// The quadratic part's curvature at this place and stride (NaN until first evaluated):
     /// it never changes, so it is summed once.
     curvature: f64,
     /// The same on the full lattice, for the exact check of an estimate (NaN until needed).
     exact_curvature: f64,
-    /// The quadratic part's sum b as of the last iteration; NaN once the entry has missed an
-    /// iteration's changes (prediction let it wait) and must be summed again.
+    /// The quadratic part's sum b as of its last recomputation (current unless `missed`).
     b: f64,
     /// Whether the entry's key (its change) and `delta` are the exact ones on the full window,
     /// as of now.
@@ -219,7 +217,6 @@ pub fn search<W: Watch>(
                 row: r as u32,
                 radius: k as u8,
                 delta: 0.0,
-                confidence: 1.0,
                 curvature: f64::NAN,
                 exact_curvature: f64::NAN,
                 b: f64::NAN,
@@ -309,6 +306,10 @@ pub fn search<W: Watch>(
     // Entries invalidated this iteration, and those prediction lets wait by when they fall due,
     // so the table is not scanned for them every iteration.
     let mut invalidated: Vec<usize> = Vec::new();
+    // Apart from the table, as the keys are, since every invalidated entry is looked at: each
+    // entry's confidence (§3.5), and whether its sum b missed changes while it waited.
+    let mut confidence = vec![1.0f64; table.len()];
+    let mut missed = vec![false; table.len()];
     let mut waiting = prediction::Waiting::new(s.prediction_constant, s.max_iterations as u64);
 
     for iteration in 1..=s.max_iterations as u64 {
@@ -318,19 +319,24 @@ pub fn search<W: Watch>(
             break;
         }
         // Choose (§3.3), re-checking estimated entries exactly before applying.
-        improving.clear();
-        improving.extend((0..keys.len()).filter(|&i| keys[i] < 0.0));
+        let top = ((s.top_fraction * table.len() as f64).ceil() as usize).max(1);
+        let head = HEAD_PER_BATCH * s.batch;
+        let mut below = gather(&mut improving, &keys, top.max(head));
         if improving.is_empty() {
             let stale: Vec<usize> = (0..keys.len()).filter(|&i| keys[i] == f64::INFINITY).collect();
             evaluations += recompute_watched(&mut table, &mut keys, &stale, &|e| eval(h, &residual, e), watch)?;
+            for &i in &stale {
+                missed[i] = false;
+            }
             waiting.clear();
-            improving.extend((0..keys.len()).filter(|&i| keys[i] < 0.0));
+            below = gather(&mut improving, &keys, top.max(head));
         }
-        // Best first. Only the head is ever read unless the batch runs past it, so the head is
-        // selected and sorted, and the rest only when reached (the order is total: the same
-        // as sorting everything).
-        let top = ((s.top_fraction * table.len() as f64).ceil() as usize).max(1);
-        let mut sorted = sort_more(&mut improving, 0, top.max(HEAD_PER_BATCH * s.batch), &keys);
+        // Best first. The draw needs the top fraction as a set, and the greedy choice and the
+        // batch only the head of it in order, so the set is selected, the head sorted, and
+        // the rest only when the batch reaches it (the order is total: the same as sorting
+        // everything).
+        let drawn = select(&mut improving, top, &keys);
+        let mut sorted = sort_more(&mut improving[..drawn], 0, head, &keys);
         // An estimated entry is checked exactly when it is reached (its best displacement on
         // the full window); if it is then no longer ahead of the next, it goes back to its
         // place in the order, so the choice is made on exact changes (lazy greedy).
@@ -338,21 +344,19 @@ pub fn search<W: Watch>(
             if improving.is_empty() {
                 break None;
             }
-            let pick = if rng.random::<f64>() < s.p { 0 } else { rng.random_range(0..top.min(improving.len())) };
+            let pick = if rng.random::<f64>() < s.p { 0 } else { rng.random_range(0..drawn.min(improving.len())) };
             let i = improving[pick];
             if let Some(change) = exact(h, &residual, &mut table[i], &mut keys[i]) {
                 evaluations += 1;
                 checks += 1;
                 if change >= 0.0 {
-                    drop_from_head(&mut improving, pick, &mut sorted);
+                    drop_drawn(&mut improving, pick, &mut sorted, drawn, &keys);
+                    if sorted == 0 {
+                        let n = drawn.min(improving.len());
+                        sorted = sort_more(&mut improving[..n], 0, head, &keys);
+                    }
                 } else if !(pick == 0 && reinsert(&mut improving, 0, &mut sorted, &keys)) {
                     break Some((i, table[i]));
-                }
-                if sorted < top.min(improving.len()) {
-                    // The draw may reach past the sorted head now. The head is sorted a margin
-                    // past the draw's reach, so that the next few entries leaving it do not
-                    // each select again through the whole rest.
-                    sorted = sort_more(&mut improving, sorted, top - sorted + HEAD_PER_BATCH, &keys);
                 }
                 continue;
             }
@@ -369,7 +373,16 @@ pub fn search<W: Watch>(
         let mut dirty = dirty_rects(window(&e), cols, rows, s.tile_x, s.tile_z);
         if s.batch > 1 {
             let mut k = 0;
-            while k < improving.len() && batch.len() < s.batch {
+            while batch.len() < s.batch {
+                if k == improving.len() {
+                    // Past what was gathered: the rest of the improving entries, in order.
+                    if below == 0.0 {
+                        break;
+                    }
+                    improving.extend((0..keys.len()).filter(|&i| (below..0.0).contains(&keys[i])));
+                    below = 0.0;
+                    continue;
+                }
                 if k == sorted {
                     sorted = sort_more(&mut improving, sorted, sorted, &keys);
                 }
@@ -444,11 +457,10 @@ pub fn search<W: Watch>(
         // again; the rest (those prediction let wait, whose sums missed changes) are recomputed.
         let (mut todo, mut update) = (Vec::new(), Vec::new());
         for i in invalidated.drain(..) {
-            let t = &mut table[i];
-            if s.prediction && t.confidence < prediction::THRESHOLD {
-                t.b = f64::NAN;
-                waiting.wait(i, t.confidence, iteration);
-            } else if incremental && !t.b.is_nan() {
+            if s.prediction && confidence[i] < prediction::THRESHOLD {
+                missed[i] = true;
+                waiting.wait(i, confidence[i], iteration);
+            } else if incremental && !missed[i] {
                 update.push(i);
             } else {
                 todo.push(i);
@@ -461,6 +473,9 @@ pub fn search<W: Watch>(
         let sum = |e: &Entry| eval(h, &residual, e);
         let update = |e: &Entry| updated(fitness, &changes, e, s);
         evaluations += refresh(&mut table, &mut keys, &todo, summed, &sum, &update);
+        for &i in &todo[..summed] {
+            missed[i] = false;
+        }
         if s.prediction {
             // The worst is taken as "no change" (0): a candidate that cannot improve the terrain
             // is no nearer the top for harming it less than another, and with the table's true
@@ -469,7 +484,7 @@ pub fn search<W: Watch>(
             let best = keys.iter().fold(0.0f64, |b, &k| b.min(k));
             let worst = 0.0;
             for &i in &todo {
-                table[i].confidence = prediction::confidence(keys[i], best, worst, s.prediction_constant);
+                confidence[i] = prediction::confidence(keys[i], best, worst, s.prediction_constant);
             }
         }
         watch.progress(iteration, s.max_iterations as u64, tracker.total(), h);
@@ -509,11 +524,58 @@ fn reinsert(improving: &mut [usize], at: usize, sorted: &mut usize, keys: &[f64]
     true
 }
 
-/// Drop `improving[at]` (in the sorted head), moving only the head after it.
-fn drop_from_head(improving: &mut Vec<usize>, at: usize, sorted: &mut usize) {
-    improving[at..*sorted].rotate_left(1);
-    improving.swap_remove(*sorted - 1);
-    *sorted -= 1;
+/// Entries sampled to estimate where the best few lie.
+const SAMPLE_STRIDE: usize = 16;
+
+/// Gather into `improving` at least the `want` best improving entries: those below a key
+/// estimated from every [`SAMPLE_STRIDE`]-th entry with a margin of two, or, when that falls
+/// short, every improving entry. Returns the bound: every entry not gathered has a key at or
+/// above it (0: every improving entry is gathered).
+fn gather(improving: &mut Vec<usize>, keys: &[f64], want: usize) -> f64 {
+    improving.clear();
+    let mut sample: Vec<f64> = keys.iter().step_by(SAMPLE_STRIDE).copied().filter(|&k| k < 0.0).collect();
+    let rank = (2 * want).div_ceil(SAMPLE_STRIDE);
+    if rank < sample.len() {
+        let below = *sample.select_nth_unstable_by(rank, f64::total_cmp).1;
+        improving.extend((0..keys.len()).filter(|&i| keys[i] < below));
+        if improving.len() >= want {
+            return below;
+        }
+        improving.clear();
+    }
+    improving.extend((0..keys.len()).filter(|&i| keys[i] < 0.0));
+    0.0
+}
+
+/// Put the `n` best of `improving` first, in no order; returns how many that is.
+fn select(improving: &mut [usize], n: usize, keys: &[f64]) -> usize {
+    let n = n.min(improving.len());
+    if n < improving.len() {
+        improving.select_nth_unstable_by(n, best_first(keys));
+    }
+    n
+}
+
+/// Drop `improving[at]`, one of the `drawn` best (sorted up to `sorted`), and put the best of
+/// the rest in its place among them, so the draw keeps its reach.
+fn drop_drawn(improving: &mut Vec<usize>, at: usize, sorted: &mut usize, drawn: usize, keys: &[f64]) {
+    let mut at = at;
+    if at < *sorted {
+        improving[at..*sorted].rotate_left(1);
+        *sorted -= 1;
+        at = *sorted;
+    }
+    let order = best_first(keys);
+    let next = (drawn..improving.len()).min_by(|&a, &b| order(&improving[a], &improving[b]));
+    match next {
+        Some(m) => {
+            improving.swap(at, m);
+            improving.swap_remove(m);
+        }
+        None => {
+            improving.remove(at);
+        }
+    }
 }
 
 /// Entries by their change, best first; ties by index, so the order is total.
