@@ -481,7 +481,7 @@ pub fn search<W: Watch>(
             // is no nearer the top for harming it less than another, and with the table's true
             // worst — some far-off entry whose every displacement hurts — every improvement
             // ranked near full confidence, so on roads nothing was ever skipped.
-            let best = keys.iter().fold(0.0f64, |b, &k| b.min(k));
+            let best = best_key(&keys);
             let worst = 0.0;
             for &i in &todo {
                 confidence[i] = prediction::confidence(keys[i], best, worst, s.prediction_constant);
@@ -537,14 +537,40 @@ fn gather(improving: &mut Vec<usize>, keys: &[f64], want: usize) -> f64 {
     let rank = (2 * want).div_ceil(SAMPLE_STRIDE);
     if rank < sample.len() {
         let below = *sample.select_nth_unstable_by(rank, f64::total_cmp).1;
-        improving.extend((0..keys.len()).filter(|&i| keys[i] < below));
+        below_into(improving, keys, below);
         if improving.len() >= want {
             return below;
         }
         improving.clear();
     }
-    improving.extend((0..keys.len()).filter(|&i| keys[i] < 0.0));
+    below_into(improving, keys, 0.0);
     0.0
+}
+
+/// Append the entries whose keys are below `bound`, in index order: written unconditionally
+/// and kept by moving the end, with no branch to mispredict (most keys fall on one side).
+fn below_into(out: &mut Vec<usize>, keys: &[f64], bound: f64) {
+    let start = out.len();
+    out.resize(start + keys.len(), 0);
+    let mut n = start;
+    for (i, &k) in keys.iter().enumerate() {
+        out[n] = i;
+        n += usize::from(k < bound);
+    }
+    out.truncate(n);
+}
+
+/// The smallest key, at most 0, in four running minima a compiler can keep in vector lanes.
+fn best_key(keys: &[f64]) -> f64 {
+    let mut lanes = [0.0f64; 4];
+    let chunks = keys.chunks_exact(4);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for (l, &k) in lanes.iter_mut().zip(c) {
+            *l = if k < *l { k } else { *l };
+        }
+    }
+    rest.iter().chain(&lanes).fold(0.0f64, |b, &k| if k < b { k } else { b })
 }
 
 /// Put the `n` best of `improving` first, in no order; returns how many that is.
