@@ -276,33 +276,31 @@ pub fn search<W: Watch>(
         |e: &Entry| Rect::around(e.col as usize, e.row as usize, s.kernels[e.radius as usize].radius, cols, rows);
     // The exact best change of an estimated entry, on its full window (None: exact already),
     // kept as its key and in the entry (the full window's curvature too, as the estimate's is).
-    let exact = |h: &[f64], residual: &[f64], e: &mut Entry, key: &mut f64| {
+    let unchecked = |e: &Entry| stride(s.kernels[e.radius as usize].radius) > 1 && !e.checked;
+    let check = |h: &[f64], residual: &[f64], e: &Entry| {
         let k = e.radius as usize;
-        let kernel = &s.kernels[k];
-        (stride(kernel.radius) > 1 && !e.checked).then(|| {
-            let best = fitness.best_change(
-                h,
-                residual,
-                e.col as usize,
-                e.row as usize,
-                kernel,
-                1,
-                &s.deltas[k],
-                s.d_max[k],
-                true,
-                (!e.exact_curvature.is_nan()).then_some(e.exact_curvature),
-            );
-            e.exact_curvature = best.curvature;
-            let estimate = *key / e.trust;
-            if estimate < 0.0 {
-                e.trust = (best.change / estimate).clamp(TRUST_RANGE.0, TRUST_RANGE.1);
-            }
-            *key = best.change;
-            e.delta = best.delta;
-            e.checked = true;
-            best.change
-        })
+        fitness.best_change(
+            h,
+            residual,
+            e.col as usize,
+            e.row as usize,
+            &s.kernels[k],
+            1,
+            &s.deltas[k],
+            s.d_max[k],
+            true,
+            (!e.exact_curvature.is_nan()).then_some(e.exact_curvature),
+        )
     };
+    let exact = |h: &[f64], residual: &[f64], e: &mut Entry, key: &mut f64| {
+        unchecked(e).then(|| take_check(e, key, check(h, residual, e)))
+    };
+    // What a check costs, in cell visits: its window, once per sampled displacement when the
+    // fitness has terms other than the quadratic (the one-sided mask's, the pairs').
+    let per_cell = if fitness.residual_only() { 1 } else { s.deltas.iter().map(Vec::len).max().unwrap_or(1) + 1 };
+    let check_cost = |e: &Entry| (2 * s.kernels[e.radius as usize].radius + 1).pow(2) * per_cell;
+    // Checks made ahead for entries the batch is about to reach, to be taken when it does.
+    let mut ahead: Vec<(usize, Best)> = Vec::new();
     // Entries invalidated this iteration, and those prediction lets wait by when they fall due,
     // so the table is not scanned for them every iteration.
     let mut invalidated: Vec<usize> = Vec::new();
@@ -370,6 +368,7 @@ pub fn search<W: Watch>(
         // The batch: the choice, then further improving entries best first whose windows the
         // changes so far leave untouched, so each entry's change is still exact and they add.
         let mut batch = vec![e];
+        ahead.clear();
         let mut dirty = dirty_rects(window(&e), cols, rows, s.tile_x, s.tile_z);
         if s.batch > 1 {
             let mut k = 0;
@@ -392,9 +391,40 @@ pub fn search<W: Watch>(
                     k += 1;
                     continue;
                 }
-                if let Some(change) = exact(h, &residual, &mut table[j], &mut keys[j]) {
-                    evaluations += 1;
-                    checks += 1;
+                if unchecked(&table[j]) {
+                    let best = match ahead.iter().position(|a| a.0 == j) {
+                        Some(at) => ahead.swap_remove(at).1,
+                        None => {
+                            // This check and those of the next few entries the batch will reach
+                            // (as far as the changes taken so far tell), at once: the heights
+                            // do not change before the batch is applied, so each is what it
+                            // would be when reached, and is taken then (or never).
+                            let mut block = vec![j];
+                            for &x in &improving[k + 1..sorted] {
+                                if block.len() == CHECKS_AT_ONCE {
+                                    break;
+                                }
+                                let reached = x != first && keys[x] < 0.0 && unchecked(&table[x]);
+                                if reached
+                                    && !ahead.iter().any(|a| a.0 == x)
+                                    && !dirty.iter().any(|d| d.intersects(&window(&table[x])))
+                                {
+                                    block.push(x);
+                                }
+                            }
+                            evaluations += block.len() as u64;
+                            checks += block.len() as u64;
+                            let cost: usize = block.iter().map(|&x| check_cost(&table[x])).sum();
+                            let mut results: Vec<Best> = if cost >= PARALLEL_CHECK_CELLS {
+                                block.par_iter().map(|&x| check(h, &residual, &table[x])).collect()
+                            } else {
+                                block.iter().map(|&x| check(h, &residual, &table[x])).collect()
+                            };
+                            ahead.extend(block[1..].iter().copied().zip(results.drain(1..)));
+                            results[0]
+                        }
+                    };
+                    let change = take_check(&mut table[j], &mut keys[j], best);
                     if change >= 0.0 {
                         k += 1;
                         continue;
@@ -440,8 +470,9 @@ pub fn search<W: Watch>(
                 let (lo, hi) = (d.r0.saturating_sub(r), (d.r1 + r).min(rows - 1));
                 let (c0, c1) = (d.c0.saturating_sub(r) as u32, (d.c1 + r) as u32);
                 for row in &rows_of[lo..=hi] {
+                    // The first column in reach by bisection; the rest in reach follow it.
                     let from = row.cols.partition_point(|&c| c < c0);
-                    let to = row.cols.partition_point(|&c| c <= c1);
+                    let to = from + row.cols[from..].iter().take_while(|&&c| c <= c1).count();
                     for &i in &row.entries[from..to] {
                         let key = &mut keys[i as usize];
                         if *key != f64::INFINITY {
@@ -611,6 +642,27 @@ fn best_first(keys: &[f64]) -> impl Fn(&usize, &usize) -> std::cmp::Ordering + '
 
 /// Entries recomputed between looks at the stop request: a whole table can take seconds.
 const ENTRIES_PER_CHECK: usize = 1 << 16;
+
+/// Checks the batch makes at once (one reached, the next few it is about to reach).
+const CHECKS_AT_ONCE: usize = 4;
+/// Below this many cell visits in all, checks made at once run on this thread: handing them
+/// to the pool costs more.
+const PARALLEL_CHECK_CELLS: usize = 8192;
+
+/// Take an exact check's result into an estimated entry: its key, displacement and full
+/// window's curvature, and the scale its estimates are ranked by from now on. Returns the
+/// exact change.
+fn take_check(e: &mut Entry, key: &mut f64, best: Best) -> f64 {
+    e.exact_curvature = best.curvature;
+    let estimate = *key / e.trust;
+    if estimate < 0.0 {
+        e.trust = (best.change / estimate).clamp(TRUST_RANGE.0, TRUST_RANGE.1);
+    }
+    *key = best.change;
+    e.delta = best.delta;
+    e.checked = true;
+    best.change
+}
 
 /// Sum the listed entries again (`sum`), in chunks, looking at `watch` between them; returns
 /// how many were evaluated.
