@@ -482,8 +482,10 @@ impl Fitness {
         let rect = Rect::around(col, row, kernel.radius, cols, self.rows);
         let stride = self.lattice_step(col, row, kernel.radius, stride);
         let s = stride as i64;
-        let lo = |v: usize| -((v as i64).min(rad) / s) * s;
-        let hi = |v: usize, n: usize| ((n as i64 - 1 - v as i64).min(rad) / s) * s;
+        // Whole steps from the centre towards each border (no division on the full lattice).
+        let steps = |room: i64| if s == 1 { room } else { room / s * s };
+        let lo = |v: usize| -steps((v as i64).min(rad));
+        let hi = |v: usize, n: usize| steps((n as i64 - 1 - v as i64).min(rad));
         let (dz0, dz1, dx0, dx1) = (lo(row), hi(row, self.rows), lo(col), hi(col, cols));
         let scale = (stride * stride) as f64;
 
@@ -667,7 +669,7 @@ fn closed_form(a: f64, b: f64, d_max: f64, with_optimum: bool) -> Option<f64> {
 fn quadratic_best(a: f64, b: f64, sampled: &[f64], optimum: Option<f64>) -> Best {
     let mut best = Best { change: f64::INFINITY, delta: 0.0, curvature: a, b };
     let near = if a > 0.0 {
-        let above = sampled.partition_point(|&d| d < -b / a);
+        let above = first_at_or_above(sampled, -b / a);
         &sampled[above.saturating_sub(1)..(above + 1).min(sampled.len())]
     } else {
         sampled
@@ -681,6 +683,29 @@ fn quadratic_best(a: f64, b: f64, sampled: &[f64], optimum: Option<f64>) -> Best
     best
 }
 
+/// The first index of `sorted` whose value is not below `v` (its length if none): what
+/// `partition_point(|&d| d < v)` finds, found here by interpolating between the ends and
+/// stepping to the exact place — one or two steps when the values are evenly spread, as the
+/// sampled displacements are, where a bisection is a chain of five dependent loads.
+fn first_at_or_above(sorted: &[f64], v: f64) -> usize {
+    let n = sorted.len();
+    if n == 0 || !(v > sorted[0]) {
+        return 0;
+    }
+    if !(v <= sorted[n - 1]) {
+        return n;
+    }
+    let guess = ((v - sorted[0]) / (sorted[n - 1] - sorted[0]) * (n - 1) as f64) as usize;
+    let mut at = guess.clamp(1, n - 1);
+    while at < n && sorted[at] < v {
+        at += 1;
+    }
+    while sorted[at - 1] >= v {
+        at -= 1;
+    }
+    at
+}
+
 /// Σ x·y over every `stride`-th element, in four interleaved partial sums (a fixed order the
 /// compiler can keep in registers, whatever the thread).
 #[inline]
@@ -688,6 +713,20 @@ fn dot(x: &[f64], y: &[f64], stride: usize) -> f64 {
     let n = x.len().min(y.len());
     let (x, y) = (&x[..n], &y[..n]);
     let mut acc = [0.0f64; 4];
+    if stride == 1 {
+        // The same sums in the same order, over chunks the compiler needs no bounds checks in.
+        let (xs, ys) = (x.chunks_exact(4), y.chunks_exact(4));
+        let (xr, yr) = (xs.remainder(), ys.remainder());
+        for (xc, yc) in xs.zip(ys) {
+            for l in 0..4 {
+                acc[l] += xc[l] * yc[l];
+            }
+        }
+        for (a, b) in xr.iter().zip(yr) {
+            acc[0] += a * b;
+        }
+        return (acc[0] + acc[1]) + (acc[2] + acc[3]);
+    }
     let mut i = 0;
     while i + 3 * stride < n {
         for (l, a) in acc.iter_mut().enumerate() {

@@ -244,3 +244,17 @@ fn a_sum_brought_up_to_date_equals_one_summed_again() {
 fn cells(rect: Rect) -> impl Iterator<Item = (usize, usize)> {
     (rect.r0..=rect.r1).flat_map(move |y| (rect.c0..=rect.c1).map(move |x| (x, y)))
 }
+
+#[test]
+fn the_interpolated_search_finds_what_bisection_finds() {
+    // Evenly spread (the sampled displacements, zero left out), uneven, with repeats, short.
+    let even: Vec<f64> = crate::sims::deform_terrain::search::unit_displacements(25).iter().map(|u| u * 3.5).collect();
+    let uneven = vec![-9.0, -8.5, -1.0, -0.99, 0.0, 0.0, 0.0, 2.0, 40.0];
+    for sorted in [even, uneven, vec![1.0], vec![], vec![2.0, 2.0]] {
+        let mut probes: Vec<f64> = sorted.iter().flat_map(|&d| [d, d - 1e-9, d + 1e-9]).collect();
+        probes.extend([-100.0, 100.0, 0.3, -0.3, f64::NAN, f64::INFINITY, f64::NEG_INFINITY]);
+        for v in probes {
+            assert_eq!(first_at_or_above(&sorted, v), sorted.partition_point(|&d| d < v), "{v} in {sorted:?}");
+        }
+    }
+}
