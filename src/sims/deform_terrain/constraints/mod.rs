@@ -689,10 +689,10 @@ fn quadratic_best(a: f64, b: f64, sampled: &[f64], optimum: Option<f64>) -> Best
 /// sampled displacements are, where a bisection is a chain of five dependent loads.
 fn first_at_or_above(sorted: &[f64], v: f64) -> usize {
     let n = sorted.len();
-    if n == 0 || !(v > sorted[0]) {
+    if n == 0 || v.is_nan() || v <= sorted[0] {
         return 0;
     }
-    if !(v <= sorted[n - 1]) {
+    if v > sorted[n - 1] {
         return n;
     }
     let guess = ((v - sorted[0]) / (sorted[n - 1] - sorted[0]) * (n - 1) as f64) as usize;
