@@ -389,8 +389,8 @@ fn finish(
         return Err(SimError::Failed(format!("non-finite height at sample {i}")));
     }
     // sequence.bin replays the search's heights; the seam filter follows in run and replay.
-    let packed = pack(problem, &sequence, h);
     let filtered = filter_seams(problem, h);
+    let searched = h;
     let h = filtered.as_deref().unwrap_or(h);
     let hf = to_heightfield(h, grid.cols, grid.rows, grid.cell_m);
     let log = FitnessLog {
@@ -398,12 +398,26 @@ fn finish(
         weights: fields.iter().map(|f| f.weight).collect(),
         iterations: history,
     };
-    let fitness_json = serde_json::to_vec(&log).map_err(|e| SimError::Failed(e.to_string()))?;
-    let sequence_bytes = serde_json::to_vec_pretty(&sequence).map_err(|e| SimError::Failed(e.to_string()))?.len();
     let roads = constraints::road_material(fields, grid.cells());
     let sea_level_m = constraints::water_level(fields).unwrap_or(0.0) as f32;
     let options = HeightfieldExport { material: roads.as_deref(), sea_level_m, ..output };
-    let exported = crate::export::heightfield_artifacts(&hf, &options);
+    // Packing (which replays the sequence to check it), the logs and the pictures and meshes
+    // are independent: each on a thread of its own.
+    let ((packed, logs), exported) = rayon::join(
+        || {
+            rayon::join(
+                || pack(problem, &sequence, searched),
+                || -> Result<(Vec<u8>, usize), SimError> {
+                    let fitness_json = serde_json::to_vec(&log).map_err(|e| SimError::Failed(e.to_string()))?;
+                    let sequence_bytes =
+                        serde_json::to_vec_pretty(&sequence).map_err(|e| SimError::Failed(e.to_string()))?.len();
+                    Ok((fitness_json, sequence_bytes))
+                },
+            )
+        },
+        || crate::export::heightfield_artifacts(&hf, &options),
+    );
+    let (fitness_json, sequence_bytes) = logs?;
     let heightmap_png_bytes =
         exported.artifacts.iter().find(|a| a.name == "heightmap.png").map_or(0, |a| a.bytes.len());
     let mut result = match exported.summary {
