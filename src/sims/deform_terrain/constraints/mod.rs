@@ -258,6 +258,14 @@ impl Field {
     /// The part of F_c that depends on the cells in `rect`: their own penalties, and each
     /// pair with a member in it (once).
     pub fn window_value(&self, h: &[f64], rect: Rect, cols: usize) -> f64 {
+        if let (Some(q), None, None) = (&self.quadratic, &self.one_sided, &self.pairs) {
+            // Only the quadratic part: the same sums in the same order, over row slices.
+            return (rect.r0..=rect.r1).fold(0.0, |sum, r| {
+                let (i0, i1) = (r * cols + rect.c0, r * cols + rect.c1);
+                let row = h[i0..=i1].iter().zip(&q.w[i0..=i1]).zip(&q.t[i0..=i1]).zip(&q.c[i0..=i1]);
+                sum + row.fold(0.0, |s, (((&h, &w), &t), &c)| s + (w * (h - t) * (h - t) + c))
+            });
+        }
         let mut sum = 0.0;
         for r in rect.r0..=rect.r1 {
             let mut row_sum = 0.0;
