@@ -20,10 +20,11 @@ const GRID_BYTES_PER_CELL: u64 = 76;
 /// transient while one is built.
 const FIELD_BYTES_PER_CELL: u64 = 25;
 const BUILD_BYTES_PER_CELL: u64 = 40;
-/// Bytes per candidate-table entry during the search: the entry (64), its key (8), its place
-/// in the per-row index (8), the lists of improving, waiting and recomputed entries (8 each)
-/// and a recomputation's result (32).
-const TABLE_ENTRY_BYTES: u64 = 136;
+/// Bytes per candidate-table entry during the search: the entry (56), its key and its
+/// confidence (8 each), whether its sum missed changes (1), its place in the per-row index
+/// (8), the lists of improving, waiting and recomputed entries (8 each) and a recomputation's
+/// result (32).
+const TABLE_ENTRY_BYTES: u64 = 137;
 /// Bytes per recorded operation: the operation, its history record and its lines of
 /// `sequence.json` and `fitness.json` (each while growing), plus per constraint.
 const OPERATION_BYTES: u64 = 700;
