@@ -91,15 +91,11 @@ impl Simulation for DeformTerrain {
             candidates::candidate_vertices(&interest, grid.cols, grid.rows, coarse, params.min_spacing_cells as usize);
         // Anchors fit narrow features cell by cell, so they take the small radii only (the
         // inside of an area the smallest few); the lattice's vertices take every radius their
-        // place allows (the wide ones a coarser lattice, away from narrow features).
+        // place allows (the wide ones a coarser lattice, away from narrow features and coasts).
         let small = (1u32 << settings.kernels.len().min(ANCHOR_RADII)) - 1;
         let inside = (1u32 << settings.kernels.len().min(INSIDE_ANCHOR_RADII)) - 1;
         let anchors = constraints::anchors(&fields, grid.cols);
-        let mut narrow = vec![false; grid.cells()];
-        for &(c, r, _) in anchors.iter().filter(|a| a.2 == Anchor::Narrow) {
-            narrow[r * grid.cols + c] = true;
-        }
-        let narrow = candidates::distance_to(&narrow, grid.cols, grid.rows);
+        let narrow = candidates::distance_to(&constraints::placed_closely(&fields, grid.cells()), grid.cols, grid.rows);
         let radii: Vec<usize> = settings.kernels.iter().map(|k| k.radius).collect();
         let steps: Vec<usize> = radii.iter().map(|&r| candidates::radius_step(r, coarse)).collect();
         let place = |c: usize, r: usize| {

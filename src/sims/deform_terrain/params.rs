@@ -151,8 +151,8 @@ pub struct DeformTerrainParams {
     #[schema(minimum = 1)]
     pub coarse_spacing_cells: Option<u32>,
     /// Smallest quadtree cell around constrained regions. Wide kernels are offered on a coarser
-    /// lattice, a power of two near a quarter of their radius, except where a road, seam or
-    /// point lies within their radius; cells of a road, seam or point (and of a terrace
+    /// lattice, a power of two near a quarter of their radius, except where a road, seam,
+    /// point or mask coastline lies within their radius; cells of a road, seam or point (and of a terrace
     /// region, its inside with the two smallest radii only) are candidates themselves.
     #[serde(default = "default_min_spacing")]
     #[schema(default = 2, minimum = 1)]

@@ -822,6 +822,19 @@ pub enum Anchor {
     Inside,
 }
 
+/// The cells near which a wide kernel keeps every vertex rather than a coarser lattice: those
+/// of narrow features (roads, seams, points) and of a mask's coastline, which the kernels'
+/// places must follow closely.
+pub fn placed_closely(fields: &[Field], cells: usize) -> Vec<bool> {
+    let mut out = vec![false; cells];
+    for f in fields.iter().filter(|f| matches!(f.anchors, Anchors::Interest) || f.one_sided.is_some()) {
+        for (o, &i) in out.iter_mut().zip(&f.interest) {
+            *o |= i;
+        }
+    }
+    out
+}
+
 /// The cells of interest that are candidate vertices themselves, as (col, row, what).
 pub fn anchors(fields: &[Field], cols: usize) -> Vec<(usize, usize, Anchor)> {
     let mut out = Vec::new();
