@@ -28,7 +28,7 @@ pub use sequence::{DeformSequence, Deformation};
 use crate::export::{Artifact, HeightfieldExport};
 use crate::jobs::{Outcome, RunContext, SimError, Simulation};
 use crate::terrain::{Heightfield, TerrainSource};
-use constraints::{Anchor, Field, Fitness, Grid};
+use constraints::{Field, Fitness, Grid};
 use search::{Record, Searched, Settings, Stop, Tracker, Watch};
 
 /// The `deform-terrain` job kind.
@@ -85,32 +85,7 @@ impl Simulation for DeformTerrain {
         let settings = problem.settings(params, &fields)?;
         let fitness = Fitness::new(&fields, grid.cols, grid.rows);
         let interest = constraints::interest(&fields, grid.cells());
-        let shorter = grid.cols.min(grid.rows);
-        let coarse = params.coarse_spacing(shorter);
-        let lattice =
-            candidates::candidate_vertices(&interest, grid.cols, grid.rows, coarse, params.min_spacing_cells as usize);
-        // Anchors fit narrow features cell by cell, so they take the small radii only (the
-        // inside of an area the smallest few); the lattice's vertices take every radius their
-        // place allows (the wide ones a coarser lattice, away from narrow features and coasts).
-        let small = (1u32 << settings.kernels.len().min(ANCHOR_RADII)) - 1;
-        let inside = (1u32 << settings.kernels.len().min(INSIDE_ANCHOR_RADII)) - 1;
-        let anchors = constraints::anchors(&fields, grid.cols);
-        let narrow = candidates::distance_to(&constraints::placed_closely(&fields, grid.cells()), grid.cols, grid.rows);
-        let radii: Vec<usize> = settings.kernels.iter().map(|k| k.radius).collect();
-        let steps: Vec<usize> = radii.iter().map(|&r| candidates::radius_step(r, coarse)).collect();
-        let place = |c: usize, r: usize| {
-            candidates::radii_at((c, r), (grid.cols, grid.rows), coarse, &radii, &steps, narrow[r * grid.cols + c])
-        };
-        let mut vertices: Vec<(usize, usize, u32)> = lattice.iter().map(|&(c, r)| (c, r, place(c, r))).collect();
-        vertices.extend(anchors.into_iter().map(|(c, r, a)| (c, r, if a == Anchor::Inside { inside } else { small })));
-        vertices.sort_by_key(|&(c, r, _)| (r, c));
-        vertices.dedup_by(|later, kept| {
-            let same = (later.0, later.1) == (kept.0, kept.1);
-            if same {
-                kept.2 |= later.2;
-            }
-            same
-        });
+        let vertices = vertices(params, &settings, &fields, &interest, &grid);
         let entries: usize = vertices.iter().map(|v| v.2.count_ones() as usize).sum();
         if entries > MAX_TABLE_ENTRIES {
             return Err(SimError::Invalid {
@@ -368,6 +343,46 @@ struct FitnessLog<'a> {
     iterations: &'a [Record],
 }
 
+/// The candidate vertices (Figure 2) with the radii each takes, a bit each, sorted by (row,
+/// col). Anchors fit narrow features cell by cell, so they take the small radii only (the
+/// inside of an area the smallest few); the lattice's vertices take every radius their place
+/// allows (the wide ones a coarser lattice, away from narrow features and coasts). The maps
+/// built on the way are dropped before the search.
+fn vertices(
+    params: &DeformTerrainParams,
+    settings: &Settings,
+    fields: &[Field],
+    interest: &[bool],
+    grid: &Grid,
+) -> Vec<(usize, usize, u32)> {
+    let coarse = params.coarse_spacing(grid.cols.min(grid.rows));
+    let lattice =
+        candidates::candidate_vertices(interest, grid.cols, grid.rows, coarse, params.min_spacing_cells as usize);
+    let small = (1u32 << settings.kernels.len().min(ANCHOR_RADII)) - 1;
+    let inside = (1u32 << settings.kernels.len().min(INSIDE_ANCHOR_RADII)) - 1;
+    let narrow = candidates::distance_to(&constraints::placed_closely(fields, grid.cells()), grid.cols, grid.rows);
+    let radii: Vec<usize> = settings.kernels.iter().map(|k| k.radius).collect();
+    let steps: Vec<usize> = radii.iter().map(|&r| candidates::radius_step(r, coarse)).collect();
+    let place = |c: usize, r: usize| {
+        candidates::radii_at((c, r), (grid.cols, grid.rows), coarse, &radii, &steps, narrow[r * grid.cols + c])
+    };
+    let mut vertices: Vec<(usize, usize, u32)> = lattice.iter().map(|&(c, r)| (c, r, place(c, r))).collect();
+    vertices.extend(
+        constraints::anchors(fields, grid.cols)
+            .into_iter()
+            .map(|(c, r, within)| (c, r, if within { inside } else { small })),
+    );
+    vertices.sort_by_key(|&(c, r, _)| (r, c));
+    vertices.dedup_by(|later, kept| {
+        let same = (later.0, later.1) == (kept.0, kept.1);
+        if same {
+            kept.2 |= later.2;
+        }
+        same
+    });
+    vertices
+}
+
 #[allow(clippy::too_many_arguments)]
 fn finish(
     problem: &Problem,
@@ -405,8 +420,11 @@ fn finish(
                 || pack(problem, &sequence, searched),
                 || -> Result<(Vec<u8>, usize), SimError> {
                     let fitness_json = serde_json::to_vec(&log).map_err(|e| SimError::Failed(e.to_string()))?;
-                    let sequence_bytes =
-                        serde_json::to_vec_pretty(&sequence).map_err(|e| SimError::Failed(e.to_string()))?.len();
+                    // The length of the `sequence.json` the adapter writes, counted, not kept.
+                    let mut counted = Counted(0);
+                    serde_json::to_writer_pretty(&mut counted, &sequence)
+                        .map_err(|e| SimError::Failed(e.to_string()))?;
+                    let sequence_bytes = counted.0;
                     Ok((fitness_json, sequence_bytes))
                 },
             )
@@ -564,4 +582,18 @@ pub fn apply_sequence(hf: &Heightfield, operations: &[Deformation]) -> Heightfie
         );
     }
     to_heightfield(&h, hf.cols, hf.rows, hf.cell_size_m as f64)
+}
+
+/// A writer that only counts the bytes written to it.
+struct Counted(usize);
+
+impl std::io::Write for Counted {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0 += buf.len();
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
 }

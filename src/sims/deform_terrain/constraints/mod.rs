@@ -802,32 +802,19 @@ pub fn roads_json(fields: &[Field], h: &[f64], grid: &Grid) -> Option<Value> {
 
 /// The cells to refine candidates around: the union of every constraint's interest.
 pub fn interest(fields: &[Field], cells: usize) -> Vec<bool> {
-    let mut out = vec![false; cells];
-    for f in fields {
-        for (o, &i) in out.iter_mut().zip(&f.interest) {
-            *o |= i;
-        }
-    }
-    out
-}
-
-/// A cell of interest that is a candidate vertex itself.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Anchor {
-    /// On a narrow feature (a road, a seam, a point).
-    Narrow,
-    /// On an area's edge.
-    Edge,
-    /// Inside an area.
-    Inside,
+    union_of_interest(fields, cells)
 }
 
 /// The cells near which a wide kernel keeps every vertex rather than a coarser lattice: those
 /// of narrow features (roads, seams, points) and of a mask's coastline, which the kernels'
 /// places must follow closely.
 pub fn placed_closely(fields: &[Field], cells: usize) -> Vec<bool> {
+    union_of_interest(fields.iter().filter(|f| matches!(f.anchors, Anchors::Interest) || f.one_sided.is_some()), cells)
+}
+
+fn union_of_interest<'a>(fields: impl IntoIterator<Item = &'a Field>, cells: usize) -> Vec<bool> {
     let mut out = vec![false; cells];
-    for f in fields.iter().filter(|f| matches!(f.anchors, Anchors::Interest) || f.one_sided.is_some()) {
+    for f in fields {
         for (o, &i) in out.iter_mut().zip(&f.interest) {
             *o |= i;
         }
@@ -835,17 +822,14 @@ pub fn placed_closely(fields: &[Field], cells: usize) -> Vec<bool> {
     out
 }
 
-/// The cells of interest that are candidate vertices themselves, as (col, row, what).
-pub fn anchors(fields: &[Field], cols: usize) -> Vec<(usize, usize, Anchor)> {
+/// The cells of interest that are candidate vertices themselves, as (col, row, inside): a cell
+/// inside an area (off its edges) takes the smallest few radii, the others every small one.
+pub fn anchors(fields: &[Field], cols: usize) -> Vec<(usize, usize, bool)> {
     let mut out = Vec::new();
     for f in fields {
-        let what = |i: usize| match &f.anchors {
-            Anchors::Edges(edges) if edges[i] => Anchor::Edge,
-            Anchors::Edges(_) => Anchor::Inside,
-            _ => Anchor::Narrow,
-        };
+        let inside = |i: usize| matches!(&f.anchors, Anchors::Edges(edges) if !edges[i]);
         if !matches!(f.anchors, Anchors::None) {
-            out.extend(f.interest.iter().enumerate().filter(|(_, &x)| x).map(|(i, _)| (i % cols, i / cols, what(i))));
+            out.extend(f.interest.iter().enumerate().filter(|(_, &x)| x).map(|(i, _)| (i % cols, i / cols, inside(i))));
         }
     }
     out
