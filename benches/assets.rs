@@ -21,6 +21,7 @@ use landform::mesh::{
     heightfield_mesh, max_deviation, simplify_within, GpuOrder, Mesh, Rtin, Scene, DEFAULT_MAX_SIDE_SAMPLES,
 };
 use landform::sims::carve_coast::{CarveCoast, CarveCoastParams};
+use landform::stop::Stop;
 use landform::terrain::TerrainSource;
 use landform::validate::Limits;
 
@@ -116,8 +117,8 @@ fn stages(label: &str, mesh: &Mesh, rtin_size: Option<usize>) {
     let mut level_one = None;
     for (level, fraction) in LODS.iter().enumerate() {
         let bound = fraction * longest;
-        let (lod, total_s) = timed(|| simplify_within(mesh, bound));
-        let (_, measure_s) = timed(|| max_deviation(mesh, &lod.mesh, lod.sample_spacing_m));
+        let (lod, total_s) = timed(|| simplify_within(mesh, bound, Stop::NEVER).unwrap());
+        let (_, measure_s) = timed(|| max_deviation(mesh, &lod.mesh, lod.sample_spacing_m, Stop::NEVER).unwrap());
         println!(
             "| {} | meshopt simplify | {bound:.3} | {} | {:.4} | {total_s:.2} | {measure_s:.2} |",
             level + 1,
@@ -141,7 +142,7 @@ fn stages(label: &str, mesh: &Mesh, rtin_size: Option<usize>) {
             let (mut target, mut measure_total) = (bound, 0.0);
             let (simple, deviation, tries) = loop {
                 let simple = rtin.mesh(mesh, target);
-                let (deviation, measure_s) = timed(|| max_deviation(mesh, &simple, spacing));
+                let (deviation, measure_s) = timed(|| max_deviation(mesh, &simple, spacing, Stop::NEVER).unwrap());
                 measure_total += measure_s;
                 if deviation <= bound || target < bound / 64.0 {
                     break (simple, deviation, (bound / target).log2() as u32 + 1);

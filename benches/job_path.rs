@@ -145,9 +145,10 @@ fn live(kind: &dyn JobKind, params: &Value, seed: u64, limits: &Limits) -> (f64,
 
 async fn service(engine: &Engine, kind: &str, body: &Value) -> f64 {
     let started = Instant::now();
-    let job = match engine.submit(kind, body.clone(), None, &Submitter::default()).await.expect("accepted") {
-        Submitted::Created(j) | Submitted::Existing(j) => j,
-    };
+    let job =
+        match engine.submit(kind, body.clone(), usize::MAX / 2, None, &Submitter::default()).await.expect("accepted") {
+            Submitted::Created(j) | Submitted::Existing(j) => j,
+        };
     loop {
         let now = engine.get(&job.id, None).await.expect("job");
         if now.status.is_terminal() {

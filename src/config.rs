@@ -7,6 +7,7 @@ use clap::builder::TypedValueParser;
 use clap::Args;
 
 use crate::http::auth::{DEFAULT_KEY_ACTIVE_JOBS, DEFAULT_KEY_SUBMISSIONS_PER_MINUTE};
+use crate::http::server::ConnectionLimits;
 use crate::http::{ApiKeys, HttpConfig, KeyLimits, DEFAULT_MAX_BODY_BYTES};
 use crate::jobs::{
     default_memory_budget, EngineConfig, WorkerConfig, DEFAULT_CONCURRENT_JOBS, DEFAULT_JOB_TIMEOUT_S,
@@ -193,20 +194,43 @@ pub struct HttpArgs {
     /// Address to listen on; port 0 picks a free one (the bound address is printed).
     #[arg(long, env = "LANDFORM_ADDR", default_value = "127.0.0.1:8080")]
     pub addr: String,
+    /// Most client connections open at once (default: three quarters of the descriptors the
+    /// process may open, after raising its soft limit to the hard one). At the limit, the
+    /// connection waiting longest with no request in flight is closed to make room; when all
+    /// are busy, a newcomer gets 503.
+    #[arg(long, env = "LANDFORM_MAX_CONNECTIONS", value_parser = clap::value_parser!(u64).range(1..=1_000_000).map(|n| n as usize))]
+    pub max_connections: Option<usize>,
+    /// Seconds a client has to send a request's headers.
+    #[arg(long, env = "LANDFORM_HEADER_TIMEOUT_SECS", default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=3600))]
+    pub header_timeout_secs: u64,
+    /// Seconds a request's body may take to arrive whole (408 beyond).
+    #[arg(long, env = "LANDFORM_BODY_TIMEOUT_SECS", default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..=3600))]
+    pub body_timeout_secs: u64,
+    /// Seconds a connection may stay open with no request in flight.
+    #[arg(long, env = "LANDFORM_IDLE_TIMEOUT_SECS", default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..=3600))]
+    pub idle_timeout_secs: u64,
+    /// Seconds a reply (or an event stream) may wait for the client to read any of it before
+    /// its connection is closed.
+    #[arg(long, env = "LANDFORM_WRITE_TIMEOUT_SECS", default_value_t = 30, value_parser = clap::value_parser!(u64).range(1..=3600))]
+    pub write_timeout_secs: u64,
     /// Largest request body in bytes; larger bodies get 413.
     #[arg(long, env = "LANDFORM_MAX_BODY_BYTES", default_value_t = DEFAULT_MAX_BODY_BYTES)]
     pub max_body_bytes: usize,
-    /// Origins allowed by CORS, comma-separated; `*` allows any.
-    #[arg(long, env = "LANDFORM_CORS_ORIGINS", value_delimiter = ',', default_value = "*")]
+    /// Origins whose pages may call the API (CORS, and changing state), comma-separated; `*`
+    /// allows any. Default: none but the server's own pages (the playground).
+    #[arg(long, env = "LANDFORM_CORS_ORIGINS", value_delimiter = ',')]
     pub cors_origins: Vec<String>,
     /// API keys file: `NAME KEY [submissions_per_minute=N] [active_jobs=N] [memory_bytes=N]` a
     /// line. With keys, every /v1 call needs `Authorization: Bearer KEY`. LANDFORM_API_KEYS may
     /// instead hold the lines themselves (separated by newlines or `;`).
     #[arg(long, env = "LANDFORM_API_KEYS_FILE")]
     pub api_keys: Option<std::path::PathBuf>,
-    /// With keys, `/metrics`, `/docs` and `/openapi.json` need a key too.
+    /// With keys, `/docs` and `/openapi.json` need a key too (`/metrics` always does with keys).
     #[arg(long, env = "LANDFORM_PROTECT_OPERATIONS")]
     pub protect_operations: bool,
+    /// With keys, `/metrics` answers without one (for a scraper on a private network).
+    #[arg(long, env = "LANDFORM_PUBLIC_METRICS")]
+    pub public_metrics: bool,
     /// Each key's submissions (jobs and replays) per minute, unless its line says otherwise.
     #[arg(long, env = "LANDFORM_KEY_SUBMISSIONS_PER_MINUTE", default_value_t = DEFAULT_KEY_SUBMISSIONS_PER_MINUTE, value_parser = clap::value_parser!(u32).range(1..))]
     pub key_submissions_per_minute: u32,
@@ -235,10 +259,30 @@ impl HttpArgs {
             active_jobs: self.key_active_jobs,
             memory_bytes: self.key_memory_bytes.unwrap_or(memory_budget),
         };
-        let keys = text.map(|t| ApiKeys::parse(&t, defaults, self.protect_operations)).transpose()?.map(Arc::new);
+        let keys = text.map(|t| ApiKeys::parse(&t, defaults, self.protect_operations)).transpose()?.map(|mut k| {
+            k.public_metrics = self.public_metrics;
+            Arc::new(k)
+        });
         if let Some(k) = &keys {
             tracing::info!(keys = ?k, "API keys required on /v1");
         }
-        Ok(HttpConfig { max_body_bytes: self.max_body_bytes, cors_origins: self.cors_origins.clone(), keys })
+        Ok(HttpConfig {
+            max_body_bytes: self.max_body_bytes,
+            cors_origins: self.cors_origins.clone(),
+            keys,
+            body_timeout: Duration::from_secs(self.body_timeout_secs),
+        })
+    }
+
+    /// The accept loop's limits (call after `raise_descriptor_limit`, which the default
+    /// connection limit depends on).
+    pub fn connection_limits(&self) -> ConnectionLimits {
+        ConnectionLimits {
+            max_connections: self.max_connections.unwrap_or_else(crate::http::server::default_max_connections),
+            header_timeout: Duration::from_secs(self.header_timeout_secs),
+            body_timeout: Duration::from_secs(self.body_timeout_secs),
+            idle_timeout: Duration::from_secs(self.idle_timeout_secs),
+            write_timeout: Duration::from_secs(self.write_timeout_secs),
+        }
     }
 }

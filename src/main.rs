@@ -1,6 +1,5 @@
 //! The `landform` command: `serve`, `run`, `openapi`.
 
-use std::future::IntoFuture;
 use std::io::Write;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -141,6 +140,7 @@ fn engine(service: &ServiceArgs, runs_jobs: bool) -> anyhow::Result<Engine> {
 
 async fn serve(http: HttpArgs, service: ServiceArgs, role: Role, worker_args: WorkerArgs) -> anyhow::Result<()> {
     init_tracing("info,tower_http=info");
+    landform::http::server::raise_descriptor_limit();
     // Opening a store and recovering talk to it synchronously (PostgreSQL's client runs a
     // runtime of its own): off the async threads. Workers run the jobs: with the role `all`
     // one supervised child process, with `api` workers started on their own.
@@ -170,7 +170,9 @@ async fn serve(http: HttpArgs, service: ServiceArgs, role: Role, worker_args: Wo
     let app = landform::http::app(engine, http_config);
     let (stopping_tx, stopping_rx) = tokio::sync::oneshot::channel::<()>();
     let (stopping_engine_tx, stopping_engine_rx) = tokio::sync::oneshot::channel::<()>();
-    let server = axum::serve(listener, app).with_graceful_shutdown(async move {
+    let limits = http.connection_limits();
+    tracing::info!(max_connections = limits.max_connections, "connection limits");
+    let server = landform::http::server::serve(listener, app, limits, async move {
         shutdown_signal().await;
         let _ = stopping_tx.send(());
         let _ = stopping_engine_tx.send(());
@@ -183,7 +185,7 @@ async fn serve(http: HttpArgs, service: ServiceArgs, role: Role, worker_args: Wo
     };
     let http = async {
         tokio::select! {
-            served = server.into_future() => served,
+            served = server => served,
             _ = grace => {
                 tracing::info!("shut down with streams still open");
                 Ok(())
@@ -306,9 +308,11 @@ async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: 
             .map(str::to_string)
             .context("give --kind: the request's folder does not name one")?,
     };
+    let text = std::fs::read(&request).with_context(|| format!("reading {}", request.display()))?;
+    let body_bytes = text.len();
     let body: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(&request).with_context(|| format!("reading {}", request.display()))?)
-            .with_context(|| format!("{} is not JSON", request.display()))?;
+        serde_json::from_slice(&text).with_context(|| format!("{} is not JSON", request.display()))?;
+    drop(text);
     let _scratch = if service.database.is_none() && std::env::var("DATABASE_URL").is_err() {
         let scratch = ScratchDb::new();
         service.database = Some(scratch.0.to_string_lossy().into_owned());
@@ -318,7 +322,7 @@ async fn run(request: PathBuf, out: PathBuf, kind: Option<String>, mut service: 
     };
     let engine = tokio::task::block_in_place(|| engine(&service, true))?;
     engine.start();
-    let job = match engine.submit(&kind, body, None, &Default::default()).await {
+    let job = match engine.submit(&kind, body, body_bytes, None, &Default::default()).await {
         Ok(Submitted::Created(j) | Submitted::Existing(j)) => j,
         Err(landform::jobs::EngineError::Invalid { errors, .. }) => {
             for e in errors {

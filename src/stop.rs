@@ -14,6 +14,12 @@ pub struct Stop<'a>(Option<&'a AtomicBool>);
 #[error("stopped on request")]
 pub struct Stopped;
 
+impl Default for Stop<'_> {
+    fn default() -> Self {
+        Stop::NEVER
+    }
+}
+
 impl<'a> Stop<'a> {
     pub const NEVER: Stop<'static> = Stop(None);
 

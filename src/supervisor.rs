@@ -10,6 +10,13 @@
 //! (SIGSTOP), wedged — is killed and replaced: on the embedded store a process frozen inside a
 //! write transaction holds SQLite's only write lock, and every writer (this API's submissions
 //! too) would wait for it for as long as it stays frozen.
+//!
+//! Silence alone does not tell a hung worker from a busy one on a loaded machine: a worker at
+//! nice 10 beside a load of 18 gets well under 1 % of the cores, and its runtime can miss a
+//! lease's worth of beats while its job is computing (measured: three healthy workers killed
+//! in a row). So a silent worker whose CPU time still grows (`/proc/PID/stat`) is given more
+//! time, up to [`BUSY_GRACE_WINDOWS`] silences; one that is stopped or blocked uses no CPU and
+//! is killed at the first.
 
 use std::process::Stdio;
 use std::time::{Duration, Instant};
@@ -38,6 +45,9 @@ fn watchdog_timeout(lease: Duration) -> Duration {
     lease.max(WATCHDOG_FLOOR)
 }
 const WATCHDOG_FLOOR: Duration = Duration::from_secs(3);
+/// Silences in a row a worker that keeps using CPU may stay silent before it is killed all
+/// the same (2 minutes at the default lease): a runtime wedged while the job's threads spin.
+pub const BUSY_GRACE_WINDOWS: u32 = 24;
 
 pub struct Supervisor {
     stop: watch::Sender<bool>,
@@ -89,7 +99,7 @@ async fn supervise(exe: std::path::PathBuf, args: Vec<String>, silence: Duration
         let heartbeat = child.stdout.take();
         tracing::info!(pid = child.id(), "worker process started");
         tokio::select! {
-            () = silent_for(heartbeat, silence) => {
+            () = silent_for(heartbeat, silence, child.id()) => {
                 tracing::error!(pid = child.id(), ?silence, "the worker process stopped answering; killing it");
                 // SIGKILL ends a stopped process too; the next turn of the loop reaps it.
                 let _ = child.start_kill();
@@ -118,16 +128,42 @@ async fn supervise(exe: std::path::PathBuf, args: Vec<String>, silence: Duration
     }
 }
 
-/// Resolves once `heartbeat` has been silent for `silence` while still open. A closed pipe
-/// (the child exited) is the wait's to report, so that never resolves.
-async fn silent_for(heartbeat: Option<tokio::process::ChildStdout>, silence: Duration) {
+/// Resolves once `heartbeat` has been silent for `silence` while still open and the process
+/// `pid` used no CPU meanwhile (or stayed silent for [`BUSY_GRACE_WINDOWS`] silences while
+/// busy). A closed pipe (the child exited) is the wait's to report, so that never resolves.
+async fn silent_for(heartbeat: Option<tokio::process::ChildStdout>, silence: Duration, pid: Option<u32>) {
     let Some(mut heartbeat) = heartbeat else { return std::future::pending().await };
     let mut buf = [0u8; 256];
+    let mut busy_windows = 0;
+    let mut cpu = pid.and_then(cpu_ticks);
     loop {
         match tokio::time::timeout(silence, heartbeat.read(&mut buf)).await {
-            Err(_elapsed) => return,
-            Ok(Ok(n)) if n > 0 => {}
+            Err(_elapsed) => {
+                let now = pid.and_then(cpu_ticks);
+                let working = matches!((cpu, now), (Some(before), Some(after)) if after > before);
+                cpu = now;
+                busy_windows += 1;
+                if !working || busy_windows >= BUSY_GRACE_WINDOWS {
+                    return;
+                }
+                tracing::warn!(?pid, ?silence, "the worker process is silent but busy (its CPU time grows): waiting");
+            }
+            Ok(Ok(n)) if n > 0 => {
+                busy_windows = 0;
+                cpu = pid.and_then(cpu_ticks);
+            }
             Ok(_closed) => return std::future::pending().await,
         }
     }
+}
+
+/// A process's CPU time so far (user + system, all its threads), in clock ticks; `None` when
+/// it cannot be read (no /proc, or the process is gone).
+fn cpu_ticks(pid: u32) -> Option<u64> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // Fields after the parenthesised command name: state is the 3rd field, utime the 14th.
+    let mut fields = stat.rsplit_once(')')?.1.split_whitespace().skip(11);
+    let utime: u64 = fields.next()?.parse().ok()?;
+    let stime: u64 = fields.next()?.parse().ok()?;
+    Some(utime + stime)
 }

@@ -69,7 +69,7 @@ async fn finished_job(server: &TestServer, key: &str) -> String {
 }
 
 #[tokio::test]
-async fn without_a_known_key_every_v1_call_is_401_and_operations_stay_open() {
+async fn without_a_known_key_every_v1_call_and_the_metrics_are_401_and_health_and_docs_stay_open() {
     let (server, _dir) = server_with_keys(&[]).await;
     for key in [None, Some("not-a-key-0123456789abcdef")] {
         for (method, path) in [
@@ -83,10 +83,20 @@ async fn without_a_known_key_every_v1_call_is_401_and_operations_stay_open() {
             assert_eq!(headers["content-type"], "application/problem+json");
         }
     }
-    for path in ["/healthz", "/readyz", "/metrics", "/openapi.json"] {
+    for path in ["/healthz", "/readyz", "/openapi.json"] {
         let (status, _, _) = call(&server, Method::GET, path, None, None).await;
         assert_eq!(status, 200, "{path}");
     }
+    // The metrics count every key's jobs: with keys they need one.
+    assert_eq!(call(&server, Method::GET, "/metrics", None, None).await.0, 401);
+    assert_eq!(call(&server, Method::GET, "/metrics", Some(ALICE), None).await.0, 200);
+}
+
+#[tokio::test]
+async fn the_metrics_can_be_opened_for_a_scraper() {
+    let (server, _dir) = server_with_keys(&["--public-metrics"]).await;
+    assert_eq!(call(&server, Method::GET, "/metrics", None, None).await.0, 200);
+    assert_eq!(call(&server, Method::GET, "/v1/jobs", None, None).await.0, 401);
 }
 
 #[tokio::test]

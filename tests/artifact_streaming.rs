@@ -4,20 +4,10 @@
 
 mod common;
 
+use common::processes::{reset_peak_rss, status_bytes};
 use common::server::{Options, TestServer};
 use serde_json::json;
 use sha2::{Digest, Sha256};
-
-/// A field of /proc/PID/status in bytes (VmRSS, VmHWM).
-fn status_bytes(pid: u32, field: &str) -> u64 {
-    let text = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("read /proc status");
-    let kib: u64 = text
-        .lines()
-        .find_map(|l| l.strip_prefix(field)?.strip_prefix(':'))
-        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
-        .unwrap_or_else(|| panic!("{field} in /proc/{pid}/status"));
-    kib * 1024
-}
 
 /// Downloads `path` chunk by chunk (the test holds no whole copy either); its length, the
 /// Content-Length it was announced with, and its sha256.
@@ -53,8 +43,7 @@ async fn a_150_mb_artifact_downloads_with_the_server_growing_by_under_20_mb() {
 
     // Peak resident memory from here on (writing 5 to clear_refs resets VmHWM to VmRSS).
     let pid = server.pid();
-    std::fs::write(format!("/proc/{pid}/clear_refs"), "5").expect("reset the peak RSS");
-    let before = status_bytes(pid, "VmRSS");
+    let before = reset_peak_rss(pid);
     let (got, announced, sha256) = download(&server, &format!("/v1/jobs/{id}/artifacts/heightfield.npy"), None).await;
     let peak = status_bytes(pid, "VmHWM");
     assert_eq!((got, announced), (bytes, bytes));

@@ -66,7 +66,7 @@ fn two_node_scene_with_ground_and_sea_is_valid() {
 
 #[test]
 fn heightfield_artifacts_mesh_is_valid() {
-    let out = heightfield_artifacts(&hills(129, 97), &Default::default());
+    let out = heightfield_artifacts(&hills(129, 97), &Default::default()).unwrap();
     let glb = out.artifacts.iter().find(|a| a.name == "mesh.glb").expect("mesh.glb");
     assert_clean("mesh.glb artifact", &validate_glb(&glb.bytes));
 }

@@ -225,8 +225,29 @@ async fn operations_endpoints_answer() {
     let docs = server.client.get(server.url("/docs/")).send().await.unwrap();
     assert_eq!(docs.status(), 200);
     assert!(docs.text().await.unwrap().contains("swagger"));
+    // CORS is closed by default: another origin's page gets no permission to read.
     let cors = server.client.get(server.url("/healthz")).header("origin", "http://example.test").send().await.unwrap();
-    assert_eq!(cors.headers()["access-control-allow-origin"], "*");
+    assert!(cors.headers().get("access-control-allow-origin").is_none(), "{:?}", cors.headers());
+}
+
+#[tokio::test]
+async fn cors_opens_for_the_origins_a_flag_lists() {
+    let server = TestServer::start_with(Options {
+        extra: vec!["--cors-origins".into(), "http://tool.example".into()],
+        ..Options::default()
+    })
+    .await;
+    let get = |origin: &'static str| server.client.get(server.url("/v1/jobs")).header("origin", origin).send();
+    let allowed = get("http://tool.example").await.unwrap();
+    assert_eq!(allowed.headers()["access-control-allow-origin"], "http://tool.example");
+    let other = get("http://other.example").await.unwrap();
+    assert!(other.headers().get("access-control-allow-origin").is_none());
+    // The listed origin may submit; another may not, whatever it sends.
+    let post = |origin: &'static str| {
+        server.client.post(server.url("/v1/jobs/bulldoze")).header("origin", origin).json(&small_bulldoze()).send()
+    };
+    assert_eq!(post("http://tool.example").await.unwrap().status(), 202);
+    assert_eq!(post("http://other.example").await.unwrap().status(), 403);
 }
 
 #[test]

@@ -68,6 +68,11 @@ struct Args {
     /// Where the reports go (`<setup>.json`, `<setup>.md`).
     #[arg(long, default_value = "loadtests/results")]
     out: PathBuf,
+    /// A correctness run only (the test command's smoke run, on a debug build and a busy
+    /// machine): every body still runs, no request fails, no job is lost, every artifact
+    /// matches; the speed requirements (share of the floor, submit p99) are reported, not judged.
+    #[arg(long)]
+    smoke: bool,
 }
 
 fn bodies(dir: &Path) -> Result<Vec<(String, Value)>> {
@@ -279,12 +284,16 @@ async fn main() -> Result<()> {
 
     let mut verdicts = BTreeMap::new();
     let need = if args.setup == Setup::Embedded { 0.50 } else { 0.35 };
-    if let Some(steady) = phases.iter().find(|p| p.name == "steady") {
-        verdicts
-            .insert(format!("steady: at least {:.0} % of the floor", 100.0 * need), steady.fraction_of_floor >= need);
+    if !args.smoke {
+        if let Some(steady) = phases.iter().find(|p| p.name == "steady") {
+            verdicts.insert(
+                format!("steady: at least {:.0} % of the floor", 100.0 * need),
+                steady.fraction_of_floor >= need,
+            );
+        }
+        let submit_p99 = phases.iter().filter_map(|p| p.requests.get("submit").map(|r| r.p99_ms)).fold(0.0, f64::max);
+        verdicts.insert("submit p99 ≤ 50 ms in every phase".into(), submit_p99 <= 50.0);
     }
-    let submit_p99 = phases.iter().filter_map(|p| p.requests.get("submit").map(|r| r.p99_ms)).fold(0.0, f64::max);
-    verdicts.insert("submit p99 ≤ 50 ms in every phase".into(), submit_p99 <= 50.0);
     // The burst's 503s are marked as successes when they come, so every failure counts.
     let unexpected: usize = phases.iter().flat_map(|p| p.requests.values()).map(|r| r.failed).sum();
     verdicts.insert(

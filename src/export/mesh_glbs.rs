@@ -7,6 +7,7 @@ use serde_json::{json, Value};
 
 use super::{write_glb, Artifact, GlbForm};
 use crate::mesh::{simplify_within, Scene, SceneNode};
+use crate::stop::{Stop, Stopped};
 
 /// The levels a request gets when it names none: none yet. Measuring each level's deviation
 /// costs far more than the simulation on the large volume meshes (island-defaults: 0.89 s
@@ -66,12 +67,13 @@ impl MeshSettings {
 
 /// `mesh.glb` and one glb per level of detail, and `{"form", "levels": [{"file", "vertices",
 /// "triangles", "error_bound_m", "max_deviation_m", "sample_spacing_m"}, …]}` (level 0, the
-/// full mesh, first) for the result.
-pub fn mesh_glbs(scene: &Scene, settings: &MeshSettings) -> (Vec<Artifact>, Value) {
+/// full mesh, first) for the result. Stopped on request between and within levels.
+pub fn mesh_glbs(scene: &Scene, settings: &MeshSettings, stop: Stop) -> Result<(Vec<Artifact>, Value), Stopped> {
     let longest = longest_side(scene);
     // The full scene is borrowed, not copied: a copy would raise every job's peak memory.
     let simplified: Vec<(Scene, LevelFigures)> =
-        settings.lods.iter().map(|&fraction| simplified(scene, fraction * longest)).collect();
+        settings.lods.iter().map(|&fraction| simplified(scene, fraction * longest, stop)).collect::<Result<_, _>>()?;
+    stop.check()?;
     let levels: Vec<(&Scene, LevelFigures)> = std::iter::once((scene, LevelFigures::default()))
         .chain(simplified.iter().map(|(scene, figures)| (scene, *figures)))
         .collect();
@@ -92,7 +94,7 @@ pub fn mesh_glbs(scene: &Scene, settings: &MeshSettings) -> (Vec<Artifact>, Valu
         }));
         artifacts.push(Artifact::new(&name, "model/gltf-binary", bytes));
     }
-    (artifacts, json!({ "form": settings.form.name(), "levels": figures }))
+    Ok((artifacts, json!({ "form": settings.form.name(), "levels": figures })))
 }
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -103,9 +105,10 @@ struct LevelFigures {
 }
 
 /// Every node of `scene` simplified within `bound_m`, and the level's worst measured deviation.
-fn simplified(scene: &Scene, bound_m: f64) -> (Scene, LevelFigures) {
+fn simplified(scene: &Scene, bound_m: f64, stop: Stop) -> Result<(Scene, LevelFigures), Stopped> {
     let bound = bound_m as f32;
-    let lods: Vec<_> = scene.nodes.par_iter().map(|node| simplify_within(&node.mesh, bound)).collect();
+    let lods: Vec<_> =
+        scene.nodes.par_iter().map(|node| simplify_within(&node.mesh, bound, stop)).collect::<Result<_, _>>()?;
     let deviation_m = lods.iter().map(|l| f64::from(l.deviation_m)).fold(0.0, f64::max);
     // The spacing of the nodes that were simplified (a two-triangle sea stays as it is).
     let spacing_m = lods
@@ -120,14 +123,14 @@ fn simplified(scene: &Scene, bound_m: f64) -> (Scene, LevelFigures) {
         .zip(lods)
         .map(|(node, lod)| SceneNode { name: node.name.clone(), mesh: lod.mesh, material: node.material })
         .collect();
-    (
+    Ok((
         Scene { nodes },
         LevelFigures {
             bound_m: round_mm(bound_m),
             deviation_m: round_up_mm(deviation_m),
             spacing_m: round_mm(spacing_m),
         },
-    )
+    ))
 }
 
 /// The longest side of the box around every node's vertices (1 m for an empty scene).
@@ -180,7 +183,7 @@ mod tests {
         let hf = Heightfield::from_fn(65, 65, 1.0, |x, z| (x * 0.13).sin() * 6.0 + (z * 0.1).cos() * 4.0);
         let scene = Scene::single("terrain", heightfield_mesh(&hf, 4097, None).mesh);
         let settings = MeshSettings { form: GlbForm::Quantize, lods: vec![0.002, 0.032] };
-        let (artifacts, figures) = mesh_glbs(&scene, &settings);
+        let (artifacts, figures) = mesh_glbs(&scene, &settings, Stop::NEVER).unwrap();
         let names: Vec<_> = artifacts.iter().map(|a| a.name.as_str()).collect();
         assert_eq!(names, ["mesh.glb", "mesh_lod1.glb", "mesh_lod2.glb"]);
         let levels = figures["levels"].as_array().unwrap();

@@ -49,6 +49,7 @@ pub use tiles::{tile_artifacts, TileGrid, MAX_TILES_PER_SIDE};
 use serde_json::{json, Value};
 
 use crate::mesh::{heightfield_mesh, Scene, DEFAULT_MAX_SIDE_SAMPLES};
+use crate::stop::{Stop, Stopped};
 use crate::terrain::Heightfield;
 
 /// Longest side of `preview.png`.
@@ -81,60 +82,64 @@ pub struct HeightfieldExport<'a> {
     pub sea_level_m: f32,
     /// The request's `tiles`: the mesh cut into tiles at every level too.
     pub tiles: Option<TileGrid>,
+    /// The job's stop request: levels of detail and tiles look at it while they are made.
+    pub stop: Stop<'a>,
 }
 
-impl HeightfieldExport<'static> {
+impl<'a> HeightfieldExport<'a> {
     /// The request's compression, levels of detail and tiles; no material, sea at 0 m.
-    pub fn new(mesh: &MeshSettings, tiles: Option<TileGrid>) -> Self {
-        Self { mesh: mesh.clone(), tiles, ..Default::default() }
+    pub fn new(mesh: &MeshSettings, tiles: Option<TileGrid>, stop: Stop<'a>) -> Self {
+        Self { mesh: mesh.clone(), tiles, stop, ..Default::default() }
     }
 }
 
 /// Everything a heightfield kind delivers for its final terrain, built in parallel; the bytes
-/// depend only on the heightfield and `options`.
-pub fn heightfield_artifacts(hf: &Heightfield, options: &HeightfieldExport) -> HeightfieldArtifacts {
-    let HeightfieldExport { material, ref mesh, sea_level_m, tiles } = *options;
+/// depend only on the heightfield and `options`. Stopped on request while making levels of
+/// detail and tiles.
+pub fn heightfield_artifacts(hf: &Heightfield, options: &HeightfieldExport) -> Result<HeightfieldArtifacts, Stopped> {
+    let HeightfieldExport { material, ref mesh, sea_level_m, tiles, stop } = *options;
     let (z_min, z_max) = hf.min_max();
-    let (((heightmap, preview), (r16, (normals, splat))), ((((glbs, glb_figures), tiled), mesh_summary), npy)) =
-        rayon::join(
-            || {
-                rayon::join(
-                    || rayon::join(|| heightmap_png16(hf), || preview_png(hf, PREVIEW_MAX_SIDE_PX, sea_level_m)),
-                    || {
-                        rayon::join(
-                            || heightmap_r16(hf),
-                            || rayon::join(|| normalmap_png(hf), || splatmap_png(hf, material)),
-                        )
-                    },
-                )
-            },
-            || {
-                rayon::join(
-                    || {
-                        let tint = Tint::with_sea_level(z_min, z_max, sea_level_m);
-                        let color = |height_m: f32, _slope_deg: f32| tint.srgba8(height_m);
-                        let meshed = heightfield_mesh(hf, DEFAULT_MAX_SIDE_SAMPLES, Some(&color));
-                        let summary = json!({
-                            "vertices": meshed.mesh.vertex_count(),
-                            "triangles": meshed.mesh.triangle_count(),
-                            "stride": meshed.stride,
-                        });
-                        let scene = Scene::single("terrain", meshed.mesh);
-                        let glbs = rayon::join(
-                            || mesh_glbs(&scene, mesh),
-                            || {
-                                tiles.map(|grid| {
-                                    let longest = mesh_glbs::longest_side(&scene);
-                                    tile_artifacts(&scene.nodes[0].mesh, meshed.vertices, grid, mesh, longest)
-                                })
-                            },
-                        );
-                        (glbs, summary)
-                    },
-                    || heightfield_npy(hf),
-                )
-            },
-        );
+    let (((heightmap, preview), (r16, (normals, splat))), (((glbs, tiled), mesh_summary), npy)) = rayon::join(
+        || {
+            rayon::join(
+                || rayon::join(|| heightmap_png16(hf), || preview_png(hf, PREVIEW_MAX_SIDE_PX, sea_level_m)),
+                || {
+                    rayon::join(
+                        || heightmap_r16(hf),
+                        || rayon::join(|| normalmap_png(hf), || splatmap_png(hf, material)),
+                    )
+                },
+            )
+        },
+        || {
+            rayon::join(
+                || {
+                    let tint = Tint::with_sea_level(z_min, z_max, sea_level_m);
+                    let color = |height_m: f32, _slope_deg: f32| tint.srgba8(height_m);
+                    let meshed = heightfield_mesh(hf, DEFAULT_MAX_SIDE_SAMPLES, Some(&color));
+                    let summary = json!({
+                        "vertices": meshed.mesh.vertex_count(),
+                        "triangles": meshed.mesh.triangle_count(),
+                        "stride": meshed.stride,
+                    });
+                    let scene = Scene::single("terrain", meshed.mesh);
+                    let glbs = rayon::join(
+                        || mesh_glbs(&scene, mesh, stop),
+                        || {
+                            tiles.map(|grid| {
+                                let longest = mesh_glbs::longest_side(&scene);
+                                tile_artifacts(&scene.nodes[0].mesh, meshed.vertices, grid, mesh, longest, stop)
+                            })
+                        },
+                    );
+                    (glbs, summary)
+                },
+                || heightfield_npy(hf),
+            )
+        },
+    );
+    let (glbs, glb_figures) = glbs?;
+    let tiled = tiled.transpose()?;
     let summary = json!({
         "z_min": short_decimal(z_min),
         "z_max": short_decimal(z_max),
@@ -163,7 +168,7 @@ pub fn heightfield_artifacts(hf: &Heightfield, options: &HeightfieldExport) -> H
     ];
     artifacts.extend(glbs);
     artifacts.extend(tile_files);
-    HeightfieldArtifacts { artifacts, summary }
+    Ok(HeightfieldArtifacts { artifacts, summary })
 }
 
 /// Peak bytes [`heightfield_artifacts`] allocates for a `cols × rows` grid, with every writer
@@ -208,7 +213,7 @@ mod tests {
     #[test]
     fn artifacts_come_in_order_with_a_summary() {
         let hf = Heightfield::from_fn(65, 33, 0.1, |x, z| x * 2.0 - z + 0.3);
-        let out = heightfield_artifacts(&hf, &HeightfieldExport::default());
+        let out = heightfield_artifacts(&hf, &HeightfieldExport::default()).unwrap();
         let names: Vec<_> = out.artifacts.iter().map(|a| (a.name.as_str(), a.media_type.as_str())).collect();
         assert_eq!(
             names,
@@ -248,8 +253,8 @@ mod tests {
     fn artifacts_are_byte_identical_across_runs_and_thread_counts() {
         let hf = Heightfield::from_fn(200, 120, 1.0, |x, z| (x * 0.05).sin() * 30.0 + (z * 0.07).cos() * 20.0 - 5.0);
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        let one = pool.install(|| heightfield_artifacts(&hf, &HeightfieldExport::default()));
-        let many = heightfield_artifacts(&hf, &HeightfieldExport::default());
+        let one = pool.install(|| heightfield_artifacts(&hf, &HeightfieldExport::default()).unwrap());
+        let many = heightfield_artifacts(&hf, &HeightfieldExport::default()).unwrap();
         assert_eq!(one.artifacts, many.artifacts);
         assert_eq!(one.summary, many.summary);
     }

@@ -20,6 +20,7 @@ use super::glb::write_glb_in_frame;
 use super::mesh_glbs::{round_mm, round_up_mm};
 use super::{short_decimal, Artifact, MeshSettings};
 use crate::mesh::{grid_patch, simplify_within, tile_edges, Mesh, Scene};
+use crate::stop::{Stop, Stopped};
 use crate::validate::{Limits, Validate, Validator};
 
 /// Most tiles along one side.
@@ -96,7 +97,8 @@ pub fn tile_artifacts(
     tiles: TileGrid,
     settings: &MeshSettings,
     longest_m: f64,
-) -> (Vec<Artifact>, Value) {
+    stop: Stop,
+) -> Result<(Vec<Artifact>, Value), Stopped> {
     let frame = grid.bounds().unwrap_or_default();
     let xs = tile_edges(vertices[0], tiles.count[0] as usize);
     let zs = tile_edges(vertices[1], tiles.count[1] as usize);
@@ -111,18 +113,15 @@ pub fn tile_artifacts(
             let bounds = full.bounds().unwrap_or_default();
             let levels: Vec<(Mesh, f32)> = bounds_m
                 .iter()
-                .map(|&bound| {
-                    let lod = simplify_within(&full, bound);
-                    (lod.mesh, lod.deviation_m)
-                })
-                .collect();
+                .map(|&bound| simplify_within(&full, bound, stop).map(|lod| (lod.mesh, lod.deviation_m)))
+                .collect::<Result<_, _>>()?;
             let mut figures = vec![(full.vertex_count(), full.triangle_count(), 0.0)];
             figures.extend(levels.iter().map(|(m, d)| (m.vertex_count(), m.triangle_count(), *d)));
             let mut files = vec![write(full)];
             files.extend(levels.into_iter().map(|(m, _)| write(m)));
-            Tile { x, z, first, last, bounds, files, figures }
+            Ok(Tile { x, z, first, last, bounds, files, figures })
         })
-        .collect();
+        .collect::<Result<_, Stopped>>()?;
 
     let file = |level: usize, t: &Tile| format!("tiles/{level}/{}_{}.glb", t.x, t.z);
     let level_count = bounds_m.len() + 1;
@@ -181,7 +180,7 @@ pub fn tile_artifacts(
     let index_bytes = serde_json::to_vec_pretty(&index).expect("the index serialises");
     artifacts.push(Artifact::new(INDEX, "application/json", index_bytes));
     let summary = json!({ "index": INDEX, "count": count, "files": artifacts.len() - 1, "levels": summary_levels });
-    (artifacts, summary)
+    Ok((artifacts, summary))
 }
 
 /// The tiles' index artifact.

@@ -45,6 +45,9 @@ pub struct ApiKeys {
     clock: DefaultClock,
     /// `/metrics` and `/docs` (with `/openapi.json`) need a key too.
     pub protect_operations: bool,
+    /// `/metrics` answers without a key (it needs one by default when there are keys: it counts
+    /// every key's jobs).
+    pub public_metrics: bool,
 }
 
 impl std::fmt::Debug for ApiKeys {
@@ -123,7 +126,7 @@ impl ApiKeys {
                 (k.name.clone(), RateLimiter::direct(Quota::per_minute(n)))
             })
             .collect();
-        Ok(Self { keys, limiters, clock: DefaultClock::default(), protect_operations })
+        Ok(Self { keys, limiters, clock: DefaultClock::default(), protect_operations, public_metrics: false })
     }
 
     /// The key's entry, comparing against every key in constant time.

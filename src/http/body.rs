@@ -16,7 +16,14 @@ pub const MAX_WAIT_S: u64 = 60;
 /// The body as JSON; an empty body is `None`.
 pub fn json_body(body: Result<Bytes, BytesRejection>) -> Result<Option<Value>, Problem> {
     let bytes = body.map_err(|rejection| {
-        if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
+        if timed_out(&rejection) {
+            Problem::new(
+                StatusCode::REQUEST_TIMEOUT,
+                "body-timeout",
+                "Request body timed out",
+                "the request body did not arrive whole within the server's body timeout",
+            )
+        } else if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
             Problem::new(
                 StatusCode::PAYLOAD_TOO_LARGE,
                 "body-too-large",
@@ -38,15 +45,28 @@ pub fn json_body(body: Result<Bytes, BytesRejection>) -> Result<Option<Value>, P
         let mut problem = if message.contains("number out of range") {
             Problem::field(&field, "must be a finite number")
         } else {
-            Problem::bad_request(format!("the body is not valid JSON: {message}"))
+            Problem::bad_request(format!("the body is not valid JSON: {}", super::problem::clip(message.clone())))
         };
         if problem.errors.is_empty() && !field.is_empty() {
+            let (field, message) = (super::problem::clip(field), super::problem::clip(message));
             problem.errors.push(crate::validate::FieldError { field, message });
         }
         problem
     })?;
     de.end().map_err(|e| Problem::bad_request(format!("the body is not valid JSON: {e}")))?;
     Ok(Some(value))
+}
+
+/// Whether reading the body stopped at its deadline (`server::body_deadline`).
+fn timed_out(rejection: &BytesRejection) -> bool {
+    let mut error: Option<&(dyn std::error::Error + 'static)> = Some(rejection);
+    while let Some(e) = error {
+        if e.is::<super::server::BodyTimedOut>() {
+            return true;
+        }
+        error = e.source();
+    }
+    rejection.body_text().contains(&super::server::BodyTimedOut.to_string())
 }
 
 /// `Prefer: wait=N` (RFC 7240), capped at [`MAX_WAIT_S`].

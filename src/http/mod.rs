@@ -2,12 +2,15 @@
 
 pub mod auth;
 mod body;
+mod guard;
 mod jobs;
 mod openapi;
 mod openapi_bounds;
 mod ops;
 mod playground;
 mod problem;
+mod rejections;
+pub mod server;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -33,17 +36,25 @@ use crate::jobs::Engine;
 pub struct HttpConfig {
     /// Largest request body accepted (413 beyond).
     pub max_body_bytes: usize,
-    /// Origins allowed by CORS; `*` allows any.
+    /// Origins allowed by CORS (and to change state from their pages); `*` allows any; none:
+    /// only the server's own pages.
     pub cors_origins: Vec<String>,
     /// API keys; none: every call is anonymous.
     pub keys: Option<Arc<ApiKeys>>,
+    /// Time a request's body may take to arrive (408 beyond).
+    pub body_timeout: Duration,
 }
 
 pub const DEFAULT_MAX_BODY_BYTES: usize = 64 * 1024 * 1024;
 
 impl Default for HttpConfig {
     fn default() -> Self {
-        Self { max_body_bytes: DEFAULT_MAX_BODY_BYTES, cors_origins: vec!["*".into()], keys: None }
+        Self {
+            max_body_bytes: DEFAULT_MAX_BODY_BYTES,
+            cors_origins: Vec::new(),
+            keys: None,
+            body_timeout: server::ConnectionLimits::default().body_timeout,
+        }
     }
 }
 
@@ -67,9 +78,12 @@ impl std::ops::Deref for AppState {
 pub fn app(engine: Engine, config: HttpConfig) -> Router {
     let cors = cors_layer(&config.cors_origins);
     let max_body = config.max_body_bytes;
+    let body_timeout = config.body_timeout;
     let state = AppState(Arc::new(App { engine, config }));
     let doc = openapi_document(&state.engine.kinds(), state.config.keys.is_some());
     let protect_operations = state.config.keys.as_ref().is_some_and(|k| k.protect_operations);
+    // With keys, the counts of every key's jobs are not for anyone without one.
+    let protect_metrics = state.config.keys.as_ref().is_some_and(|k| protect_operations || !k.public_metrics);
     let needs_key = middleware::from_fn_with_state(state.clone(), auth::require_key);
     let mut v1 = Router::new()
         .route("/v1/jobs", get(jobs::list::list_jobs))
@@ -87,14 +101,19 @@ pub fn app(engine: Engine, config: HttpConfig) -> Router {
         v1 = v1.route(&format!("/v1/jobs/{kind}"), post(submit));
     }
     let v1 = v1.route_layer(needs_key.clone());
+    let mut metrics = Router::new().route("/metrics", get(ops::metrics));
+    if protect_metrics {
+        metrics = metrics.route_layer(needs_key.clone());
+    }
     let mut operations = Router::new()
-        .route("/metrics", get(ops::metrics))
-        .merge(utoipa_swagger_ui::SwaggerUi::new("/docs").url("/openapi.json", doc));
+        .merge(utoipa_swagger_ui::SwaggerUi::new("/docs").url("/openapi.json", doc))
+        .layer(middleware::map_response(ops::docs_headers));
     if protect_operations {
         operations = operations.route_layer(needs_key);
     }
     Router::new()
         .merge(v1)
+        .merge(metrics)
         .merge(operations)
         .route("/healthz", get(ops::healthz))
         .route("/readyz", get(ops::readyz))
@@ -104,6 +123,9 @@ pub fn app(engine: Engine, config: HttpConfig) -> Router {
         .fallback(ops::not_found)
         .method_not_allowed_fallback(ops::method_not_allowed)
         .layer(DefaultBodyLimit::max(max_body))
+        .layer(middleware::from_fn_with_state(state.clone(), guard::refuse_cross_site))
+        .layer(middleware::map_response(rejections::as_problem))
+        .layer(middleware::from_fn(move |req, next| server::body_deadline(body_timeout, req, next)))
         .layer(cors)
         .layer(CatchPanicLayer::custom(|_| {
             use axum::response::IntoResponse;

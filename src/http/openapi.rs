@@ -93,8 +93,10 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>], keys_required: bool) -> Open
     for kind in kinds {
         let (name, mut schema, refs) = kind.request_schema();
         super::openapi_bounds::close_objects(&mut schema);
+        super::openapi_bounds::state_bounds(&mut schema);
         for (n, mut s) in refs {
             super::openapi_bounds::close_objects(&mut s);
+            super::openapi_bounds::state_bounds(&mut s);
             components.schemas.insert(n, s);
         }
         // The body is the kind's parameters with the common fields beside them, one closed

@@ -92,6 +92,54 @@ pub fn close_objects(schema: &mut RefOr<Schema>) {
     }
 }
 
+/// A job id: a UUID as the server writes them.
+pub const JOB_ID_PATTERN: &str = "^[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}$";
+
+/// Bounds JSON Schema can state that the derives leave out, so that a body valid by the schema
+/// is not refused for them (schemathesis's positive data):
+/// - a positive `f32` (`exclusiveMinimum: 0`, format `float`) is at least the smallest normal
+///   `f32`: a smaller number (`5e-324`) is read as 0 and refused;
+/// - a terrain source's `job` is a job id (a UUID);
+/// - an explicit list of grow-cave sites has at least one.
+pub fn state_bounds(schema: &mut RefOr<Schema>) {
+    use utoipa::openapi::schema::{KnownFormat, SchemaFormat};
+    use utoipa::Number;
+    let RefOr::T(schema) = schema else { return };
+    match schema {
+        Schema::Object(o) => {
+            let is_f32 = matches!(o.format, Some(SchemaFormat::KnownFormat(KnownFormat::Float)));
+            let above_zero = matches!(o.exclusive_minimum, Some(Number::Float(z)) if z == 0.0)
+                || matches!(o.exclusive_minimum, Some(Number::Int(0) | Number::UInt(0)));
+            if is_f32 && above_zero {
+                o.exclusive_minimum = None;
+                o.minimum = Some(Number::Float(f64::from(f32::MIN_POSITIVE)));
+            }
+            for (name, property) in o.properties.iter_mut() {
+                if let RefOr::T(Schema::Object(p)) = property {
+                    if name == "job" && p.pattern.is_none() {
+                        p.pattern = Some(JOB_ID_PATTERN.into());
+                    }
+                }
+                if let RefOr::T(Schema::Array(a)) = property {
+                    if name == "explicit" && a.min_items.is_none() {
+                        a.min_items = Some(1);
+                    }
+                }
+                state_bounds(property);
+            }
+        }
+        Schema::Array(a) => {
+            if let ArrayItems::RefOrSchema(items) = &mut a.items {
+                state_bounds(items);
+            }
+        }
+        Schema::OneOf(o) => o.items.iter_mut().for_each(state_bounds),
+        Schema::AllOf(o) => o.items.iter_mut().for_each(state_bounds),
+        Schema::AnyOf(o) => o.items.iter_mut().for_each(state_bounds),
+        _ => {}
+    }
+}
+
 /// Complete every operation of the document.
 pub fn complete(doc: &mut OpenApiDoc, keys_required: bool) {
     let components = doc.components.get_or_insert_with(Default::default);
@@ -108,9 +156,29 @@ pub fn complete(doc: &mut OpenApiDoc, keys_required: bool) {
     );
     for (path, item) in doc.paths.paths.iter_mut() {
         let v1 = path.starts_with("/v1/");
-        let ops = [&mut item.get, &mut item.post, &mut item.delete, &mut item.put, &mut item.patch];
-        for op in ops.into_iter().flatten() {
-            complete_operation(path, op, v1, keys_required);
+        let ops = [
+            (&mut item.get, false),
+            (&mut item.post, true),
+            (&mut item.delete, true),
+            (&mut item.put, true),
+            (&mut item.patch, true),
+        ];
+        for (op, changes_state) in ops {
+            if let Some(op) = op {
+                complete_operation(path, op, v1, keys_required);
+                if v1 && changes_state {
+                    // See http/guard.rs and http/server.rs.
+                    add(
+                        op,
+                        "403",
+                        problem_response(
+                            "From a page of another origin than the server's own or those `--cors-origins` allows",
+                        ),
+                    );
+                    add(op, "415", problem_response("A body that is not `application/json`"));
+                    add(op, "408", problem_response("The body did not arrive whole within the server's body timeout"));
+                }
+            }
         }
     }
 }

@@ -116,6 +116,15 @@ impl Problem {
     }
 
     pub fn invalid(errors: Vec<FieldError>, too_large: bool) -> Self {
+        // A request's own text (an unknown field's name, a value) may be megabytes: each is quoted
+        // clipped, and only the first errors are listed, so an answer stays small however large
+        // the request (a client that never reads it pins no more than a socket buffer).
+        let listed = errors.len().min(MAX_ERRORS);
+        let errors: Vec<FieldError> = errors
+            .into_iter()
+            .take(MAX_ERRORS)
+            .map(|e| FieldError { field: clip(e.field), message: clip(e.message) })
+            .collect();
         let (status, slug, title) = if too_large {
             (StatusCode::PAYLOAD_TOO_LARGE, "too-large", "Request too large")
         } else {
@@ -126,6 +135,11 @@ impl Problem {
             .map(|e| if e.field.is_empty() { e.message.clone() } else { format!("{}: {}", e.field, e.message) })
             .collect::<Vec<_>>()
             .join("; ");
+        let detail = if listed < MAX_ERRORS {
+            detail
+        } else {
+            format!("{detail}; (only the first {MAX_ERRORS} errors are listed)")
+        };
         Self { errors, ..Self::new(status, slug, title, detail) }
     }
 
@@ -134,8 +148,33 @@ impl Problem {
     }
 }
 
+/// Longest text of a request quoted back in a problem (a field's path, a message), in characters.
+pub const MAX_QUOTED_CHARS: usize = 200;
+/// Most field errors one problem lists.
+pub const MAX_ERRORS: usize = 50;
+
+/// `text`, or its first [`MAX_QUOTED_CHARS`] characters and how many more there were.
+pub fn clip(text: String) -> String {
+    match text.char_indices().nth(MAX_QUOTED_CHARS) {
+        None => text,
+        Some((cut, _)) => {
+            let more = text[cut..].chars().count();
+            format!("{}… ({more} more characters)", &text[..cut])
+        }
+    }
+}
+
 impl IntoResponse for Problem {
-    fn into_response(self) -> Response {
+    fn into_response(mut self) -> Response {
+        // Details are built by many callers, some with a request's text in them (a parser's
+        // message quoting the input): the list's entries are already clipped, the detail is
+        // clipped here to what they could add up to.
+        let most = (MAX_ERRORS + 1) * (2 * MAX_QUOTED_CHARS + 64);
+        if self.detail.len() > most {
+            let cut = (0..=most).rev().find(|&i| self.detail.is_char_boundary(i)).unwrap_or(0);
+            self.detail.truncate(cut);
+            self.detail.push('…');
+        }
         let status = StatusCode::from_u16(self.status).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR);
         let body = serde_json::to_vec(&self).unwrap_or_default();
         let mut res = (status, body).into_response();

@@ -16,7 +16,7 @@ use super::metrics::Metrics;
 use super::store_terrain::StoreTerrain;
 use super::{Job, JobEvent, JobKind, JobStatus, Progress, RequestError};
 use crate::export::{GlbForm, MeshSettings, LOD_MEMORY_FACTOR};
-use crate::store::{EventLog, IdempotentInsert, ListFilter, StoreError};
+use crate::store::{EventLog, IdempotentInsert, JobInputs, ListFilter, StoreError};
 use crate::validate::{FieldError, Limits};
 
 pub const DEFAULT_QUEUE_CAPACITY: usize = 64;
@@ -434,10 +434,13 @@ impl Engine {
     }
 
     /// Validate a body for `kind` and queue it. `idempotency` is (key, sha256 of the body).
+    /// `body_bytes`: the size of the body as sent, which the stored request may not outgrow
+    /// (see [`stored_size_allowed`]).
     pub async fn submit(
         &self,
         kind: &str,
         body: Value,
+        body_bytes: usize,
         idempotency: Option<(String, String)>,
         who: &Submitter,
     ) -> Result<Submitted, EngineError> {
@@ -452,12 +455,28 @@ impl Engine {
         let prepared = tokio::task::spawn_blocking(move || kind_impl.prepare(Value::Object(body), &limits))
             .await
             .map_err(|e| EngineError::Internal(e.to_string()))??;
+        // The common fields (seed, compression, lods, label) add at most a few hundred bytes.
+        let stored = crate::model::json_len(&prepared.params) + 128 + label.as_ref().map_or(0, |l| 2 * l.len());
+        let allowed = stored_size_allowed(body_bytes);
+        if stored > allowed {
+            return Err(EngineError::Invalid {
+                errors: vec![FieldError {
+                    field: String::new(),
+                    message: format!(
+                        "with its defaults filled in and its numbers written out, this request would be stored as \
+                         about {stored} bytes, more than the {allowed} bytes allowed for a body of {body_bytes}; \
+                         write numbers in full (100000 rather than 1e5) or send a smaller request"
+                    ),
+                }],
+                too_large: true,
+            });
+        }
         self.check_references(&prepared.references, owner.clone()).await?;
         let lods = !mesh.lods.is_empty();
         let (cost, uploads) =
             self.estimate(kind, &prepared.params, prepared.references.uploads, owner.clone(), lods).await?;
         self.check_quota(who, &cost).await?;
-        self.store_uploads(uploads).await?;
+        let named: Vec<String> = prepared.references.inputs.into_iter().map(|(_, sha)| sha).collect();
 
         let mut request = match prepared.params {
             Value::Object(m) => m,
@@ -472,7 +491,7 @@ impl Engine {
         let mut job = new_job(kind, label, Value::Object(request), None);
         job.cost = Some(cost);
         job.owner = owner;
-        self.admit(job, idempotency).await
+        self.admit(job, idempotency, uploads, named).await
     }
 
     /// A key's jobs at once: how many are queued or running, and the memory they reserve.
@@ -598,7 +617,9 @@ impl Engine {
         let mut job = new_job(&original.kind, original.label.clone(), original.request.clone(), replay_of);
         job.cost = Some(cost);
         job.owner = original.owner.clone();
-        match self.admit(job, None).await? {
+        // The replay reads the original's uploads: they stay as long as it does.
+        let named: Vec<String> = prepared.references.inputs.into_iter().map(|(_, sha)| sha).collect();
+        match self.admit(job, None, Vec::new(), named).await? {
             Submitted::Created(j) | Submitted::Existing(j) => Ok(j),
         }
     }
@@ -613,7 +634,8 @@ impl Engine {
         let errors = tokio::task::spawn_blocking(move || {
             let mut errors = Vec::new();
             for (field, sha) in inputs {
-                match store.has_input(&sha) {
+                // Another key's upload answers as one that does not exist.
+                match store.has_input(&sha, owner.as_deref()) {
                     Ok(true) => {}
                     Ok(false) => errors.push(FieldError { field, message: format!("no upload with sha256 {sha}") }),
                     Err(e) => {
@@ -640,14 +662,14 @@ impl Engine {
         }
     }
 
-    async fn store_uploads(&self, uploads: Vec<(String, Vec<u8>)>) -> Result<(), EngineError> {
-        if uploads.is_empty() {
-            return Ok(());
-        }
-        self.blocking(move |s| uploads.iter().try_for_each(|(sha, png)| s.put_input(sha, png))).await
-    }
-
-    async fn admit(&self, job: Job, idempotency: Option<(String, String)>) -> Result<Submitted, EngineError> {
+    /// Store the job (with the uploads it sent and names, see `JobInputs`) and queue it.
+    async fn admit(
+        &self,
+        job: Job,
+        idempotency: Option<(String, String)>,
+        sent: Vec<(String, Vec<u8>)>,
+        named: Vec<String>,
+    ) -> Result<Submitted, EngineError> {
         let capacity = self.inner.config.queue_capacity;
         // Where the job will wait: a place in this process's queue, or (`Some(None)`) the
         // store's queue, which workers elsewhere claim from; `None` when it is full.
@@ -659,15 +681,17 @@ impl Engine {
         if slot.is_none() && idempotency.is_none() {
             return Err(EngineError::QueueFull(capacity));
         }
-        let stored = job.clone();
-        let (full, outcome) = self
+        // The job goes to the blocking thread and comes back: a request may be megabytes.
+        let (job, full, outcome) = self
             .blocking(move |s| {
                 let full = in_store && s.queued()? >= capacity as u64;
                 if full && idempotency.is_none() {
-                    return Ok((true, None));
+                    return Ok((job, true, None));
                 }
                 let key = idempotency.as_ref().map(|(k, h)| (k.as_str(), h.as_str()));
-                s.insert(&stored, key).map(|o| (full, Some(o)))
+                let inputs = JobInputs { sent: &sent, named: &named };
+                let outcome = s.insert_with_inputs(&job, key, inputs)?;
+                Ok((job, full, Some(outcome)))
             })
             .await?;
         let Some(outcome) = outcome else { return Err(EngineError::QueueFull(capacity)) };
@@ -812,9 +836,14 @@ impl Engine {
             let (backlog, rx) = live.subscribe(last_event_id);
             return Ok(EventFeed::Live { backlog, rx, live });
         }
-        let job = self.get(id, owner).await?;
-        if job.status.is_terminal() {
-            return Ok(EventFeed::Ended(Box::new(job)));
+        // The status alone first: a stream of an ended job reads its summary, never its whole
+        // request (many clients opening streams of a large job must not each parse it).
+        let (status, job_owner) = self.status_of(id).await?;
+        if job_owner.as_deref() != owner {
+            return Err(EngineError::NotFound(id.to_string()));
+        }
+        if status.is_terminal() {
+            return Ok(EventFeed::Ended(Box::new(self.summary(id).await?)));
         }
         if !self.inner.config.runs_jobs {
             return Ok(EventFeed::Stored { after: last_event_id.unwrap_or(0) });
@@ -825,8 +854,16 @@ impl Engine {
                 let (backlog, rx) = live.subscribe(last_event_id);
                 Ok(EventFeed::Live { backlog, rx, live })
             }
-            None => Ok(EventFeed::Ended(Box::new(self.get_any(id).await?))),
+            None => Ok(EventFeed::Ended(Box::new(self.summary(id).await?))),
         }
+    }
+
+    /// The job as a summary (a request over `SUMMARY_REQUEST_BYTES` left unread), whoever owns it.
+    pub async fn summary(&self, id: &str) -> Result<Job, EngineError> {
+        let sid = id.to_string();
+        let job =
+            self.blocking(move |s| s.get_summary(&sid)).await?.ok_or_else(|| EngineError::NotFound(id.to_string()))?;
+        Ok(job.with_hrefs())
     }
 
     /// The latest live snapshot of a running job `owner` may see: from memory when this
@@ -864,6 +901,15 @@ impl Engine {
 
 /// The common fields of every body: `seed`, `label`, `compression` and `lods` (checked here;
 /// the caller puts the seed and the mesh settings, defaults filled in, back into the request).
+/// The most bytes a request of `body_bytes` may take stored, its defaults filled in: 1.5 × the
+/// body, and for small bodies 64 KiB more (a body of a few fields gains every default of its
+/// kind). Numbers are stored as short as they were sent or shorter (see `stored_form`), so
+/// what grows is the defaults: a list of mounds that leaves out each one's two defaults is
+/// stored at about 1.25 × its size, a path of points at under 1 ×.
+pub fn stored_size_allowed(body_bytes: usize) -> usize {
+    (body_bytes + body_bytes / 2).max(body_bytes + (64 << 10))
+}
+
 fn take_common_fields(body: &mut Map<String, Value>) -> Result<(u64, Option<String>, MeshSettings), EngineError> {
     let seed = match body.remove("seed") {
         None | Some(Value::Null) => 0,
@@ -905,6 +951,7 @@ fn new_job(kind: &str, label: Option<String>, request: Value, replay_of: Option<
         finished_at: None,
         progress: Progress { stage: "queued".into(), ..Progress::default() },
         request,
+        request_omitted: false,
         result: None,
         artifacts: Vec::new(),
         error: None,

@@ -21,7 +21,7 @@ fn engine_with(dir: &tempfile::TempDir, config: EngineConfig) -> Engine {
 }
 
 async fn submit(engine: &Engine, body: Value) -> String {
-    match engine.submit("stand-in", body, None, &Default::default()).await.expect("submit") {
+    match engine.submit("stand-in", body, 0, None, &Default::default()).await.expect("submit") {
         super::Submitted::Created(j) | super::Submitted::Existing(j) => j.id,
     }
 }
@@ -105,7 +105,7 @@ async fn a_job_interrupted_too_often_is_failed_not_run_again() {
     let store = Arc::new(SqliteStore::open(path.to_str().unwrap()).unwrap());
     let mut job = {
         let engine = Engine::new(store.clone(), vec![Box::new(StandIn)], EngineConfig::default()).unwrap();
-        match engine.submit("stand-in", json!({ "n": 1 }), None, &Default::default()).await.unwrap() {
+        match engine.submit("stand-in", json!({ "n": 1 }), 0, None, &Default::default()).await.unwrap() {
             super::Submitted::Created(j) | super::Submitted::Existing(j) => j,
         }
     };

@@ -277,6 +277,42 @@ pub fn parse_params<T: DeserializeOwned>(value: Value) -> Result<T, RequestError
     })
 }
 
+/// Typed parameters as the job keeps them: written as JSON text and read back, so an `f32` is
+/// kept as its shortest text (`0.1`, not the `0.10000000149011612` of its `f64` widening, which
+/// `serde_json::to_value` gives), and whole numbers without a fraction (`2`, not `2.0`). A
+/// stored request is then about the size of the body it came from (the engine bounds it) and
+/// reads back into the same parameters, bit for bit.
+///
+/// Members that are `null` are left out: every optional parameter of every kind reads a missing
+/// member as `None` (`#[serde(default)]`, tested over every example), and a path of 50 000
+/// points would otherwise gain `"height":null` at each.
+pub fn stored_form<T: Serialize>(typed: &T) -> Result<Value, serde_json::Error> {
+    let mut value: Value = serde_json::from_slice(&serde_json::to_vec(typed)?)?;
+    compact(&mut value);
+    Ok(value)
+}
+
+/// Floats with no fraction as integers, where that is exact (|x| < 2^53, and not -0.0: its
+/// sign matters to the parameters it is read into; an `f32` or `f64` field reads an integer as
+/// the same value); `null` members dropped.
+fn compact(value: &mut Value) {
+    const EXACT: f64 = 9_007_199_254_740_992.0;
+    match value {
+        Value::Number(n) if n.is_f64() => {
+            let x = n.as_f64().unwrap_or(f64::NAN);
+            if x.fract() == 0.0 && x.abs() < EXACT && !(x == 0.0 && x.is_sign_negative()) {
+                *value = if x >= 0.0 { Value::from(x as u64) } else { Value::from(x as i64) };
+            }
+        }
+        Value::Array(items) => items.iter_mut().for_each(compact),
+        Value::Object(map) => {
+            map.retain(|_, v| !v.is_null());
+            map.values_mut().for_each(compact);
+        }
+        _ => {}
+    }
+}
+
 fn sequence_artifact<Q: Serialize>(sequence: &Q) -> Result<Artifact, SimError> {
     let bytes = serde_json::to_vec_pretty(sequence).map_err(|e| SimError::Failed(e.to_string()))?;
     Ok(Artifact::new("sequence.json", "application/json", bytes))
@@ -331,7 +367,7 @@ impl<S: Simulation> JobKind for Kind<S> {
             let sha = image.input_ref().map(str::to_string);
             references.add_png(&path, sha, image.take_upload())?;
         }
-        let params = serde_json::to_value(&typed).map_err(|e| RequestError::Malformed(e.to_string()))?;
+        let params = stored_form(&typed).map_err(|e| RequestError::Malformed(e.to_string()))?;
         Ok(Prepared { params, references })
     }
 

@@ -59,18 +59,25 @@ impl Engine {
         self.blocking(move |s| s.events_after(&id, after, 256)).await
     }
 
-    /// Wait up to `timeout` for a job running elsewhere to end; returns it either way.
+    /// Wait up to `timeout` for a job running elsewhere to end; returns it either way. Polls
+    /// the status alone: a job's row (its request may be megabytes) is read once, at the end.
     pub(super) async fn wait_stored(&self, id: &str, timeout: Duration) -> Result<Job, EngineError> {
         let started = Instant::now();
         let mut notices = self.notices();
         loop {
-            let job = self.get_any(id).await?;
+            let (status, _) = self.status_of(id).await?;
             let left = timeout.saturating_sub(started.elapsed());
-            if job.status.is_terminal() || left.is_zero() {
-                return Ok(job);
+            if status.is_terminal() || left.is_zero() {
+                return self.get_any(id).await;
             }
             let _ = tokio::time::timeout(left, until_changed(id, &mut notices)).await;
         }
+    }
+
+    /// A job's status and owner, without reading the rest of it.
+    pub async fn status_of(&self, id: &str) -> Result<(JobStatus, Option<String>), EngineError> {
+        let sid = id.to_string();
+        self.blocking(move |s| s.status(&sid)).await?.ok_or_else(|| EngineError::NotFound(id.to_string()))
     }
 
     /// Notices of changes from any process, where the store sends them.

@@ -175,7 +175,7 @@ impl Engine {
             self.forget(&job.id);
             job.status = JobStatus::Cancelled;
             job.error = Some(problem("deleted", "Job deleted", "the job was deleted", 410));
-            live.emit_done(serde_json::to_value(job.with_hrefs()).unwrap_or(Value::Null));
+            live.emit_done(serde_json::to_value(job.with_hrefs().summarised()).unwrap_or(Value::Null));
             return;
         }
         let artifacts = settle(&mut job, outcome, live.stop_reason(), self.inner.config.job_timeout.as_secs());

@@ -8,28 +8,31 @@
 use rayon::prelude::*;
 
 use super::Mesh;
+use crate::stop::{Stop, Stopped};
 
 /// Most sample points on one triangle side (a triangle gets at most about half its square).
 const MAX_SPLITS: usize = 256;
 
 /// The sampled two-sided distance between `a` and `b` in metres, points at most `spacing_m`
 /// apart (or `MAX_SPLITS` per triangle side). 0 for two empty meshes, infinite when only one
-/// is empty.
-pub fn max_deviation(a: &Mesh, b: &Mesh, spacing_m: f32) -> f32 {
+/// is empty. `stop` is looked at between chunks of samples (a large mesh takes seconds).
+pub fn max_deviation(a: &Mesh, b: &Mesh, spacing_m: f32, stop: Stop) -> Result<f32, Stopped> {
     match (a.indices.is_empty(), b.indices.is_empty()) {
-        (true, true) => return 0.0,
-        (true, false) | (false, true) => return f32::INFINITY,
+        (true, true) => return Ok(0.0),
+        (true, false) | (false, true) => return Ok(f32::INFINITY),
         _ => {}
     }
-    let (ab, ba) = rayon::join(|| one_sided(a, b, spacing_m), || one_sided(b, a, spacing_m));
-    ab.max(ba) as f32
+    let (ab, ba) = rayon::join(|| one_sided(a, b, spacing_m, stop), || one_sided(b, a, spacing_m, stop));
+    stop.check()?;
+    Ok(ab.max(ba) as f32)
 }
 
 /// The largest distance from a sample of `from` to the surface of `to`. A sample within the
 /// largest distance found so far (by any thread) cannot raise it, so it is only checked against
 /// that distance, stopping at the first triangle close enough; the others are measured exactly.
 /// The maximum is the same whichever samples were only checked.
-fn one_sided(from: &Mesh, to: &Mesh, spacing_m: f32) -> f64 {
+/// A stopped search returns early with what it found (the caller looks at `stop` again).
+fn one_sided(from: &Mesh, to: &Mesh, spacing_m: f32, stop: Stop) -> f64 {
     use std::sync::atomic::{AtomicU64, Ordering};
     let index = TriangleIndex::new(to);
     let spacing = f64::from(spacing_m.max(1e-6));
@@ -45,6 +48,9 @@ fn one_sided(from: &Mesh, to: &Mesh, spacing_m: f32) -> f64 {
     // Triangles' centres first: on a coarse mesh they are the points farthest from the fine
     // one, so the largest distance is found early and most later samples are only checked.
     from.indices.par_chunks(3 * 256).for_each(|chunk| {
+        if stop.requested() {
+            return;
+        }
         let mut hint = 0;
         for t in chunk.chunks_exact(3) {
             let [p, q, r] = [0, 1, 2].map(|k| point(from, t[k]));
@@ -53,12 +59,18 @@ fn one_sided(from: &Mesh, to: &Mesh, spacing_m: f32) -> f64 {
     });
     // Every vertex once, then the points along and inside each triangle (not its corners).
     from.positions.par_chunks(1024).for_each(|chunk| {
+        if stop.requested() {
+            return;
+        }
         let mut hint = 0;
         for v in chunk {
             measure(v.map(f64::from), &mut hint);
         }
     });
     from.indices.par_chunks_exact(3).for_each(|t| {
+        if stop.requested() {
+            return;
+        }
         let [p, q, r] = [0, 1, 2].map(|k| point(from, t[k]));
         let longest = dist(p, q).max(dist(q, r)).max(dist(r, p));
         let n = ((longest / spacing).ceil() as usize).clamp(1, MAX_SPLITS);
@@ -329,12 +341,12 @@ mod tests {
     fn a_lifted_copy_deviates_by_the_lift_and_a_bump_by_its_height() {
         let flat = plane(33, |_, _| 0.0);
         let lifted = plane(33, |_, _| 0.75);
-        assert!((max_deviation(&flat, &lifted, 0.5) - 0.75).abs() < 1e-6);
+        assert!((max_deviation(&flat, &lifted, 0.5, Stop::NEVER).unwrap() - 0.75).abs() < 1e-6);
         // A cone 2 m high at (16, 16): the flat plane's farthest point from the cone's surface
         // is the tip's foot, but the cone's tip is 2 m from the plane: two-sided, 2 m.
         let cone = plane(33, |x, z| (2.0 - ((x - 16.0).powi(2) + (z - 16.0).powi(2)).sqrt()).max(0.0));
-        assert!((max_deviation(&flat, &cone, 0.5) - 2.0).abs() < 1e-6);
-        assert!(max_deviation(&cone, &cone, 0.5) < 1e-6);
+        assert!((max_deviation(&flat, &cone, 0.5, Stop::NEVER).unwrap() - 2.0).abs() < 1e-6);
+        assert!(max_deviation(&cone, &cone, 0.5, Stop::NEVER).unwrap() < 1e-6);
     }
 
     #[test]
@@ -343,8 +355,8 @@ mod tests {
         // the square's right edge is 5 m from the half.
         let whole = plane(11, |_, _| 0.0);
         let half = heightfield_mesh(&Heightfield::from_fn(6, 11, 1.0, |_, _| 0.0), 4097, None).mesh;
-        assert!(one_sided(&half, &whole, 0.5) < 1e-9);
-        assert!((one_sided(&whole, &half, 0.5) - 5.0).abs() < 1e-9);
-        assert!((max_deviation(&whole, &half, 0.5) - 5.0).abs() < 1e-6);
+        assert!(one_sided(&half, &whole, 0.5, Stop::NEVER) < 1e-9);
+        assert!((one_sided(&whole, &half, 0.5, Stop::NEVER) - 5.0).abs() < 1e-9);
+        assert!((max_deviation(&whole, &half, 0.5, Stop::NEVER).unwrap() - 5.0).abs() < 1e-6);
     }
 }

@@ -13,6 +13,7 @@ use std::collections::HashMap;
 use super::deviation::{max_deviation, mean_triangle_side};
 use super::types::zero_area;
 use super::Mesh;
+use crate::stop::{Stop, Stopped};
 
 /// Rounds of mending slivers (a split can leave a new one where corners line up again).
 const MEND_ROUNDS: usize = 4;
@@ -37,14 +38,15 @@ pub struct Lod {
 }
 
 /// `mesh` simplified so that no sampled point of either surface lies farther than `bound_m`
-/// from the other.
-pub fn simplify_within(mesh: &Mesh, bound_m: f32) -> Lod {
+/// from the other. `stop` is looked at between tries and while measuring.
+pub fn simplify_within(mesh: &Mesh, bound_m: f32, stop: Stop) -> Result<Lod, Stopped> {
     let spacing = sample_spacing(mesh, bound_m);
     let locked = locked_vertices(mesh);
     let positions = meshopt::VertexDataAdapter::new(meshopt::typed_to_bytes(&mesh.positions), 12, 0)
         .expect("positions are 12-byte vertices");
     let mut target = bound_m;
     for _ in 0..=RETRIES {
+        stop.check()?;
         let mut error = 0.0f32;
         let indices = meshopt::simplify_with_locks(
             &mesh.indices,
@@ -56,19 +58,20 @@ pub fn simplify_within(mesh: &Mesh, bound_m: f32) -> Lod {
             Some(&mut error),
         );
         let simple = compact(mesh, &mend_slivers(indices, &mesh.positions));
-        let deviation = max_deviation(mesh, &simple, spacing);
+        stop.check()?;
+        let deviation = max_deviation(mesh, &simple, spacing, stop)?;
         if deviation <= bound_m {
-            return Lod {
+            return Ok(Lod {
                 mesh: simple,
                 target_m: target,
                 simplifier_error_m: error,
                 deviation_m: deviation,
                 sample_spacing_m: spacing,
-            };
+            });
         }
         target *= 0.5;
     }
-    Lod { mesh: mesh.clone(), target_m: 0.0, simplifier_error_m: 0.0, deviation_m: 0.0, sample_spacing_m: spacing }
+    Ok(Lod { mesh: mesh.clone(), target_m: 0.0, simplifier_error_m: 0.0, deviation_m: 0.0, sample_spacing_m: spacing })
 }
 
 /// `indices` without zero-area triangles, the surface unchanged. meshoptimizer can leave a
@@ -191,7 +194,7 @@ mod tests {
         let full = hills();
         let mut last = full.triangle_count();
         for bound in [0.1, 0.4, 1.6] {
-            let lod = simplify_within(&full, bound);
+            let lod = simplify_within(&full, bound, Stop::NEVER).unwrap();
             assert!(lod.deviation_m <= bound, "{} > {bound}", lod.deviation_m);
             let triangles = lod.mesh.triangle_count();
             assert!(triangles < last, "{triangles} triangles at {bound} m, {last} before");
@@ -204,7 +207,7 @@ mod tests {
     #[test]
     fn the_border_stays_where_it_was() {
         let full = hills();
-        let lod = simplify_within(&full, 0.8);
+        let lod = simplify_within(&full, 0.8, Stop::NEVER).unwrap();
         let on_border = |p: &[f32; 3]| p[0] == 0.0 || p[2] == 0.0 || p[0] == 64.0 || p[2] == 64.0;
         let border = |m: &Mesh| {
             let mut v: Vec<[u32; 3]> =

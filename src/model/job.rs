@@ -72,9 +72,14 @@ pub struct Job {
     pub started_at: Option<DateTime<Utc>>,
     pub finished_at: Option<DateTime<Utc>>,
     pub progress: Progress,
-    /// The parameters with every default filled in, `seed` included.
+    /// The parameters with every default filled in, `seed` included. In list items and in an
+    /// event stream's `done`, a request whose JSON is over 64 KiB is left out (`{}`, with
+    /// `request_omitted`): `GET /v1/jobs/{id}` has it whole.
     #[schema(value_type = Object)]
     pub request: Value,
+    /// `request` was left out of this summary for its size (see `request`).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub request_omitted: bool,
     /// Kind-specific summary figures once the job has succeeded, and in every kind
     /// `sequence_steps`: the steps of the recorded sequence (the largest `until_step` a replay takes).
     #[schema(value_type = Option<Object>)]
@@ -95,7 +100,21 @@ pub struct Job {
     pub owner: Option<String>,
 }
 
+/// Largest request (its JSON's bytes) a job summary carries: a list page or a `done` event costs
+/// at most this a job for its request, whatever the requests' sizes.
+pub const SUMMARY_REQUEST_BYTES: usize = 64 << 10;
+
 impl Job {
+    /// The job as a summary shows it: the request left out when it is over
+    /// [`SUMMARY_REQUEST_BYTES`].
+    pub fn summarised(mut self) -> Self {
+        if !self.request_omitted && json_len(&self.request) > SUMMARY_REQUEST_BYTES {
+            self.request = Value::Object(Default::default());
+            self.request_omitted = true;
+        }
+        self
+    }
+
     pub fn replay_spec(&self) -> Option<ReplaySpec> {
         self.replay_of.as_ref().map(|of| ReplaySpec { of: of.clone(), until_step: self.replay_until_step })
     }
@@ -124,4 +143,21 @@ impl Job {
         }
         self
     }
+}
+
+/// Length of a value's compact JSON text, without writing it anywhere.
+pub fn json_len(value: &Value) -> usize {
+    struct Count(usize);
+    impl std::io::Write for Count {
+        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+            self.0 += buf.len();
+            Ok(buf.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+    let mut count = Count(0);
+    let _ = serde_json::to_writer(&mut count, value);
+    count.0
 }

@@ -33,6 +33,7 @@ pub fn job(n: u64, kind: &str, status: JobStatus) -> Job {
         finished_at: None,
         progress: Progress::default(),
         request: json!({ "seed": n }),
+        request_omitted: false,
         result: None,
         artifacts: Vec::new(),
         error: None,

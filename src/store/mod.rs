@@ -43,6 +43,25 @@ pub struct ListFilter {
     pub owner: Option<String>,
 }
 
+/// The uploads a new job reads: those it sent inline, `(sha256, bytes)`, and those it names by
+/// sha256 (sent with an earlier job of the same key).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct JobInputs<'a> {
+    pub sent: &'a [(String, Vec<u8>)],
+    pub named: &'a [String],
+}
+
+impl JobInputs<'_> {
+    /// Every sha256 the job reads, once each.
+    pub fn all(&self) -> Vec<&str> {
+        let mut all: Vec<&str> =
+            self.sent.iter().map(|(s, _)| s.as_str()).chain(self.named.iter().map(String::as_str)).collect();
+        all.sort_unstable();
+        all.dedup();
+        all
+    }
+}
+
 /// Outcome of an insert carrying an idempotency key.
 #[derive(Debug)]
 pub enum IdempotentInsert {
@@ -59,8 +78,22 @@ pub enum IdempotentInsert {
 pub trait JobStore: ArtifactStore {
     /// Store a new job. With `idempotency = Some((key, body_sha256))`, the key is recorded with
     /// it in the same transaction, unless the key already exists (then nothing is written).
-    fn insert(&self, job: &Job, idempotency: Option<(&str, &str)>) -> Result<IdempotentInsert, StoreError>;
+    fn insert(&self, job: &Job, idempotency: Option<(&str, &str)>) -> Result<IdempotentInsert, StoreError> {
+        self.insert_with_inputs(job, idempotency, JobInputs::default())
+    }
+    /// [`JobStore::insert`], with the uploads the job sent kept (once, by content) and every
+    /// upload it reads recorded as the job's, in the same transaction: an upload is stored only
+    /// with a job that was admitted, and goes with the last job that reads it.
+    fn insert_with_inputs(
+        &self,
+        job: &Job,
+        idempotency: Option<(&str, &str)>,
+        inputs: JobInputs,
+    ) -> Result<IdempotentInsert, StoreError>;
     fn get(&self, id: &str) -> Result<Option<Job>, StoreError>;
+    /// The job as a summary (`Job::summarised`), without reading a request over
+    /// `SUMMARY_REQUEST_BYTES`.
+    fn get_summary(&self, id: &str) -> Result<Option<Job>, StoreError>;
     fn list(&self, filter: &ListFilter) -> Result<Vec<Job>, StoreError>;
     /// Save a job's status, timestamps, progress, result and error (not its artifacts).
     fn update(&self, job: &Job) -> Result<(), StoreError>;
@@ -71,10 +104,15 @@ pub trait JobStore: ArtifactStore {
     fn delete(&self, id: &str) -> Result<bool, StoreError>;
     /// Jobs queued or running (oldest first): to run again after a restart.
     fn unfinished(&self) -> Result<Vec<Job>, StoreError>;
-    /// Keep an uploaded file under its sha256 (hex); storing the same file again does nothing.
-    fn put_input(&self, sha256: &str, data: &[u8]) -> Result<(), StoreError>;
+    /// An upload's bytes by its sha256 (hex), for the jobs that read it.
     fn input(&self, sha256: &str) -> Result<Option<Vec<u8>>, StoreError>;
-    fn has_input(&self, sha256: &str) -> Result<bool, StoreError>;
+    /// Whether `sha256` names an upload that a job of `owner` (an API key's name; none without
+    /// keys) sent or reads: an upload belongs to the key that sent it, and to any other key it
+    /// does not exist.
+    fn has_input(&self, sha256: &str, owner: Option<&str>) -> Result<bool, StoreError>;
+    /// The job's status and owner alone (what a stream or a wait polls for, without reading
+    /// and parsing its request); None if there is no such job.
+    fn status(&self, id: &str) -> Result<Option<(JobStatus, Option<String>)>, StoreError>;
     /// How many times the job has entered `running` (0 if it never ran); None if there is none.
     fn attempts(&self, id: &str) -> Result<Option<u32>, StoreError>;
     /// Number of jobs waiting in the queue (what admission compares with its capacity, on

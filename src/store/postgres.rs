@@ -19,8 +19,8 @@ use super::notifier::Notifier;
 use super::objects::{object_range, ObjectArtifacts};
 use super::pg_conn::{Conn, Sql, Tx};
 use super::queue::{count, lease_ms, Claim, JobQueue, Renewal};
-use super::row::{describe, timestamp, JobRow, RawJob, JOB_COLUMNS};
-use super::{ArtifactStore, IdempotentInsert, JobStore, ListFilter, StoreError, CHUNK_BYTES};
+use super::row::{describe, summary_columns, timestamp, JobRow, RawJob, JOB_COLUMNS};
+use super::{ArtifactStore, IdempotentInsert, JobInputs, JobStore, ListFilter, StoreError, CHUNK_BYTES};
 use crate::export::Artifact;
 use crate::model::{ArtifactMeta, Job, JobStatus};
 
@@ -612,7 +612,12 @@ impl EventLog for PostgresStore {
 }
 
 impl JobStore for PostgresStore {
-    fn insert(&self, job: &Job, idempotency: Option<(&str, &str)>) -> Result<IdempotentInsert, StoreError> {
+    fn insert_with_inputs(
+        &self,
+        job: &Job,
+        idempotency: Option<(&str, &str)>,
+        inputs: JobInputs,
+    ) -> Result<IdempotentInsert, StoreError> {
         let row = JobRow::encode(job)?;
         let mut client = self.client();
         let announce = || {
@@ -620,15 +625,31 @@ impl JobStore for PostgresStore {
                 self.notifier.send(JOBS_CHANNEL, &job.id);
             }
         };
-        let Some((key, body_sha256)) = idempotency else {
+        let reads = inputs.all();
+        if idempotency.is_none() && reads.is_empty() {
             insert_row(&mut *client, &row)?;
             drop(client);
             announce();
             return Ok(IdempotentInsert::Inserted);
-        };
+        }
         let mut tx = client.transaction().map_err(db)?;
         insert_row(&mut tx, &row)?;
-        {
+        for (sha256, data) in inputs.sent {
+            let bytes = data.len() as i64;
+            tx.execute(
+                "INSERT INTO inputs (sha256, bytes, data) VALUES ($1, $2, $3) ON CONFLICT (sha256) DO NOTHING",
+                &[sha256, &bytes, data],
+            )
+            .map_err(db)?;
+        }
+        for sha256 in &reads {
+            tx.execute(
+                "INSERT INTO job_inputs (job_id, sha256) VALUES ($1, $2) ON CONFLICT DO NOTHING",
+                &[&job.id, sha256],
+            )
+            .map_err(db)?;
+        }
+        if let Some((key, body_sha256)) = idempotency {
             let claimed = tx
                 .execute(
                     "INSERT INTO idempotency_keys (key, body_sha256, job_id) VALUES ($1, $2, $3) \
@@ -666,15 +687,22 @@ impl JobStore for PostgresStore {
         load_job(&mut *self.client(), id)
     }
 
+    fn get_summary(&self, id: &str) -> Result<Option<Job>, StoreError> {
+        let sql = format!("SELECT {}, {ARTIFACT_ARRAYS} WHERE id = $1", summary_columns());
+        Ok(load_jobs(&mut *self.client(), &sql, &[&id])?.pop())
+    }
+
     /// Newest first. A `limit` of 0 means no limit.
     fn list(&self, filter: &ListFilter) -> Result<Vec<Job>, StoreError> {
         let status = filter.status.map(|s| s.as_str());
         let limit: Option<i64> = (filter.limit > 0).then(|| i64::from(filter.limit));
+        // Summaries: a large request is not read (see `summary_columns`).
         let sql = format!(
-            "SELECT {JOB_COLUMNS}, {ARTIFACT_ARRAYS} \
+            "SELECT {}, {ARTIFACT_ARRAYS} \
              WHERE ($1::text IS NULL OR kind = $1) AND ($2::text IS NULL OR status = $2) \
              AND ($3::text IS NULL OR owner = $3) AND ($4::text IS NULL OR id < $4) \
-             ORDER BY id DESC LIMIT $5"
+             ORDER BY id DESC LIMIT $5",
+            summary_columns()
         );
         let jobs =
             load_jobs(&mut *self.client(), &sql, &[&filter.kind, &status, &filter.owner, &filter.before_id, &limit])?;
@@ -697,8 +725,22 @@ impl JobStore for PostgresStore {
         // The job's row locked first: a finish committing meanwhile can't slip objects past.
         tx.execute("SELECT 1 FROM jobs WHERE id = $1 FOR UPDATE", &[&id]).map_err(db)?;
         let objects = object_keys(&mut tx, id)?;
-        // Artifacts and idempotency keys go with the job (ON DELETE CASCADE).
+        let inputs: Vec<String> = tx
+            .query("SELECT sha256 FROM job_inputs WHERE job_id = $1", &[&id])
+            .map_err(db)?
+            .iter()
+            .map(|r| r.try_get(0).map_err(db))
+            .collect::<Result<_, _>>()?;
+        // Artifacts, idempotency keys and the job's inputs go with the job (ON DELETE CASCADE);
+        // an upload no other job reads goes with it too.
         let n = tx.execute("DELETE FROM jobs WHERE id = $1", &[&id]).map_err(db)?;
+        for sha256 in &inputs {
+            tx.execute(
+                "DELETE FROM inputs WHERE sha256 = $1 AND NOT EXISTS (SELECT 1 FROM job_inputs WHERE sha256 = $1)",
+                &[sha256],
+            )
+            .map_err(db)?;
+        }
         tx.commit().map_err(db)?;
         drop(client);
         self.remove_objects(&objects);
@@ -711,25 +753,35 @@ impl JobStore for PostgresStore {
         load_jobs(&mut *self.client(), &sql, &[])
     }
 
-    fn put_input(&self, sha256: &str, data: &[u8]) -> Result<(), StoreError> {
-        let bytes = data.len() as i64;
-        self.client()
-            .execute(
-                "INSERT INTO inputs (sha256, bytes, data) VALUES ($1, $2, $3) ON CONFLICT (sha256) DO NOTHING",
-                &[&sha256, &bytes, &data],
-            )
-            .map_err(db)?;
-        Ok(())
-    }
-
     fn input(&self, sha256: &str) -> Result<Option<Vec<u8>>, StoreError> {
         let found = self.client().query_opt("SELECT data FROM inputs WHERE sha256 = $1", &[&sha256]).map_err(db)?;
         found.map(|r| r.try_get(0).map_err(db)).transpose()
     }
 
-    fn has_input(&self, sha256: &str) -> Result<bool, StoreError> {
-        let found = self.client().query_opt("SELECT 1 FROM inputs WHERE sha256 = $1", &[&sha256]).map_err(db)?;
+    fn has_input(&self, sha256: &str, owner: Option<&str>) -> Result<bool, StoreError> {
+        let found = self
+            .client()
+            .query_opt(
+                "SELECT 1 FROM job_inputs JOIN jobs ON jobs.id = job_inputs.job_id \
+                 WHERE job_inputs.sha256 = $1 AND jobs.owner IS NOT DISTINCT FROM $2 \
+                 AND EXISTS (SELECT 1 FROM inputs WHERE inputs.sha256 = $1) LIMIT 1",
+                &[&sha256, &owner],
+            )
+            .map_err(db)?;
         Ok(found.is_some())
+    }
+
+    fn status(&self, id: &str) -> Result<Option<(JobStatus, Option<String>)>, StoreError> {
+        let found = self.client().query_opt("SELECT status, owner FROM jobs WHERE id = $1", &[&id]).map_err(db)?;
+        found
+            .map(|r| {
+                let status: String = r.try_get(0).map_err(db)?;
+                let owner: Option<String> = r.try_get(1).map_err(db)?;
+                JobStatus::parse(&status)
+                    .map(|s| (s, owner))
+                    .ok_or_else(|| StoreError::Corrupt(format!("job {id}: unknown status {status:?}")))
+            })
+            .transpose()
     }
 
     fn attempts(&self, id: &str) -> Result<Option<u32>, StoreError> {

@@ -7,11 +7,28 @@ use sha2::{Digest, Sha256};
 
 use super::StoreError;
 use crate::export::Artifact;
-use crate::model::{ArtifactMeta, Job, JobStatus, Progress};
+use crate::model::{ArtifactMeta, Job, JobStatus, Progress, SUMMARY_REQUEST_BYTES};
 
 /// The job columns every query reads, in the order `RawJob` takes them.
 pub(super) const JOB_COLUMNS: &str = "id, kind, status, label, created_at, started_at, finished_at, progress, \
                            request, result, error, replay_of, replay_until_step, cost, owner";
+
+/// What a summary reads for a request over [`SUMMARY_REQUEST_BYTES`] instead of its text (no
+/// stored request is this text: every one has a seed).
+const OMITTED_REQUEST: &str = "{\"request omitted\":true}";
+
+/// [`JOB_COLUMNS`] for job summaries (lists): a request over [`SUMMARY_REQUEST_BYTES`] is not
+/// read at all, so a page costs the same whatever its jobs' sizes. `octet_length`, not
+/// `length`: SQLite counts a text's characters by reading it whole, but takes its byte length
+/// from the row's header; PostgreSQL takes it from the TOAST header.
+pub(super) fn summary_columns() -> String {
+    JOB_COLUMNS.replace(
+        "request,",
+        &format!(
+            "CASE WHEN octet_length(request) <= {SUMMARY_REQUEST_BYTES} THEN request ELSE '{OMITTED_REQUEST}' END,"
+        ),
+    )
+}
 
 pub(super) fn timestamp(t: &DateTime<Utc>) -> String {
     // Fixed width (nanoseconds, `Z`): lossless, and text order is time order.
@@ -119,7 +136,12 @@ impl RawJob {
             started_at: self.started_at.map(|s| time("started_at", &s)).transpose()?,
             finished_at: self.finished_at.map(|s| time("finished_at", &s)).transpose()?,
             progress,
-            request: json("request", &self.request)?,
+            request_omitted: self.request == OMITTED_REQUEST,
+            request: if self.request == OMITTED_REQUEST {
+                Value::Object(Default::default())
+            } else {
+                json("request", &self.request)?
+            },
             result: self.result.map(|s| json("result", &s)).transpose()?,
             artifacts,
             error: self.error.map(|s| json("error", &s)).transpose()?,

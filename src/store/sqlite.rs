@@ -18,13 +18,13 @@ use super::artifacts::{assemble, chunks, span, StoredArtifact, STORED_ARTIFACT};
 use super::events::{event_id, EventLog, StoredEvent};
 use super::objects::{object_range, ObjectArtifacts};
 use super::queue::{count, lease_ms, Claim, JobQueue, Renewal};
-use super::row::{describe, timestamp, JobRow, RawJob, JOB_COLUMNS};
-use super::{ArtifactStore, IdempotentInsert, JobStore, ListFilter, StoreError, CHUNK_BYTES};
+use super::row::{describe, summary_columns, timestamp, JobRow, RawJob, JOB_COLUMNS};
+use super::{ArtifactStore, IdempotentInsert, JobInputs, JobStore, ListFilter, StoreError, CHUNK_BYTES};
 use crate::export::Artifact;
 use crate::model::{ArtifactMeta, Job, JobStatus};
 
 /// The schema version this build writes (`PRAGMA user_version`).
-pub const SCHEMA_VERSION: i64 = 7;
+pub const SCHEMA_VERSION: i64 = 8;
 
 /// Migrations in order: `MIGRATIONS[n]` takes the schema from version `n` to `n + 1`.
 const MIGRATIONS: [&str; SCHEMA_VERSION as usize] = [
@@ -130,6 +130,21 @@ ALTER TABLE jobs ADD COLUMN cancel_requested INTEGER NOT NULL DEFAULT 0;
     r#"
 -- An artifact kept in an object store (store/objects.rs): its key there, and no chunks here.
 ALTER TABLE artifacts ADD COLUMN object_key TEXT;
+"#,
+    r#"
+-- Which uploads each job reads: an upload belongs to the keys whose jobs sent or read it, is
+-- stored only with an admitted job, and goes with the last job that reads it. Jobs stored
+-- before name theirs in their requests (`png_sha256`); uploads no job reads are dropped.
+CREATE TABLE job_inputs (
+    job_id TEXT NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
+    sha256 TEXT NOT NULL,
+    PRIMARY KEY (job_id, sha256)
+);
+CREATE INDEX job_inputs_by_sha256 ON job_inputs (sha256);
+INSERT OR IGNORE INTO job_inputs (job_id, sha256)
+    SELECT jobs.id, t.value FROM jobs, json_tree(jobs.request) AS t
+    WHERE t.key = 'png_sha256' AND t.type = 'text';
+DELETE FROM inputs WHERE sha256 NOT IN (SELECT sha256 FROM job_inputs);
 "#,
 ];
 
@@ -479,8 +494,12 @@ fn artifact_metas(conn: &Connection, job_id: &str) -> Result<Vec<ArtifactMeta>, 
 }
 
 fn load_job(conn: &Connection, id: &str) -> Result<Option<Job>, StoreError> {
+    load_job_with(conn, id, JOB_COLUMNS)
+}
+
+fn load_job_with(conn: &Connection, id: &str, columns: &str) -> Result<Option<Job>, StoreError> {
     let raw = conn
-        .prepare_cached(&format!("SELECT {JOB_COLUMNS} FROM jobs WHERE id = ?1"))
+        .prepare_cached(&format!("SELECT {columns} FROM jobs WHERE id = ?1"))
         .map_err(db)?
         .query_row([id], RawJob::from_row)
         .optional()
@@ -781,7 +800,26 @@ impl JobStore for SqliteStore {
         self.attempts_count(id)
     }
 
-    fn insert(&self, job: &Job, idempotency: Option<(&str, &str)>) -> Result<IdempotentInsert, StoreError> {
+    fn status(&self, id: &str) -> Result<Option<(JobStatus, Option<String>)>, StoreError> {
+        let conn = self.reader();
+        let row: Option<(String, Option<String>)> = conn
+            .prepare_cached("SELECT status, owner FROM jobs WHERE id = ?1")
+            .and_then(|mut s| s.query_row([id], |r| Ok((r.get(0)?, r.get(1)?))).optional())
+            .map_err(db)?;
+        row.map(|(status, owner)| {
+            JobStatus::parse(&status)
+                .map(|s| (s, owner))
+                .ok_or_else(|| StoreError::Corrupt(format!("job {id}: unknown status {status:?}")))
+        })
+        .transpose()
+    }
+
+    fn insert_with_inputs(
+        &self,
+        job: &Job,
+        idempotency: Option<(&str, &str)>,
+        inputs: JobInputs,
+    ) -> Result<IdempotentInsert, StoreError> {
         let row = JobRow::encode(job)?;
         let mut conn = self.writer.lock();
         let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate).map_err(db)?;
@@ -804,6 +842,18 @@ impl JobStore for SqliteStore {
             }
         }
         row.insert(&tx).map_err(db)?;
+        for (sha256, data) in inputs.sent {
+            tx.prepare_cached(
+                "INSERT INTO inputs (sha256, bytes, created_at, data) VALUES (?1, ?2, ?3, ?4) ON CONFLICT DO NOTHING",
+            )
+            .and_then(|mut s| s.execute(params![sha256, data.len() as i64, Utc::now().to_rfc3339(), data]))
+            .map_err(db)?;
+        }
+        for sha256 in inputs.all() {
+            tx.prepare_cached("INSERT OR IGNORE INTO job_inputs (job_id, sha256) VALUES (?1, ?2)")
+                .and_then(|mut s| s.execute(params![job.id, sha256]))
+                .map_err(db)?;
+        }
         if let Some((key, body_sha256)) = idempotency {
             tx.prepare_cached("INSERT INTO idempotency_keys (key, body_sha256, job_id) VALUES (?1, ?2, ?3)")
                 .map_err(db)?
@@ -816,6 +866,10 @@ impl JobStore for SqliteStore {
 
     fn get(&self, id: &str) -> Result<Option<Job>, StoreError> {
         read_snapshot(&mut self.reader(), |c| load_job(c, id))
+    }
+
+    fn get_summary(&self, id: &str) -> Result<Option<Job>, StoreError> {
+        read_snapshot(&mut self.reader(), |c| load_job_with(c, id, &summary_columns()))
     }
 
     /// Newest first. A `limit` of 0 means no limit.
@@ -838,7 +892,8 @@ impl JobStore for SqliteStore {
             conditions.push("id < ?");
             values.push(SqlValue::Text(before.clone()));
         }
-        let mut sql = format!("SELECT {JOB_COLUMNS} FROM jobs");
+        // Summaries: a large request is not read (see `summary_columns`).
+        let mut sql = format!("SELECT {} FROM jobs", summary_columns());
         if !conditions.is_empty() {
             sql.push_str(" WHERE ");
             sql.push_str(&conditions.join(" AND "));
@@ -862,8 +917,20 @@ impl JobStore for SqliteStore {
         let mut conn = self.writer.lock();
         let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate).map_err(db)?;
         let objects = object_keys(&tx, id)?;
-        // Artifacts and idempotency keys go with the job (ON DELETE CASCADE).
+        let inputs: Vec<String> = tx
+            .prepare_cached("SELECT sha256 FROM job_inputs WHERE job_id = ?1")
+            .and_then(|mut s| s.query_map([id], |r| r.get(0))?.collect())
+            .map_err(db)?;
+        // Artifacts, idempotency keys and the job's inputs go with the job (ON DELETE CASCADE);
+        // an upload no other job reads goes with it too.
         let n = tx.prepare_cached("DELETE FROM jobs WHERE id = ?1").map_err(db)?.execute([id]).map_err(db)?;
+        for sha256 in &inputs {
+            tx.prepare_cached(
+                "DELETE FROM inputs WHERE sha256 = ?1 AND NOT EXISTS (SELECT 1 FROM job_inputs WHERE sha256 = ?1)",
+            )
+            .and_then(|mut s| s.execute([sha256]))
+            .map_err(db)?;
+        }
         tx.commit().map_err(db)?;
         drop(conn);
         self.remove_objects(&objects);
@@ -875,16 +942,6 @@ impl JobStore for SqliteStore {
         read_snapshot(&mut self.reader(), |c| load_jobs(c, &sql, []))
     }
 
-    fn put_input(&self, sha256: &str, data: &[u8]) -> Result<(), StoreError> {
-        let conn = self.writer.lock();
-        conn.prepare_cached(
-            "INSERT INTO inputs (sha256, bytes, created_at, data) VALUES (?1, ?2, ?3, ?4) ON CONFLICT DO NOTHING",
-        )
-        .and_then(|mut s| s.execute(rusqlite::params![sha256, data.len() as i64, Utc::now().to_rfc3339(), data]))
-        .map_err(db)?;
-        Ok(())
-    }
-
     fn input(&self, sha256: &str) -> Result<Option<Vec<u8>>, StoreError> {
         let conn = self.reader();
         conn.prepare_cached("SELECT data FROM inputs WHERE sha256 = ?1")
@@ -892,9 +949,15 @@ impl JobStore for SqliteStore {
             .map_err(db)
     }
 
-    fn has_input(&self, sha256: &str) -> Result<bool, StoreError> {
+    fn has_input(&self, sha256: &str, owner: Option<&str>) -> Result<bool, StoreError> {
         let conn = self.reader();
-        conn.prepare_cached("SELECT 1 FROM inputs WHERE sha256 = ?1").and_then(|mut s| s.exists([sha256])).map_err(db)
+        conn.prepare_cached(
+            "SELECT 1 FROM job_inputs JOIN jobs ON jobs.id = job_inputs.job_id \
+             WHERE job_inputs.sha256 = ?1 AND jobs.owner IS ?2 \
+             AND EXISTS (SELECT 1 FROM inputs WHERE inputs.sha256 = ?1) LIMIT 1",
+        )
+        .and_then(|mut s| s.exists(params![sha256, owner]))
+        .map_err(db)
     }
 
     fn queued(&self) -> Result<u64, StoreError> {

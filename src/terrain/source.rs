@@ -47,7 +47,8 @@ pub struct FractalParams {
     /// Samples along each side (the grid is size × size). size × size must be at most the
     /// server's grid cap (4097 × 4097 samples by default; more is answered with 413).
     #[serde(default = "default_size")]
-    #[schema(default = 257, minimum = 2)]
+    // 4097: the default grid cap's side (a server with a larger cap takes more).
+    #[schema(default = 257, minimum = 2, maximum = 4097)]
     pub size: u32,
     /// Metres between samples.
     #[serde(default = "default_cell_size")]

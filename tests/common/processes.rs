@@ -115,3 +115,21 @@ pub fn kill_pid(pid: u32) {
 pub fn signal_pid(pid: u32, name: &str) {
     let _ = Command::new("kill").args([&format!("-{name}"), &pid.to_string()]).status();
 }
+
+/// A field of /proc/PID/status in bytes (VmRSS, VmHWM).
+pub fn status_bytes(pid: u32, field: &str) -> u64 {
+    let text = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("read /proc status");
+    let kib: u64 = text
+        .lines()
+        .find_map(|l| l.strip_prefix(field)?.strip_prefix(':'))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .unwrap_or_else(|| panic!("{field} in /proc/{pid}/status"));
+    kib * 1024
+}
+
+/// Start measuring a process's peak resident memory from now (writing 5 to clear_refs resets
+/// VmHWM to VmRSS); returns VmRSS now.
+pub fn reset_peak_rss(pid: u32) -> u64 {
+    std::fs::write(format!("/proc/{pid}/clear_refs"), "5").expect("reset the peak RSS");
+    status_bytes(pid, "VmRSS")
+}

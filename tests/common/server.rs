@@ -22,6 +22,8 @@ pub struct Options {
     pub database_url: Option<String>,
     /// Environment variables for the process (e.g. an object store's `AWS_*`).
     pub envs: Vec<(String, String)>,
+    /// The process's limit of open descriptors (soft and hard), when set.
+    pub max_descriptors: Option<u64>,
 }
 
 impl Default for Options {
@@ -35,6 +37,7 @@ impl Default for Options {
             extra: Vec::new(),
             database_url: None,
             envs: Vec::new(),
+            max_descriptors: None,
         }
     }
 }
@@ -62,7 +65,22 @@ impl TestServer {
 
     /// A server on an existing database file (to test restarts); the caller keeps the folder.
     pub async fn start_on(db: &Path, options: &Options) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_landform"))
+        let mut command = Command::new(env!("CARGO_BIN_EXE_landform"));
+        if let Some(n) = options.max_descriptors {
+            use std::os::unix::process::CommandExt;
+            // SAFETY: setrlimit is async-signal-safe and touches only the child's limits.
+            unsafe {
+                command.pre_exec(move || {
+                    let limit = libc::rlimit { rlim_cur: n, rlim_max: n };
+                    if libc::setrlimit(libc::RLIMIT_NOFILE, &limit) == 0 {
+                        Ok(())
+                    } else {
+                        Err(std::io::Error::last_os_error())
+                    }
+                });
+            }
+        }
+        let mut child = command
             .args(["serve", "--addr", "127.0.0.1:0", "--database"])
             .arg(options.database_url.as_deref().map_or(db.as_os_str(), std::ffi::OsStr::new))
             .args(["--workers", &options.workers.to_string()])

@@ -67,7 +67,8 @@ pub async fn job_events(
     let keep_alive = KeepAlive::new().interval(Duration::from_secs(15)).text("keep-alive");
     Ok(match state.engine.events(&id, last, caller.owner()).await? {
         EventFeed::Ended(job) => {
-            let data = serde_json::to_string(&job).unwrap_or_default();
+            // A summary: a stream a client never reads holds a few KiB, not a large request.
+            let data = serde_json::to_string(&job.summarised()).unwrap_or_default();
             let done =
                 Event::default().event("done").id(last.map_or(1, |l| l.saturating_add(1)).to_string()).data(data);
             Sse::new(stream::iter([Ok::<_, Infallible>(done)])).keep_alive(keep_alive).into_response()
@@ -112,19 +113,27 @@ fn stored_stream(
                     return None;
                 }
             }
-            match engine.get(&id, owner.as_deref()).await {
-                Ok(job) if job.status.is_terminal() => {
+            // The status alone, each time it may have changed; the job itself once, at its end.
+            let ended_now = match engine.status_of(&id).await {
+                Ok((status, job_owner)) if job_owner == owner => status.is_terminal(),
+                _ => return None,
+            };
+            if !ended_now {
+                until_changed(&id, &mut notices).await;
+                continue;
+            }
+            match engine.summary(&id).await {
+                Ok(job) => {
                     // Events appended between the last read and the end are still there.
                     if let Ok(events) = engine.stored_events(&id, last).await {
                         last = queue_stored(&mut pending, events, last);
                     }
                     let status = serde_json::json!({ "status": job.status }).to_string();
-                    let done = serde_json::to_string(&job).unwrap_or_default();
+                    let done = serde_json::to_string(&job.summarised()).unwrap_or_default();
                     pending.push_back(Event::default().id((last + 1).to_string()).event("status").data(status));
                     pending.push_back(Event::default().id((last + 2).to_string()).event("done").data(done));
                     ended = true;
                 }
-                Ok(_) => until_changed(&id, &mut notices).await,
                 Err(_) => return None,
             }
         }

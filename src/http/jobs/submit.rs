@@ -36,16 +36,17 @@ pub async fn submit_job(
         None => kind.clone(),
     };
     // Parsing and hashing a body of many megabytes is CPU work: off the async threads.
-    let (body, idempotency) = tokio::task::spawn_blocking(move || {
+    let (body, body_bytes, idempotency) = tokio::task::spawn_blocking(move || {
+        let body_bytes = body.as_ref().map_or(0, |b| b.len());
         let body =
             json_body(body)?.ok_or_else(|| Problem::bad_request("the body is empty; send the job's parameters"))?;
         let idempotency = key.map(|k| (format!("{scope}:{k}"), canonical_sha256(&body)));
-        Ok::<_, Problem>((body, idempotency))
+        Ok::<_, Problem>((body, body_bytes, idempotency))
     })
     .await
     .map_err(|_| crate::http::problem::internal())??;
     let wait = prefer_wait(&headers);
-    match state.engine.submit(&kind, body, idempotency, &who).await? {
+    match state.engine.submit(&kind, body, body_bytes, idempotency, &who).await? {
         Submitted::Created(job) => super::accepted(&state, job, wait, false).await,
         Submitted::Existing(job) => super::accepted(&state, job, wait, true).await,
     }

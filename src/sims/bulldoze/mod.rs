@@ -64,7 +64,7 @@ impl Simulation for Bulldoze {
 
     fn run(params: &BulldozeParams, _seed: u64, ctx: &RunContext) -> Result<Outcome<BulldozeSequence>, SimError> {
         let edit = run_edit(params, ctx)?;
-        Ok(edit.finish(HeightfieldExport::new(&ctx.mesh, params.tiles)))
+        edit.finish(HeightfieldExport::new(&ctx.mesh, params.tiles, ctx.stop()))
     }
 
     fn replay(
@@ -73,7 +73,7 @@ impl Simulation for Bulldoze {
         until_step: Option<u64>,
         ctx: &RunContext,
     ) -> Result<Outcome<BulldozeSequence>, SimError> {
-        Ok(replay_edit(sequence, until_step, ctx)?.finish(HeightfieldExport::new(&ctx.mesh, params.tiles)))
+        replay_edit(sequence, until_step, ctx)?.finish(HeightfieldExport::new(&ctx.mesh, params.tiles, ctx.stop()))
     }
 }
 
@@ -405,15 +405,15 @@ impl Edit {
     }
 
     /// The job's outcome: the export summary merged with the bulldozer's figures.
-    fn finish(self, output: HeightfieldExport) -> Outcome<BulldozeSequence> {
+    fn finish(self, output: HeightfieldExport) -> Result<Outcome<BulldozeSequence>, SimError> {
         let figures = self.figures();
-        let exported = crate::export::heightfield_artifacts(&self.hf, &output);
+        let exported = crate::export::heightfield_artifacts(&self.hf, &output)?;
         let mut result = match exported.summary {
             Value::Object(map) => map,
             other => [("export".to_string(), other)].into_iter().collect(),
         };
         result.extend(figures);
-        Outcome { result: Value::Object(result), sequence: self.sequence, artifacts: exported.artifacts }
+        Ok(Outcome { result: Value::Object(result), sequence: self.sequence, artifacts: exported.artifacts })
     }
 }
 

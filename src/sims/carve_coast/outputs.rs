@@ -296,10 +296,11 @@ pub fn build(
             SceneNode::new("sea", sea_plane(implicit.hf, params.sea_level), MaterialKind::Water),
         ],
     };
-    let (((glbs, glb_figures), preview), (heightmap, npy)) = rayon::join(
-        || rayon::join(|| mesh_glbs(&scene, mesh_settings), || render_png_framed(&scene, &view, focus, stop)),
+    let ((glbs, preview), (heightmap, npy)) = rayon::join(
+        || rayon::join(|| mesh_glbs(&scene, mesh_settings, stop), || render_png_framed(&scene, &view, focus, stop)),
         || rayon::join(|| heightmap_png16(&top), || heightfield_npy(&top)),
     );
+    let (glbs, glb_figures) = glbs?;
     let preview = preview?;
     let (z_min, z_max) = top.min_max();
     let result = json!({

@@ -112,7 +112,7 @@ impl Simulation for DeformTerrain {
         let sequence = DeformSequence { terrain: params.terrain.clone(), operations: searched.operations.clone() };
         let run = RunFigures { searched: Some(&searched), candidates: vertices.len(), prediction: params.prediction };
         // The exports too, for the same reason as the search.
-        let export = HeightfieldExport::new(&ctx.mesh, params.tiles);
+        let export = HeightfieldExport::new(&ctx.mesh, params.tiles, ctx.stop());
         rayon::join(|| finish(&problem, &fields, &h, &history, &interest, &settings, sequence, run, export), || ()).0
     }
 
@@ -160,7 +160,7 @@ impl Simulation for DeformTerrain {
             &settings,
             sequence,
             run,
-            HeightfieldExport::new(&ctx.mesh, params.tiles),
+            HeightfieldExport::new(&ctx.mesh, params.tiles, ctx.stop()),
         )
     }
 }
@@ -432,6 +432,7 @@ fn finish(
         || crate::export::heightfield_artifacts(&hf, &options),
     );
     let (fitness_json, sequence_bytes) = logs?;
+    let exported = exported?;
     let heightmap_png_bytes =
         exported.artifacts.iter().find(|a| a.name == "heightmap.png").map_or(0, |a| a.bytes.len());
     let mut result = match exported.summary {

@@ -163,8 +163,9 @@ pub fn build(
     let profiles = profiles(params, sequence, &bodies);
     let scene = scene_of(params, sequence, &profiles);
     stop.check()?;
-    let ((glbs, glb_figures), preview) =
-        rayon::join(|| mesh_glbs(&scene, mesh_settings), || picture(params, &scene, PREVIEW_PX, stop));
+    let (glbs, preview) =
+        rayon::join(|| mesh_glbs(&scene, mesh_settings, stop), || picture(params, &scene, PREVIEW_PX, stop));
+    let (glbs, glb_figures) = glbs?;
     let preview = preview?;
     let (mut stalactites, mut stalagmites, mut columns) = (Stats::default(), Stats::default(), Stats::default());
     // Base radii as built: the first ring with the coating of every pass since.

@@ -234,8 +234,8 @@ pub fn build(
     let (vertices, triangles) = (mesh.vertex_count(), mesh.triangle_count());
     let scene = scene(mesh);
     stop.check()?;
-    let ((glbs, glb_figures), preview) =
-        rayon::join(|| mesh_glbs(&scene, mesh_settings), || render_png(&scene, &PREVIEW, stop));
+    let (glbs, preview) = rayon::join(|| mesh_glbs(&scene, mesh_settings, stop), || render_png(&scene, &PREVIEW, stop));
+    let (glbs, glb_figures) = glbs?;
     let preview = preview?;
 
     let remaining = state.par_iter().filter(|&&s| s == super::grid::ROCK).count() as u64;
