@@ -167,3 +167,47 @@ fn cpu_ticks(pid: u32) -> Option<u64> {
     let stime: u64 = fields.next()?.parse().ok()?;
     Some(utime + stime)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A child that writes nothing on its standard output: busy spinning, or idle sleeping.
+    fn silent_child(script: &str) -> tokio::process::Child {
+        tokio::process::Command::new("sh")
+            .args(["-c", script])
+            .stdout(Stdio::piped())
+            .kill_on_drop(true)
+            .spawn()
+            .expect("sh")
+    }
+
+    #[tokio::test]
+    async fn a_silent_busy_process_is_waited_for_and_a_silent_idle_one_is_not() {
+        let silence = Duration::from_millis(300);
+        // Spinning: its CPU time grows at every look, so several silences pass without a verdict.
+        let mut busy = silent_child("while :; do :; done");
+        let pid = busy.id();
+        let waited =
+            tokio::time::timeout(Duration::from_millis(1500), silent_for(busy.stdout.take(), silence, pid)).await;
+        assert!(waited.is_err(), "a busy process was taken for a hung one");
+        // Sleeping (as a stopped or deadlocked worker would): killed at the first silence.
+        let mut idle = silent_child("sleep 30");
+        let pid = idle.id();
+        let started = Instant::now();
+        let waited = tokio::time::timeout(Duration::from_secs(5), silent_for(idle.stdout.take(), silence, pid)).await;
+        assert!(waited.is_ok(), "an idle silent process was never judged silent");
+        assert!(started.elapsed() < Duration::from_secs(2), "judged after {:?}", started.elapsed());
+    }
+
+    #[tokio::test]
+    async fn a_busy_process_silent_past_the_grace_is_judged_silent_all_the_same() {
+        let silence = Duration::from_millis(50);
+        let mut busy = silent_child("while :; do :; done");
+        let pid = busy.id();
+        // BUSY_GRACE_WINDOWS silences at the most (with a margin for a loaded machine).
+        let waited =
+            tokio::time::timeout(silence * BUSY_GRACE_WINDOWS * 4, silent_for(busy.stdout.take(), silence, pid)).await;
+        assert!(waited.is_ok(), "a process silent for good was never judged");
+    }
+}

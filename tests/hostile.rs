@@ -338,3 +338,41 @@ async fn hostile_cave_requests_are_refused_or_bounded() {
 async fn hostile_coast_requests_are_refused_or_bounded() {
     check(coast_cases()).await;
 }
+
+/// Levels of detail and tiles stop at the job's limit or a cancel like every other stage: a
+/// carved island with three levels (which took 28–76 s under a 5 s limit before) ends within
+/// 2 s of its limit, and within 2 s of a cancel.
+#[tokio::test]
+async fn levels_of_detail_stop_at_the_time_limit_and_on_cancel() {
+    const LIMIT_S: u64 = 5;
+    let body = json!({"terrain": {"fractal": {"size": 257, "island": true, "relief": 120}}, "sea_level": 0,
+        "lods": [0.002, 0.008, 0.032]});
+    let server = TestServer::start_with(Options { job_timeout_secs: LIMIT_S, ..Options::default() }).await;
+    let job = server.submit("carve-coast", &body).await;
+    let done = server.wait_done(job["id"].as_str().unwrap()).await;
+    let ran = seconds_between(&done["started_at"], &done["finished_at"]);
+    println!("carve-coast with levels under a {LIMIT_S} s limit: {} after {ran:.1} s", done["status"]);
+    assert_eq!(done["status"], "failed", "{done}");
+    assert!(ran <= LIMIT_S as f64 + 2.0, "ran {ran:.1} s past a {LIMIT_S} s limit");
+
+    let server = TestServer::start_with(Options { job_timeout_secs: 300, ..Options::default() }).await;
+    let id = server.submit("carve-coast", &body).await["id"].as_str().unwrap().to_string();
+    // Into its levels of detail: the carving and meshing take about a second.
+    let started = Instant::now();
+    loop {
+        let (_, job) = server.get_json(&format!("/v1/jobs/{id}")).await;
+        if job["status"] == "running" && started.elapsed() > Duration::from_secs(6) {
+            break;
+        }
+        assert!(!job["status"].as_str().is_some_and(|s| s != "queued" && s != "running"), "{job}");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    let asked = Instant::now();
+    let res = server.client.post(server.url(&format!("/v1/jobs/{id}/cancel"))).send().await.unwrap();
+    assert_eq!(res.status(), 200);
+    let done = server.wait_done(&id).await;
+    let waited = asked.elapsed().as_secs_f64();
+    println!("cancelled in its levels of detail: {} {waited:.2} s after the cancel", done["status"]);
+    assert_eq!(done["status"], "cancelled", "{done}");
+    assert!(waited <= 2.0, "ended {waited:.2} s after the cancel");
+}
