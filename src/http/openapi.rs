@@ -172,6 +172,15 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>], keys_required: bool) -> Open
             .build();
         doc.paths.add_path_operation(format!("/v1/jobs/{}", kind.name()), vec![HttpMethod::Post], op);
     }
+    // The list's `kind` filter takes the kinds this server runs.
+    let names: Vec<&'static str> = kinds.iter().map(|k| k.name()).collect();
+    if let Some(list) = doc.paths.paths.get_mut("/v1/jobs").and_then(|item| item.get.as_mut()) {
+        for p in list.parameters.iter_mut().flatten().filter(|p| p.name == "kind") {
+            p.schema = Some(RefOr::T(
+                ObjectBuilder::new().schema_type(SchemaType::new(Type::String)).enum_values(Some(names.clone())).into(),
+            ));
+        }
+    }
     super::openapi_bounds::complete(&mut doc, keys_required);
     doc
 }

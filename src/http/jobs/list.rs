@@ -17,6 +17,7 @@ pub struct ListQuery {
     /// Only jobs of this kind.
     kind: Option<String>,
     /// Only jobs in this status.
+    #[param(value_type = Option<crate::jobs::JobStatus>)]
     status: Option<String>,
     /// Page size, 1 to 100 (default 20).
     #[param(value_type = Option<u32>, minimum = 1, maximum = 100)]

@@ -42,8 +42,9 @@ pub async fn replay_job(
     headers: HeaderMap,
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Response, Problem> {
+    // No body, or `null` (the schema's optional body), replays everything.
     let req: ReplayRequest = match json_body(body)? {
-        None => ReplayRequest::default(),
+        None | Some(serde_json::Value::Null) => ReplayRequest::default(),
         Some(v) => parse_params(v)?,
     };
     let who = crate::http::auth::submitter(&state, &caller)?;
