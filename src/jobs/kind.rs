@@ -330,8 +330,10 @@ fn finish<Q: Sequence>(outcome: Outcome<Q>) -> Result<JobOutput, SimError> {
     Ok(JobOutput { result, artifacts })
 }
 
+/// Read from the stored value in place (`&Value` is a deserializer): a clone of a request of
+/// megabytes would double what estimating and running it hold.
 fn stored_params<T: DeserializeOwned>(params: &Value) -> Result<T, SimError> {
-    serde_json::from_value(params.clone()).map_err(|e| SimError::Failed(format!("stored request unreadable: {e}")))
+    T::deserialize(params).map_err(|e| SimError::Failed(format!("stored request unreadable: {e}")))
 }
 
 fn stored_sequence<Q: DeserializeOwned>(json: &[u8]) -> Result<Q, SimError> {

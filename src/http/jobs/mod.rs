@@ -36,7 +36,9 @@ pub(super) async fn accepted(
     let status =
         if job.status.is_terminal() && (replayed || wait.is_some()) { StatusCode::OK } else { StatusCode::ACCEPTED };
     let location = format!("/v1/jobs/{}", job.id);
-    let mut res = (status, Json(job)).into_response();
+    // The job as a summary: a request of megabytes is not echoed back (GET the job for it), so
+    // a client that never reads its answer holds no copy of its own body.
+    let mut res = (status, Json(job.summarised())).into_response();
     if let Ok(v) = HeaderValue::from_str(&location) {
         res.headers_mut().insert(header::LOCATION, v);
     }
