@@ -172,12 +172,19 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>], keys_required: bool) -> Open
             .build();
         doc.paths.add_path_operation(format!("/v1/jobs/{}", kind.name()), vec![HttpMethod::Post], op);
     }
-    // The list's `kind` filter takes the kinds this server runs.
-    let names: Vec<&'static str> = kinds.iter().map(|k| k.name()).collect();
+    // The list's filters take the kinds this server runs and the statuses; empty is no filter.
+    let kind_names: Vec<&'static str> = std::iter::once("").chain(kinds.iter().map(|k| k.name())).collect();
+    let statuses: Vec<&'static str> =
+        std::iter::once("").chain(crate::jobs::JobStatus::ALL.iter().map(|s| s.as_str())).collect();
     if let Some(list) = doc.paths.paths.get_mut("/v1/jobs").and_then(|item| item.get.as_mut()) {
-        for p in list.parameters.iter_mut().flatten().filter(|p| p.name == "kind") {
+        for p in list.parameters.iter_mut().flatten() {
+            let values = match p.name.as_str() {
+                "kind" => kind_names.clone(),
+                "status" => statuses.clone(),
+                _ => continue,
+            };
             p.schema = Some(RefOr::T(
-                ObjectBuilder::new().schema_type(SchemaType::new(Type::String)).enum_values(Some(names.clone())).into(),
+                ObjectBuilder::new().schema_type(SchemaType::new(Type::String)).enum_values(Some(values)).into(),
             ));
         }
     }

@@ -14,10 +14,9 @@ const MAX_LIMIT: u32 = 100;
 #[into_params(parameter_in = Query)]
 #[serde(deny_unknown_fields)]
 pub struct ListQuery {
-    /// Only jobs of this kind.
+    /// Only jobs of this kind (empty: any).
     kind: Option<String>,
-    /// Only jobs in this status.
-    #[param(value_type = Option<crate::jobs::JobStatus>)]
+    /// Only jobs in this status (empty: any).
     status: Option<String>,
     /// Page size, 1 to 100 (default 20).
     #[param(value_type = Option<u32>, minimum = 1, maximum = 100)]
