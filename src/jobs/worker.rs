@@ -300,13 +300,27 @@ impl Worker {
     }
 }
 
-/// Renew the claim every third of its lease; a cancel request or a lost claim stops the job.
+/// How often a running job's worker looks for a cancel request between renewals: a cancel
+/// stops the job within this and the job's own next check.
+pub const CANCEL_POLL: Duration = Duration::from_millis(500);
+
+/// Renew the claim every third of its lease, and look for a cancel request every
+/// [`CANCEL_POLL`] between; a cancel request or a lost claim stops the job.
 async fn heartbeat(store: Arc<dyn EventLog>, job: Arc<RunningJob>, lease: Duration) {
-    let mut every = tokio::time::interval((lease / 3).max(Duration::from_millis(1)));
+    let renew_every = (lease / 3).max(Duration::from_millis(1));
+    let mut every = tokio::time::interval(renew_every.min(CANCEL_POLL));
     every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut renewed: Option<tokio::time::Instant> = None;
     loop {
         every.tick().await;
         let (s, id, attempt) = (store.clone(), job.id.clone(), job.attempt);
+        if renewed.is_some_and(|at| at.elapsed() < renew_every) {
+            if let Ok(Ok(true)) = tokio::task::spawn_blocking(move || s.cancel_requested(&id)).await {
+                job.flag.stop(StopReason::Cancelled);
+            }
+            continue;
+        }
+        renewed = Some(tokio::time::Instant::now());
         match tokio::task::spawn_blocking(move || s.renew(&id, attempt, lease)).await {
             Ok(Ok(Renewal::Held { cancel_requested: false })) => {}
             Ok(Ok(Renewal::Held { cancel_requested: true })) => job.flag.stop(StopReason::Cancelled),

@@ -459,6 +459,11 @@ impl JobQueue for PostgresStore {
         Ok(n > 0)
     }
 
+    fn cancel_requested(&self, id: &str) -> Result<bool, StoreError> {
+        let found = self.client().query_opt("SELECT cancel_requested FROM jobs WHERE id = $1", &[&id]).map_err(db)?;
+        found.map_or(Ok(false), |r| r.try_get(0).map_err(db))
+    }
+
     fn release(&self, id: &str, attempt: u32) -> Result<bool, StoreError> {
         let mut client = self.client();
         let n = client

@@ -43,9 +43,14 @@ pub trait JobQueue: JobStore {
     /// Extend a claim's lease to `lease` from now, and read whether a cancel was requested.
     fn renew(&self, id: &str, attempt: u32, lease: Duration) -> Result<Renewal, StoreError>;
 
-    /// Ask whoever runs (or will run) the job to stop: its worker sees it at its next renewal.
-    /// False when there is no such job or it has ended.
+    /// Ask whoever runs (or will run) the job to stop: its worker sees it within
+    /// `worker::CANCEL_POLL` (or at its next renewal). False when there is no such job or it
+    /// has ended.
     fn request_cancel(&self, id: &str) -> Result<bool, StoreError>;
+
+    /// Whether a cancel was requested for the job (false when there is none): what a worker
+    /// looks at between renewals, so a cancel stops a job within a moment.
+    fn cancel_requested(&self, id: &str) -> Result<bool, StoreError>;
 
     /// Give a claimed job back to the queue at once (a worker shutting down); false when the
     /// claim is no longer the job's.

@@ -665,6 +665,15 @@ impl JobQueue for SqliteStore {
         Ok(n > 0)
     }
 
+    fn cancel_requested(&self, id: &str) -> Result<bool, StoreError> {
+        let asked: Option<bool> = self
+            .reader()
+            .prepare_cached("SELECT cancel_requested FROM jobs WHERE id = ?1")
+            .and_then(|mut s| s.query_row([id], |r| r.get(0)).optional())
+            .map_err(db)?;
+        Ok(asked.unwrap_or(false))
+    }
+
     fn release(&self, id: &str, attempt: u32) -> Result<bool, StoreError> {
         let n = self
             .writer
