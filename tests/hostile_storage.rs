@@ -25,6 +25,18 @@ fn big_path_body(mb: usize, salt: u64) -> Value {
         "operations": [{"pass": {"path": path, "blade": {"width_m": 2.5}, "operator": "replace"}}]})
 }
 
+/// `n` connections that ask for a job's event stream and never read it.
+fn unread_streams(server: &TestServer, id: &str, n: usize) -> Vec<TcpStream> {
+    let addr = server.base.trim_start_matches("http://").to_string();
+    (0..n)
+        .map(|_| {
+            let mut s = TcpStream::connect(&addr).unwrap();
+            s.write_all(format!("GET /v1/jobs/{id}/events HTTP/1.1\r\nhost: x\r\n\r\n").as_bytes()).unwrap();
+            s
+        })
+        .collect()
+}
+
 fn options() -> Options {
     Options {
         max_body_bytes: 64 << 20,
@@ -108,14 +120,7 @@ async fn unread_event_streams_of_an_ended_large_job_cost_little() {
     assert!(matches!(done["status"].as_str(), Some("succeeded" | "failed")), "{done}");
     let pid = server.pid();
     let before = reset_peak_rss(pid);
-    let addr = server.base.trim_start_matches("http://").to_string();
-    let streams: Vec<TcpStream> = (0..200)
-        .map(|_| {
-            let mut s = TcpStream::connect(&addr).unwrap();
-            s.write_all(format!("GET /v1/jobs/{id}/events HTTP/1.1\r\nhost: x\r\n\r\n").as_bytes()).unwrap();
-            s
-        })
-        .collect();
+    let streams = unread_streams(&server, &id, 200);
     tokio::time::sleep(Duration::from_secs(3)).await;
     let start = Instant::now();
     let (status, _) = server.get_json("/healthz").await;
@@ -146,14 +151,7 @@ async fn streams_on_a_large_queued_job_poll_its_status_only() {
     .await;
     let job = server.submit("bulldoze", &big_path_body(4, 3)).await;
     let id = job["id"].as_str().unwrap().to_string();
-    let addr = server.base.trim_start_matches("http://").to_string();
-    let streams: Vec<TcpStream> = (0..100)
-        .map(|_| {
-            let mut s = TcpStream::connect(&addr).unwrap();
-            s.write_all(format!("GET /v1/jobs/{id}/events HTTP/1.1\r\nhost: x\r\n\r\n").as_bytes()).unwrap();
-            s
-        })
-        .collect();
+    let streams = unread_streams(&server, &id, 100);
     tokio::time::sleep(Duration::from_secs(1)).await;
     let cpu = |pid: u32| -> f64 {
         let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap();

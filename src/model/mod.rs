@@ -7,5 +7,5 @@ mod job;
 mod progress;
 
 pub use cost::{bytes, Cost, CostBuilder};
-pub use job::{json_len, ArtifactMeta, Job, JobStatus, ReplaySpec, SUMMARY_REQUEST_BYTES};
+pub use job::{json_len, ArtifactMeta, ByteCount, Job, JobStatus, ReplaySpec, SUMMARY_REQUEST_BYTES};
 pub use progress::Progress;

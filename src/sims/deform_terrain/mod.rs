@@ -421,7 +421,7 @@ fn finish(
                 || -> Result<(Vec<u8>, usize), SimError> {
                     let fitness_json = serde_json::to_vec(&log).map_err(|e| SimError::Failed(e.to_string()))?;
                     // The length of the `sequence.json` the adapter writes, counted, not kept.
-                    let mut counted = Counted(0);
+                    let mut counted = crate::model::ByteCount(0);
                     serde_json::to_writer_pretty(&mut counted, &sequence)
                         .map_err(|e| SimError::Failed(e.to_string()))?;
                     let sequence_bytes = counted.0;
@@ -583,18 +583,4 @@ pub fn apply_sequence(hf: &Heightfield, operations: &[Deformation]) -> Heightfie
         );
     }
     to_heightfield(&h, hf.cols, hf.rows, hf.cell_size_m as f64)
-}
-
-/// A writer that only counts the bytes written to it.
-struct Counted(usize);
-
-impl std::io::Write for Counted {
-    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        self.0 += buf.len();
-        Ok(buf.len())
-    }
-
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
-    }
 }
