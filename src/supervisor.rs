@@ -135,12 +135,12 @@ async fn silent_for(heartbeat: Option<tokio::process::ChildStdout>, silence: Dur
     let Some(mut heartbeat) = heartbeat else { return std::future::pending().await };
     let mut buf = [0u8; 256];
     let mut busy_windows = 0;
-    let mut cpu = pid.and_then(cpu_ticks);
+    let mut cpu = pid.and_then(cpu_time);
     loop {
         match tokio::time::timeout(silence, heartbeat.read(&mut buf)).await {
             Err(_elapsed) => {
-                let now = pid.and_then(cpu_ticks);
-                let working = matches!((cpu, now), (Some(before), Some(after)) if after > before);
+                let now = pid.and_then(cpu_time);
+                let working = used_cpu(cpu, now);
                 cpu = now;
                 busy_windows += 1;
                 if !working || busy_windows >= BUSY_GRACE_WINDOWS {
@@ -150,22 +150,36 @@ async fn silent_for(heartbeat: Option<tokio::process::ChildStdout>, silence: Dur
             }
             Ok(Ok(n)) if n > 0 => {
                 busy_windows = 0;
-                cpu = pid.and_then(cpu_ticks);
+                cpu = pid.and_then(cpu_time);
             }
             Ok(_closed) => return std::future::pending().await,
         }
     }
 }
 
-/// A process's CPU time so far (user + system, all its threads), in clock ticks; `None` when
-/// it cannot be read (no /proc, or the process is gone).
-fn cpu_ticks(pid: u32) -> Option<u64> {
+/// A process's CPU time so far: (clock ticks of user + system time of all its threads, from
+/// `/proc/PID/stat`; nanoseconds its live threads have run, from their `schedstat`). The
+/// nanoseconds see the few milliseconds a nice-10 worker gets under a heavy load, which may not
+/// reach a tick in a window; the ticks keep what threads that ended had used. `None` when it
+/// cannot be read (no /proc, or the process is gone).
+fn cpu_time(pid: u32) -> Option<(u64, u64)> {
     let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
     // Fields after the parenthesised command name: state is the 3rd field, utime the 14th.
     let mut fields = stat.rsplit_once(')')?.1.split_whitespace().skip(11);
     let utime: u64 = fields.next()?.parse().ok()?;
     let stime: u64 = fields.next()?.parse().ok()?;
-    Some(utime + stime)
+    let nanos = std::fs::read_dir(format!("/proc/{pid}/task"))
+        .into_iter()
+        .flatten()
+        .filter_map(|task| std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok())
+        .filter_map(|line| line.split_whitespace().next()?.parse::<u64>().ok())
+        .sum();
+    Some((utime + stime, nanos))
+}
+
+/// Whether a process used CPU between two readings of [`cpu_time`].
+fn used_cpu(before: Option<(u64, u64)>, after: Option<(u64, u64)>) -> bool {
+    matches!((before, after), (Some((t0, n0)), Some((t1, n1))) if t1 > t0 || n1 > n0)
 }
 
 #[cfg(test)]
@@ -174,12 +188,23 @@ mod tests {
 
     /// A child that writes nothing on its standard output: busy spinning, or idle sleeping.
     fn silent_child(script: &str) -> tokio::process::Child {
-        tokio::process::Command::new("sh")
-            .args(["-c", script])
-            .stdout(Stdio::piped())
-            .kill_on_drop(true)
-            .spawn()
-            .expect("sh")
+        niced_child(script, 0)
+    }
+
+    /// `sh -c script` in a session of its own (where the kernel shares the cores between
+    /// sessions first, each program gets its own share, as a worker does), at nice `nice`.
+    fn niced_child(script: &str, nice: i32) -> tokio::process::Child {
+        let mut command = tokio::process::Command::new("sh");
+        command.args(["-c", script]).stdout(Stdio::piped()).kill_on_drop(true);
+        // SAFETY: setsid and setpriority are async-signal-safe and touch only the child.
+        unsafe {
+            command.pre_exec(move || {
+                libc::setsid();
+                libc::setpriority(libc::PRIO_PROCESS, 0, nice);
+                Ok(())
+            });
+        }
+        command.spawn().expect("sh")
     }
 
     #[tokio::test]
@@ -209,5 +234,27 @@ mod tests {
         let waited =
             tokio::time::timeout(silence * BUSY_GRACE_WINDOWS * 4, silent_for(busy.stdout.take(), silence, pid)).await;
         assert!(waited.is_ok(), "a process silent for good was never judged");
+    }
+
+    /// The case the grace is for: a worker at nice 10 computing beside a load of several
+    /// programs per core (16 spinning processes on 2 cores, each in a session of its own) gets
+    /// well under 1 % of the cores, yet its CPU time grows at every look, so it is waited for;
+    /// a stopped worker under the same load uses none and is judged at the first silence.
+    #[tokio::test]
+    async fn under_a_cpu_hog_a_busy_nice_worker_is_waited_for_and_a_stopped_one_is_not() {
+        let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
+        let _hog: Vec<_> = (0..8 * cores).map(|_| niced_child("while :; do :; done", 0)).collect();
+        let silence = Duration::from_millis(1000);
+        let mut busy = niced_child("while :; do :; done", 10);
+        let pid = busy.id();
+        let waited = tokio::time::timeout(silence * 5, silent_for(busy.stdout.take(), silence, pid)).await;
+        assert!(waited.is_err(), "a busy worker under a CPU hog was taken for a hung one");
+        let mut stopped = niced_child("while :; do :; done", 10);
+        let pid = stopped.id();
+        unsafe { libc::kill(pid.expect("pid") as i32, libc::SIGSTOP) };
+        let started = Instant::now();
+        let waited = tokio::time::timeout(silence * 5, silent_for(stopped.stdout.take(), silence, pid)).await;
+        assert!(waited.is_ok(), "a stopped worker under a CPU hog was never judged silent");
+        assert!(started.elapsed() < silence * 3, "judged after {:?}", started.elapsed());
     }
 }

@@ -13,7 +13,7 @@ mod common;
 use std::time::{Duration, Instant};
 
 use common::bodies::seconds_bulldoze;
-use common::processes::{api_replica, children_of, kill_pid, signal_pid, with_schema, WorkerProcess};
+use common::processes::{api_replica, children_of, kill_pid, signal_pid, with_schema, CpuHog, WorkerProcess};
 use common::server::{artifact_hashes, Options, TestServer};
 use common::sse::read_events;
 use serde_json::Value;
@@ -234,5 +234,30 @@ async fn sqlite_a_stopped_worker_child_is_killed_and_replaced_while_the_api_take
     assert_eq!(server.wait_done(&second).await["status"], "succeeded");
     assert!(!std::path::Path::new(&format!("/proc/{stopped}")).exists(), "the stopped worker was killed and reaped");
     assert_ne!(worker_child(&server).await, stopped, "a new worker process took over");
+    assert_eq!(artifact_hashes(&done), undisturbed(&body).await);
+}
+
+/// Under a CPU hog (8 spinning programs a core, each in a session of its own) the supervised
+/// worker at nice 10 gets a sliver of the cores and its beats may come late, but it is
+/// computing: the watchdog waits for it, and it keeps its job and finishes it once the load is
+/// gone, with the bytes an undisturbed run makes.
+#[tokio::test]
+async fn sqlite_a_busy_worker_under_a_cpu_hog_keeps_its_job() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = supervised(&dir.path().join("s.db")).await;
+    let body = seconds_bulldoze(5);
+    let id = server.submit("bulldoze", &body).await["id"].as_str().unwrap().to_string();
+    wait_running(&server, &id).await;
+    let worker = worker_child(&server).await;
+    {
+        let _hog = CpuHog::start(8);
+        // Four of the watchdog's windows (3 s at this lease).
+        tokio::time::sleep(Duration::from_secs(12)).await;
+        let (_, job) = server.get_json(&format!("/v1/jobs/{id}")).await;
+        assert_eq!(job["status"], "running", "the job under the hog: {job}");
+    }
+    let done = server.wait_done(&id).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    assert_eq!(worker_child(&server).await, worker, "the busy worker was killed and replaced");
     assert_eq!(artifact_hashes(&done), undisturbed(&body).await);
 }

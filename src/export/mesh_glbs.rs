@@ -17,10 +17,19 @@ pub const DEFAULT_LODS: [f64; 0] = [];
 /// Three levels with error bounds of 0.2 %, 0.8 % and 3.2 % of the scene's longest side
 /// (0.5 m, 2 m and 8 m on a 256 m terrain): the schema's example.
 pub const SUGGESTED_LODS: [f64; 3] = [0.002, 0.008, 0.032];
-/// Peak memory of a job that makes levels of detail, as a multiple of its estimate without:
-/// measured 1.80 × on island-defaults (maximum resident size 198 → 357 MB with three levels,
-/// `landform run` one after the other), with a margin.
-pub const LOD_MEMORY_FACTOR: f64 = 2.2;
+/// Triangles a second one level's simplification and measuring get through at best (a 2-core
+/// machine measures about a tenth of this; the margin is for machines several times faster).
+pub const LOD_TRIANGLES_PER_SECOND: f64 = 5e6;
+
+/// What making `levels` levels of detail adds to a job of cost `cost`: (bytes at the peak,
+/// least seconds).
+pub fn lod_cost(cost: &crate::model::Cost, levels: usize) -> (u64, f64) {
+    if levels == 0 {
+        return (0, 0.0);
+    }
+    (cost.lod_bytes, cost.lod_triangles as f64 * levels as f64 / LOD_TRIANGLES_PER_SECOND)
+}
+
 /// Most levels of detail a request may ask for.
 pub const MAX_LODS: usize = 4;
 /// The smallest and largest error bound a level may have, as fractions of the longest side.

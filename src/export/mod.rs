@@ -35,9 +35,7 @@ pub use heightmap_png::heightmap_png16;
 pub use heightmap_r16::{heightmap_r16, r16_summary};
 pub use hypsometric::Tint;
 pub use interior::{render_inside_png, InsideView};
-pub use mesh_glbs::{
-    mesh_glbs, MeshSettings, DEFAULT_LODS, LOD_FRACTION_RANGE, LOD_MEMORY_FACTOR, MAX_LODS, SUGGESTED_LODS,
-};
+pub use mesh_glbs::{lod_cost, mesh_glbs, MeshSettings, DEFAULT_LODS, LOD_FRACTION_RANGE, MAX_LODS, SUGGESTED_LODS};
 pub use normalmap_png::normalmap_png;
 pub use npy::{heightfield_npy, read_heightfield_npy};
 pub use preview_png::preview_png;
@@ -188,11 +186,34 @@ pub fn heightfield_artifacts_peak_bytes(cols: u64, rows: u64, tiles: bool) -> u6
         (side(cols), side(rows))
     };
     let preview = 18 * w * h + if longest <= max_side { 4 * cells } else { 0 };
-    let stride = longest.saturating_sub(1).div_ceil(DEFAULT_MAX_SIDE_SAMPLES as u64 - 1).max(1);
-    let (nx, nz) = (cols.saturating_sub(1).div_ceil(stride) + 1, rows.saturating_sub(1).div_ceil(stride) + 1);
+    let (nx, nz) = mesh_samples(cols, rows);
     let mesh = 36 * nx * nz + 24 * (nx - 1) * (nz - 1);
     let meshes = if tiles { 5 } else { 3 };
     cells.saturating_mul(10 + 2 + 6 + 8) + preview + meshes * mesh
+}
+
+/// Bytes levels of detail of a heightfield add at the peak per triangle they start from: the
+/// deviation's search grid over the one full mesh, meshoptimizer's arrays and the levels kept
+/// until written (measured 96–239 by `tests/cost_estimates.rs`).
+pub const HEIGHTFIELD_LOD_BYTES_PER_TRIANGLE: u64 = 300;
+
+/// Triangles levels of detail start from for a `cols × rows` grid: the decimated mesh of
+/// `mesh.glb`, and with `tiles` its tiles (the same triangles again, simplified tile by tile).
+pub fn heightfield_lod_triangles(cols: u64, rows: u64, tiles: bool) -> u64 {
+    let (nx, nz) = mesh_samples(cols, rows);
+    let triangles = 2 * (nx - 1) * (nz - 1);
+    if tiles {
+        2 * triangles
+    } else {
+        triangles
+    }
+}
+
+/// Samples along each side of the decimated mesh of a `cols × rows` grid.
+fn mesh_samples(cols: u64, rows: u64) -> (u64, u64) {
+    let longest = cols.max(rows).max(1);
+    let stride = longest.saturating_sub(1).div_ceil(DEFAULT_MAX_SIDE_SAMPLES as u64 - 1).max(1);
+    (cols.saturating_sub(1).div_ceil(stride) + 1, rows.saturating_sub(1).div_ceil(stride) + 1)
 }
 
 /// A small preview for live progress snapshots.

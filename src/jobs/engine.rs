@@ -15,7 +15,7 @@ use super::live::{LiveJob, StopReason};
 use super::metrics::Metrics;
 use super::store_terrain::StoreTerrain;
 use super::{Job, JobEvent, JobKind, JobStatus, Progress, RequestError};
-use crate::export::{GlbForm, MeshSettings, LOD_MEMORY_FACTOR};
+use crate::export::{lod_cost, GlbForm, MeshSettings};
 use crate::store::{EventLog, IdempotentInsert, JobInputs, ListFilter, StoreError};
 use crate::validate::{FieldError, Limits};
 
@@ -472,9 +472,9 @@ impl Engine {
             });
         }
         self.check_references(&prepared.references, owner.clone()).await?;
-        let lods = !mesh.lods.is_empty();
+        let lods = mesh.lods.len();
         let (cost, uploads) =
-            self.estimate(kind, &prepared.params, prepared.references.uploads, owner.clone(), lods).await?;
+            self.estimate(kind, &prepared.params, seed, prepared.references.uploads, owner.clone(), lods).await?;
         self.check_quota(who, &cost).await?;
         let named: Vec<String> = prepared.references.inputs.into_iter().map(|(_, sha)| sha).collect();
 
@@ -527,16 +527,17 @@ impl Engine {
         &self,
         kind: &str,
         params: &Value,
+        seed: u64,
         uploads: Vec<(String, Vec<u8>)>,
         owner: Option<String>,
-        lods: bool,
+        lods: usize,
     ) -> Result<(super::Cost, Vec<(String, Vec<u8>)>), EngineError> {
         let kind_impl = self.inner.kinds.get(kind).cloned().ok_or_else(|| EngineError::UnknownKind(kind.into()))?;
         let store = self.inner.store.clone();
         let params = params.clone();
         let (cost, uploads) = tokio::task::spawn_blocking(move || {
             let lookup = PendingUploads { uploads: &uploads, store: StoreTerrain { store, owner: owner.clone() } };
-            let cost = kind_impl.estimate(&params, &lookup);
+            let cost = kind_impl.estimate(&params, seed, &lookup);
             (cost, uploads)
         })
         .await
@@ -546,13 +547,9 @@ impl Engine {
             super::SimError::Terrain(t) => EngineError::field("terrain", t.to_string()),
             other => EngineError::Internal(other.to_string()),
         })?;
-        // Levels of detail hold simplified copies and the deviation's search grids beside the
-        // full mesh (see LOD_MEMORY_FACTOR).
-        let cost = if lods {
-            super::Cost { memory_bytes: (cost.memory_bytes as f64 * LOD_MEMORY_FACTOR) as u64, ..cost }
-        } else {
-            cost
-        };
+        // Levels of detail run after the rest, from the meshes the kind counted.
+        let (bytes, seconds) = lod_cost(&cost, lods);
+        let cost = cost.with_stage("lods", bytes, seconds);
         self.check_cost(&cost)?;
         Ok((cost, uploads))
     }
@@ -609,9 +606,10 @@ impl Engine {
             )),
             other => other,
         })?;
-        let lods = original.request.get("lods").and_then(Value::as_array).is_some_and(|l| !l.is_empty());
+        let lods = original.request.get("lods").and_then(Value::as_array).map_or(0, Vec::len);
+        let seed = original.request.get("seed").and_then(Value::as_u64).unwrap_or(0);
         let (cost, _) =
-            self.estimate(&original.kind, &prepared.params, Vec::new(), original.owner.clone(), lods).await?;
+            self.estimate(&original.kind, &prepared.params, seed, Vec::new(), original.owner.clone(), lods).await?;
         self.check_quota(who, &cost).await?;
         let replay_of = Some((id.to_string(), until_step));
         let mut job = new_job(&original.kind, original.label.clone(), original.request.clone(), replay_of);

@@ -151,8 +151,9 @@ pub trait Simulation: Send + Sync + 'static {
 
     /// The job's cost from its validated parameters: peak memory (an upper bound of the real
     /// peak, at most 3 × it) and work, every derived size included. Terrain sources are sized
-    /// through `terrain` (uploads and earlier jobs without reading their heights).
-    fn estimate(params: &Self::Params, terrain: &dyn TerrainLookup) -> Result<Cost, SimError>;
+    /// through `terrain` (uploads and earlier jobs without reading their heights); `seed` is the
+    /// run's, for a kind whose size depends on what it draws (a cave's crowded drip sites).
+    fn estimate(params: &Self::Params, seed: u64, terrain: &dyn TerrainLookup) -> Result<Cost, SimError>;
 
     fn run(params: &Self::Params, seed: u64, ctx: &RunContext) -> Result<Outcome<Self::Sequence>, SimError>;
 
@@ -233,7 +234,7 @@ pub trait JobKind: Send + Sync {
     /// Parse and validate the kind's parameters (the body without `seed` and `label`).
     fn prepare(&self, params: Value, limits: &Limits) -> Result<Prepared, RequestError>;
     /// The cost of a prepared request (see [`Simulation::estimate`]).
-    fn estimate(&self, params: &Value, terrain: &dyn TerrainLookup) -> Result<Cost, SimError>;
+    fn estimate(&self, params: &Value, seed: u64, terrain: &dyn TerrainLookup) -> Result<Cost, SimError>;
     fn run(&self, params: &Value, seed: u64, ctx: &RunContext) -> Result<JobOutput, SimError>;
     /// Number of steps in a stored `sequence.json`.
     fn sequence_steps(&self, sequence_json: &[u8]) -> Result<u64, SimError>;
@@ -373,8 +374,8 @@ impl<S: Simulation> JobKind for Kind<S> {
         Ok(Prepared { params, references })
     }
 
-    fn estimate(&self, params: &Value, terrain: &dyn TerrainLookup) -> Result<Cost, SimError> {
-        S::estimate(&stored_params(params)?, terrain)
+    fn estimate(&self, params: &Value, seed: u64, terrain: &dyn TerrainLookup) -> Result<Cost, SimError> {
+        S::estimate(&stored_params(params)?, seed, terrain)
     }
 
     fn run(&self, params: &Value, seed: u64, ctx: &RunContext) -> Result<JobOutput, SimError> {

@@ -21,7 +21,7 @@ impl JobKind for StandIn {
     fn prepare(&self, params: Value, _: &Limits) -> Result<Prepared, RequestError> {
         Ok(Prepared { params, references: Default::default() })
     }
-    fn estimate(&self, params: &Value, _: &dyn crate::terrain::TerrainLookup) -> Result<super::Cost, SimError> {
+    fn estimate(&self, params: &Value, _: u64, _: &dyn crate::terrain::TerrainLookup) -> Result<super::Cost, SimError> {
         let mut cost = super::CostBuilder::new();
         cost.memory("memory", params["memory"].as_u64().unwrap_or(1 << 20));
         Ok(cost.work("steps", params["steps"].as_u64().unwrap_or(1) * 10).build("ms", 1000.0))

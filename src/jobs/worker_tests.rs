@@ -53,6 +53,8 @@ fn submit(store: &dyn JobStore, n: u64, steps: u64, memory: u64) -> Job {
         work_unit: "steps".into(),
         work_field: "steps".into(),
         min_seconds: 0.0,
+        lod_triangles: 0,
+        lod_bytes: 0,
     });
     store.insert(&job, None).unwrap();
     job

@@ -20,6 +20,30 @@ pub struct Cost {
     /// machines): the least time the job needs when it does all the work its parameters allow
     /// (every iteration, every step). Over the job time limit, a request is refused (422).
     pub min_seconds: f64,
+    /// Triangles the levels of detail start from (the full mesh, and the tiles' meshes when the
+    /// request cuts tiles): a request with `lods` adds the levels' time from it.
+    #[serde(default)]
+    pub lod_triangles: u64,
+    /// Bytes a request with `lods` adds at the peak (the levels' working arrays and the levels
+    /// kept until written, as the kind's meshes make them).
+    #[serde(default)]
+    pub lod_bytes: u64,
+}
+
+impl Cost {
+    /// This cost with a stage that runs after the rest (levels of detail): `bytes` more at the
+    /// peak and `seconds` more of least time, named by `field` where it outweighs the rest.
+    pub fn with_stage(mut self, field: &str, bytes: u64, seconds: f64) -> Self {
+        if bytes > self.memory_bytes {
+            self.memory_field = field.to_string();
+        }
+        if seconds > self.min_seconds {
+            self.work_field = field.to_string();
+        }
+        self.memory_bytes = self.memory_bytes.saturating_add(bytes);
+        self.min_seconds += seconds;
+        self
+    }
 }
 
 /// Bytes, for estimates: saturating arithmetic so that no request can overflow one.
@@ -34,6 +58,8 @@ pub struct CostBuilder {
     largest_term: (u64, String),
     work: u64,
     work_field: String,
+    lod_triangles: u64,
+    lod_bytes: u64,
 }
 
 impl CostBuilder {
@@ -57,6 +83,15 @@ impl CostBuilder {
         self
     }
 
+    /// The triangles of the meshes levels of detail would be made from, and the bytes the
+    /// levels add at the peak per triangle (measured per kind: it depends on how the kind's
+    /// pieces are simplified and on what else is alive then).
+    pub fn lods(&mut self, triangles: u64, bytes_per_triangle: u64) -> &mut Self {
+        self.lod_triangles = triangles;
+        self.lod_bytes = triangles.saturating_mul(bytes_per_triangle);
+        self
+    }
+
     /// Finish with the kind's work unit and its fastest rate (units per second).
     pub fn build(&self, work_unit: &str, work_per_second: f64) -> Cost {
         Cost {
@@ -66,6 +101,8 @@ impl CostBuilder {
             work_unit: work_unit.to_string(),
             work_field: self.work_field.clone(),
             min_seconds: self.work as f64 / work_per_second.max(f64::MIN_POSITIVE),
+            lod_triangles: self.lod_triangles,
+            lod_bytes: self.lod_bytes,
         }
     }
 }

@@ -265,6 +265,8 @@ fn queued(store: &dyn JobQueue, n: u64, memory: u64) -> Job {
         work_unit: "cells".into(),
         work_field: "terrain".into(),
         min_seconds: 0.0,
+        lod_triangles: 0,
+        lod_bytes: 0,
     });
     store.insert(&j, None).unwrap();
     j

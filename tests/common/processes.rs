@@ -133,3 +133,39 @@ pub fn reset_peak_rss(pid: u32) -> u64 {
     std::fs::write(format!("/proc/{pid}/clear_refs"), "5").expect("reset the peak RSS");
     status_bytes(pid, "VmRSS")
 }
+
+/// A CPU hog: `per_core` spinning shells per core, each in a session of its own (where the
+/// kernel shares the cores between sessions first, each counts as a program of its own, as on
+/// a machine shared with other services); killed when dropped.
+pub struct CpuHog(Vec<Child>);
+
+impl CpuHog {
+    pub fn start(per_core: usize) -> Self {
+        use std::os::unix::process::CommandExt;
+        let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
+        let spinners = (0..per_core * cores)
+            .map(|_| {
+                let mut command = Command::new("sh");
+                command.args(["-c", "while :; do :; done"]).stdout(Stdio::null());
+                // SAFETY: setsid is async-signal-safe and touches only the child.
+                unsafe {
+                    command.pre_exec(|| {
+                        libc::setsid();
+                        Ok(())
+                    });
+                }
+                command.spawn().expect("sh")
+            })
+            .collect();
+        Self(spinners)
+    }
+}
+
+impl Drop for CpuHog {
+    fn drop(&mut self) {
+        for child in &mut self.0 {
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+    }
+}

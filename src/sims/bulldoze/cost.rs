@@ -5,7 +5,7 @@
 use super::apply::{cells_within, Bounds};
 use super::params::{resampled_dimensions, BulldozeParams, Operation, Window};
 use super::primitives::shape_bounds;
-use crate::export::heightfield_artifacts_peak_bytes;
+use crate::export::{heightfield_artifacts_peak_bytes, heightfield_lod_triangles, HEIGHTFIELD_LOD_BYTES_PER_TRIANGLE};
 use crate::jobs::{Cost, CostBuilder, SimError};
 use crate::terrain::TerrainLookup;
 
@@ -110,6 +110,7 @@ pub fn estimate(params: &BulldozeParams, terrain: &dyn TerrainLookup) -> Result<
     // The edited grid and the grid before the edit, the exports, the steps.
     let finish = 8 * cells + heightfield_artifacts_peak_bytes(cols, rows, params.tiles.is_some());
     let mut cost = CostBuilder::new();
+    cost.lods(heightfield_lod_triangles(cols, rows, params.tiles.is_some()), HEIGHTFIELD_LOD_BYTES_PER_TRIANGLE);
     cost.memory("", BASE_BYTES).memory("operations", steps_bytes);
     if load.max(resample) > finish {
         cost.memory("terrain", load.max(resample));

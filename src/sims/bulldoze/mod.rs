@@ -58,7 +58,7 @@ impl Simulation for Bulldoze {
         vec![("terrain".to_string(), &mut params.terrain)]
     }
 
-    fn estimate(params: &BulldozeParams, terrain: &dyn TerrainLookup) -> Result<Cost, SimError> {
+    fn estimate(params: &BulldozeParams, _seed: u64, terrain: &dyn TerrainLookup) -> Result<Cost, SimError> {
         cost::estimate(params, terrain)
     }
 

@@ -44,6 +44,7 @@ impl Simulation for CarveCoast {
 
     fn estimate(
         params: &CarveCoastParams,
+        _seed: u64,
         terrain: &dyn crate::terrain::TerrainLookup,
     ) -> Result<crate::jobs::Cost, SimError> {
         cost::estimate(params, terrain)

@@ -5,7 +5,7 @@
 //! scan of the table plus each applied deformation's window once per constraint.
 
 use super::params::{Constraint, DeformTerrainParams, MaskShape};
-use crate::export::heightfield_artifacts_peak_bytes;
+use crate::export::{heightfield_artifacts_peak_bytes, heightfield_lod_triangles, HEIGHTFIELD_LOD_BYTES_PER_TRIANGLE};
 use crate::jobs::{Cost, CostBuilder, SimError};
 use crate::terrain::TerrainLookup;
 
@@ -89,6 +89,7 @@ pub fn estimate(params: &DeformTerrainParams, terrain: &dyn TerrainLookup) -> Re
     let search_bytes = TABLE_ENTRY_BYTES * entries + 24 * lattice + kernel_bytes;
     let exports = heightfield_artifacts_peak_bytes(cols, rows, params.tiles.is_some());
     let mut cost = CostBuilder::new();
+    cost.lods(heightfield_lod_triangles(cols, rows, params.tiles.is_some()), HEIGHTFIELD_LOD_BYTES_PER_TRIANGLE);
     cost.memory("", BASE_BYTES)
         .memory("terrain", grid)
         .memory("constraints", fields)

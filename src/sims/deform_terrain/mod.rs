@@ -72,6 +72,7 @@ impl Simulation for DeformTerrain {
 
     fn estimate(
         params: &DeformTerrainParams,
+        _seed: u64,
         terrain: &dyn crate::terrain::TerrainLookup,
     ) -> Result<crate::jobs::Cost, SimError> {
         cost::estimate(params, terrain)

@@ -5,6 +5,7 @@ use noise::{Fbm, MultiFractal, NoiseFn, Perlin};
 use rand::Rng;
 
 use super::growth::site_rng;
+use super::neighbours::PointGrid;
 use super::params::{Chamber, GrowCaveParams, Mineral, Site, Sites, Surface};
 
 /// Roof and floor heights as functions of (x, z) in metres.
@@ -79,12 +80,20 @@ pub fn drip_sites(params: &GrowCaveParams, seed: u64) -> Vec<Site> {
             // A stream of its own, after every site's.
             let mut rng = site_rng(seed, usize::MAX - 1);
             let mut out: Vec<Site> = Vec::with_capacity(*count as usize);
-            for _ in 0..*count {
+            // A candidate's gap matters only while it is under the spacing (at or over it, the
+            // candidate is taken at once), so only the sites within the spacing are measured;
+            // the gap is then the same as against every site (placing thousands of sites
+            // stays linear, and the estimate can place them too).
+            let mut placed = PointGrid::new(*min_spacing_m);
+            for i in 0..*count {
                 let mut best = None;
                 for _ in 0..30 {
                     let x = rng.random_range(margin..=c.width_m - margin);
                     let z = rng.random_range(margin..=c.depth_m - margin);
-                    let gap = out.iter().map(|s| (s.x_m - x).hypot(s.z_m - z)).fold(f32::INFINITY, f32::min);
+                    let gap = placed
+                        .near(x, z)
+                        .map(|j| (out[j as usize].x_m - x).hypot(out[j as usize].z_m - z))
+                        .fold(f32::INFINITY, f32::min);
                     if best.is_none_or(|(_, _, g)| gap > g) {
                         best = Some((x, z, gap));
                     }
@@ -93,6 +102,7 @@ pub fn drip_sites(params: &GrowCaveParams, seed: u64) -> Vec<Site> {
                     }
                 }
                 let (x_m, z_m, _) = best.expect("thirty candidates");
+                placed.insert(i, x_m, z_m);
                 out.push(Site { x_m, z_m, conditions: None, mineral: None });
             }
             out

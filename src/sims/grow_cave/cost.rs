@@ -21,8 +21,17 @@ const SURFACE_SAMPLE_BYTES: u64 = 100;
 /// Bytes per glb node (a speleothem): its JSON and glTF structures.
 const NODE_BYTES: u64 = 10_000;
 const BASE_BYTES: u64 = 6 << 20;
+/// Bytes levels of detail add at the peak per triangle: the pieces are small and simplified
+/// one by one, so little more is alive than while the scene is rendered (measured 0–29 on the
+/// examples, whose triangles this estimate overcounts).
+const LOD_BYTES_PER_TRIANGLE: u64 = 15;
+/// Caves of more sites than this are sized from their first passes grown for real (see
+/// [`probe`]); fewer sites are sized from the parameters alone, within 3 × of their peak.
+const PROBE_FROM_SITES: u64 = 256;
+/// Passes the probe grows.
+const PROBE_PASSES: u32 = 4;
 
-pub fn estimate(params: &GrowCaveParams, _terrain: &dyn TerrainLookup) -> Result<Cost, SimError> {
+pub fn estimate(params: &GrowCaveParams, seed: u64, _terrain: &dyn TerrainLookup) -> Result<Cost, SimError> {
     let sites = match &params.sites {
         Sites::Explicit(list) => list.len() as u64,
         Sites::Scatter { count, .. } => u64::from(*count),
@@ -57,6 +66,12 @@ pub fn estimate(params: &GrowCaveParams, _terrain: &dyn TerrainLookup) -> Result
         }
         Sites::Scatter { count, .. } => u64::from(*count) * tubes_of(&params.conditions).min(1),
     };
+    // Crowded sites merge at the start or stop within a few rings, which the parameters cannot
+    // tell: the first passes, grown as the run grows them, bound what can follow.
+    let (recorded, tubes, stalactites) = match (sites > PROBE_FROM_SITES).then(|| probe(params, seed)).flatten() {
+        Some(p) => (recorded.min(p.recorded), tubes.min(p.tubes), stalactites.min(p.stalactites)),
+        None => (recorded, tubes, stalactites),
+    };
     let canal = if params.canal_radius_m > 0.0 { stalactites } else { 0 };
     let tube_vertices = (recorded + 2 * tubes) * segments * (tubes + canal) / tubes.max(1);
     let (cols, rows, _) = surface_grid(&params.chamber);
@@ -64,6 +79,8 @@ pub fn estimate(params: &GrowCaveParams, _terrain: &dyn TerrainLookup) -> Result
     // Roof, floor and walls (at most 64 levels round the edge).
     let surface = 2 * (cols * rows) as u64 + 64 * 2 * (cols + rows) as u64;
     let mut cost = CostBuilder::new();
+    // Tubes and surfaces have about two triangles a vertex (or sample).
+    cost.lods(2 * (tube_vertices + surface), LOD_BYTES_PER_TRIANGLE);
     cost.memory("", BASE_BYTES)
         .memory("rings", RING_BYTES * recorded + SITE_BYTES * sites)
         .memory("chamber.samples", SURFACE_SAMPLE_BYTES * surface)
@@ -86,4 +103,35 @@ pub fn estimate(params: &GrowCaveParams, _terrain: &dyn TerrainLookup) -> Result
     let work = recorded * segments + scatter + neighbours + 3 * surface * 50 + 3 * tube_vertices * 20;
     let field = if tube_vertices * 60 > surface * 150 { "rings" } else { "chamber.samples" };
     Ok(cost.work(field, work).build("units", UNITS_PER_SECOND))
+}
+
+/// A bound on a cave's growth from its first passes.
+struct Probed {
+    /// Rings recorded at most: those of the first passes, and one a pass for every speleothem
+    /// still growing after them.
+    recorded: u64,
+    /// Speleothems that have rings or may still get them.
+    tubes: u64,
+    stalactites: u64,
+}
+
+/// Grow the first [`PROBE_PASSES`] passes as the run would (the same seed, the same sites, the
+/// same merges and clearances): a merged site never grows, and a speleothem that stopped never
+/// starts again, so what is still growing then bounds the rest. `None` when the probe fails
+/// (the run would report it).
+fn probe(params: &GrowCaveParams, seed: u64) -> Option<Probed> {
+    let passes = PROBE_PASSES.min(params.rings);
+    let sequence = super::grow_passes(params, seed, passes, &mut |_, _| Ok(())).ok()?;
+    let left = u64::from(params.rings - passes);
+    let mut probed = Probed { recorded: 0, tubes: 0, stalactites: 0 };
+    for g in sequence.sites.iter().map(|s| &s.growth).filter(|g| g.merged_into.is_none()) {
+        let vertical = g.column_at.is_none();
+        let more = [vertical && !g.stalactite_done, vertical && !g.stalagmite_done];
+        let has = [!g.stalactite.is_empty() || more[0], !g.stalagmite.is_empty() || more[1]];
+        probed.recorded +=
+            (g.stalactite.len() + g.stalagmite.len()) as u64 + left * more.iter().filter(|&&m| m).count() as u64;
+        probed.tubes += has.iter().filter(|&&h| h).count() as u64;
+        probed.stalactites += u64::from(has[0]);
+    }
+    Some(probed)
 }

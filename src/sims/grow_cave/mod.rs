@@ -41,9 +41,10 @@ impl Simulation for GrowCave {
 
     fn estimate(
         params: &GrowCaveParams,
+        seed: u64,
         terrain: &dyn crate::terrain::TerrainLookup,
     ) -> Result<crate::jobs::Cost, SimError> {
-        cost::estimate(params, terrain)
+        cost::estimate(params, seed, terrain)
     }
 
     fn run(params: &Self::Params, seed: u64, ctx: &RunContext) -> Result<Outcome<Self::Sequence>, SimError> {
@@ -80,6 +81,16 @@ pub fn grow(
     seed: u64,
     on_pass: &mut dyn FnMut(u32, &CaveSequence) -> Result<(), SimError>,
 ) -> Result<CaveSequence, SimError> {
+    grow_passes(params, seed, params.rings, on_pass)
+}
+
+/// The first `passes` passes of [`grow`] (the run's own, bit for bit).
+fn grow_passes(
+    params: &GrowCaveParams,
+    seed: u64,
+    passes: u32,
+    on_pass: &mut dyn FnMut(u32, &CaveSequence) -> Result<(), SimError>,
+) -> Result<CaveSequence, SimError> {
     let shape = ChamberShape::new(&params.chamber, seed);
     let sites = drip_sites(params, seed);
     let growers: Vec<Grower> =
@@ -105,7 +116,7 @@ pub fn grow(
     let height = params.chamber.height_m;
     let mut bodies = neighbours::Bodies::new(width, depth, height, neighbours::bin_size(params));
     let mut rngs: Vec<_> = (0..sites.len()).map(|i| site_rng(seed, i)).collect();
-    for pass in 1..=params.rings {
+    for pass in 1..=passes.min(params.rings) {
         sequence
             .sites
             .par_iter_mut()

@@ -252,16 +252,55 @@ pub fn bin_size(params: &super::params::GrowCaveParams) -> f32 {
 }
 
 /// Which sites merge into an earlier one at the start: a site whose initial stalactite ring
-/// (with its displacement) would come within [`MARGIN_M`] of an earlier, unmerged site's.
+/// (with its displacement) would come within [`MARGIN_M`] of an earlier, unmerged site's (the
+/// earliest such).
 pub fn merges(sites: &[(f32, f32)], radius: f32) -> Vec<Option<u32>> {
+    let reach = 2.0 * radius + MARGIN_M;
+    let mut unmerged = PointGrid::new(reach);
     let mut out: Vec<Option<u32>> = vec![None; sites.len()];
-    for i in 0..sites.len() {
-        let (x, z) = sites[i];
-        out[i] = (0..i)
-            .find(|&j| out[j].is_none() && (sites[j].0 - x).hypot(sites[j].1 - z) < 2.0 * radius + MARGIN_M)
-            .map(|j| j as u32);
+    for (i, &(x, z)) in sites.iter().enumerate() {
+        out[i] =
+            unmerged.near(x, z).filter(|&j| (sites[j as usize].0 - x).hypot(sites[j as usize].1 - z) < reach).min();
+        if out[i].is_none() {
+            unmerged.insert(i as u32, x, z);
+        }
     }
     out
+}
+
+/// Points (by number) in square cells at least `reach` wide: every point nearer than `reach`
+/// to a place is in the place's cell or the eight around it, so a search for close points
+/// reads only those instead of every point.
+pub struct PointGrid {
+    cell: f32,
+    cells: std::collections::HashMap<(i64, i64), Vec<u32>>,
+}
+
+impl PointGrid {
+    pub fn new(reach: f32) -> Self {
+        // A reach of 0 (or less) finds nothing nearer than it: any cell size does.
+        Self { cell: if reach > 0.0 { reach } else { 1.0 }, cells: Default::default() }
+    }
+
+    fn key(&self, x: f32, z: f32) -> (i64, i64) {
+        ((x / self.cell).floor() as i64, (z / self.cell).floor() as i64)
+    }
+
+    pub fn insert(&mut self, i: u32, x: f32, z: f32) {
+        let key = self.key(x, z);
+        self.cells.entry(key).or_default().push(i);
+    }
+
+    /// The points in the cell of (x, z) and the eight around it: a superset of those nearer
+    /// than the reach.
+    pub fn near(&self, x: f32, z: f32) -> impl Iterator<Item = u32> + '_ {
+        let (cx, cz) = self.key(x, z);
+        (-1..=1)
+            .flat_map(move |dz| (-1..=1).map(move |dx| (cx + dx, cz + dz)))
+            .filter_map(|k| self.cells.get(&k))
+            .flatten()
+            .copied()
+    }
 }
 
 /// What a site may still lose this pass: its newest ring of one speleothem.

@@ -353,3 +353,48 @@ fn a_run_of_k_passes_is_the_first_k_passes_of_a_longer_run() {
         }
     }
 }
+
+/// Scattered sites and their merges found through the grid of near points are those of the
+/// plain search against every earlier site (written out here as it was), so a cave keeps its
+/// shape: crowded and sparse, several seeds.
+#[test]
+fn scattered_sites_and_merges_match_the_search_against_every_site() {
+    use rand::Rng;
+    for (count, spacing, seed) in [(3000u32, 0.25f32, 3u64), (800, 0.6, 11), (200, 0.0, 5), (1500, 2.0, 7)] {
+        let p = params(json!({"sites": {"scatter": {"count": count, "min_spacing_m": spacing}}}));
+        let c = &p.chamber;
+        let margin = p.stalactite_radius_m.max(p.stalagmite_radius_m).min(c.width_m.min(c.depth_m) / 4.0);
+        let mut rng = growth::site_rng(seed, usize::MAX - 1);
+        let mut expected: Vec<(f32, f32)> = Vec::new();
+        for _ in 0..count {
+            let mut best: Option<(f32, f32, f32)> = None;
+            for _ in 0..30 {
+                let x = rng.random_range(margin..=c.width_m - margin);
+                let z = rng.random_range(margin..=c.depth_m - margin);
+                let gap = expected.iter().map(|s| (s.0 - x).hypot(s.1 - z)).fold(f32::INFINITY, f32::min);
+                if best.is_none_or(|(_, _, g)| gap > g) {
+                    best = Some((x, z, gap));
+                }
+                if gap >= spacing {
+                    break;
+                }
+            }
+            let (x, z, _) = best.unwrap();
+            expected.push((x, z));
+        }
+        let placed: Vec<(f32, f32)> = chamber::drip_sites(&p, seed).iter().map(|s| (s.x_m, s.z_m)).collect();
+        assert_eq!(placed, expected, "{count} sites {spacing} m apart, seed {seed}");
+
+        let radius = p.stalactite_radius_m + p.kf_m;
+        let reach = 2.0 * radius + neighbours::MARGIN_M;
+        let mut merged: Vec<Option<u32>> = vec![None; placed.len()];
+        for i in 0..placed.len() {
+            let (x, z) = placed[i];
+            merged[i] = (0..i)
+                .find(|&j| merged[j].is_none() && (placed[j].0 - x).hypot(placed[j].1 - z) < reach)
+                .map(|j| j as u32);
+        }
+        assert_eq!(neighbours::merges(&placed, radius), merged);
+        assert!(merged.iter().any(Option::is_some) || spacing >= reach, "the case merges nothing: {count}, {spacing}");
+    }
+}

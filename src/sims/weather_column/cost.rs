@@ -22,6 +22,8 @@ const ACTIVE_BYTES: u64 = 52;
 const EVENT_ACTIVE_BYTES: u64 = 94;
 const EVENT_BYTES: u64 = 32;
 const BASE_BYTES: u64 = 4 << 20;
+/// Bytes levels of detail add at the peak per triangle (measured 19–86 on the examples).
+const LOD_BYTES_PER_TRIANGLE: u64 = 110;
 /// Footprints of more cells than this are sized on a coarser grid and scaled: the estimate
 /// runs at submission, so its own cost (cells × polygon points) stays small.
 const FOOTPRINT_SAMPLE_CELLS: u64 = 256 * 256;
@@ -50,6 +52,8 @@ pub fn estimate(params: &WeatherColumnParams, terrain: &dyn TerrainLookup) -> Re
         }
     };
     let mut cost = CostBuilder::new();
+    // A closed surface has about two triangles a vertex.
+    cost.lods(2 * vertices, LOD_BYTES_PER_TRIANGLE);
     cost.memory("", BASE_BYTES)
         .memory("grid", 4 * n + (5 * np).max(7 * n))
         .memory("update", active_bytes)

@@ -54,6 +54,7 @@ impl Simulation for WeatherColumn {
 
     fn estimate(
         params: &WeatherColumnParams,
+        _seed: u64,
         terrain: &dyn crate::terrain::TerrainLookup,
     ) -> Result<crate::jobs::Cost, SimError> {
         cost::estimate(params, terrain)
