@@ -79,6 +79,9 @@ impl MeshSettings {
 /// full mesh, first) for the result. Stopped on request between and within levels.
 pub fn mesh_glbs(scene: &Scene, settings: &MeshSettings, stop: Stop) -> Result<(Vec<Artifact>, Value), Stopped> {
     let longest = longest_side(scene);
+    // `mesh.glb` first, at the same moment as without levels (a kind renders its preview
+    // meanwhile), so levels only ever add to a job's peak memory, as its estimate has them.
+    let full = write_glb(scene, settings.form);
     // The full scene is borrowed, not copied: a copy would raise every job's peak memory.
     let simplified: Vec<(Scene, LevelFigures)> =
         settings.lods.iter().map(|&fraction| simplified(scene, fraction * longest, stop)).collect::<Result<_, _>>()?;
@@ -86,7 +89,9 @@ pub fn mesh_glbs(scene: &Scene, settings: &MeshSettings, stop: Stop) -> Result<(
     let levels: Vec<(&Scene, LevelFigures)> = std::iter::once((scene, LevelFigures::default()))
         .chain(simplified.iter().map(|(scene, figures)| (scene, *figures)))
         .collect();
-    let files: Vec<Vec<u8>> = levels.par_iter().map(|(scene, _)| write_glb(scene, settings.form)).collect();
+    let files: Vec<Vec<u8>> = std::iter::once(full)
+        .chain(simplified.par_iter().map(|(scene, _)| write_glb(scene, settings.form)).collect::<Vec<_>>())
+        .collect();
     let mut artifacts = Vec::with_capacity(files.len());
     let mut figures = Vec::with_capacity(files.len());
     for (level, ((scene, level_figures), bytes)) in levels.iter().zip(files).enumerate() {

@@ -21,10 +21,12 @@ const SURFACE_SAMPLE_BYTES: u64 = 100;
 /// Bytes per glb node (a speleothem): its JSON and glTF structures.
 const NODE_BYTES: u64 = 10_000;
 const BASE_BYTES: u64 = 6 << 20;
-/// Bytes levels of detail add at the peak per triangle: the pieces are small and simplified
-/// one by one, so little more is alive than while the scene is rendered (measured 0–29 on the
-/// examples, whose triangles this estimate overcounts).
-const LOD_BYTES_PER_TRIANGLE: u64 = 15;
+/// What levels of detail add at the peak, in percent of the rest of the estimate: the levels
+/// of a cave's pieces are kept until written, smaller copies of what the rest holds (measured
+/// 0–26 % of it on the examples: thin straws hardly simplify, crowded pieces do). A share of
+/// the estimate rather than bytes per triangle, because this estimate overcounts the crowded
+/// caves' triangles and the levels' bytes follow the real ones.
+const LOD_PERCENT_OF_REST: u64 = 27;
 /// Caves of more sites than this are sized from their first passes grown for real (see
 /// [`probe`]); fewer sites are sized from the parameters alone, within 3 × of their peak.
 const PROBE_FROM_SITES: u64 = 256;
@@ -68,9 +70,10 @@ pub fn estimate(params: &GrowCaveParams, seed: u64, _terrain: &dyn TerrainLookup
     };
     // Crowded sites merge at the start or stop within a few rings, which the parameters cannot
     // tell: the first passes, grown as the run grows them, bound what can follow.
-    let (recorded, tubes, stalactites) = match (sites > PROBE_FROM_SITES).then(|| probe(params, seed)).flatten() {
-        Some(p) => (recorded.min(p.recorded), tubes.min(p.tubes), stalactites.min(p.stalactites)),
-        None => (recorded, tubes, stalactites),
+    let (recorded, tubes, stalactites, pieces) = match (sites > PROBE_FROM_SITES).then(|| probe(params, seed)).flatten()
+    {
+        Some(p) => (recorded.min(p.recorded), tubes.min(p.tubes), stalactites.min(p.stalactites), p.sites),
+        None => (recorded, tubes, stalactites, sites),
     };
     let canal = if params.canal_radius_m > 0.0 { stalactites } else { 0 };
     let tube_vertices = (recorded + 2 * tubes) * segments * (tubes + canal) / tubes.max(1);
@@ -80,17 +83,16 @@ pub fn estimate(params: &GrowCaveParams, seed: u64, _terrain: &dyn TerrainLookup
     let surface = 2 * (cols * rows) as u64 + 64 * 2 * (cols + rows) as u64;
     let mut cost = CostBuilder::new();
     // Tubes and surfaces have about two triangles a vertex (or sample).
-    cost.lods(2 * (tube_vertices + surface), LOD_BYTES_PER_TRIANGLE);
     cost.memory("", BASE_BYTES)
         .memory("rings", RING_BYTES * recorded + SITE_BYTES * sites)
         .memory("chamber.samples", SURFACE_SAMPLE_BYTES * surface)
-        .memory("sites", TUBE_VERTEX_BYTES * tube_vertices + NODE_BYTES * sites);
+        .memory("sites", TUBE_VERTEX_BYTES * tube_vertices + NODE_BYTES * pieces);
     let scatter = match &params.sites {
-        // Placing each site against the others: up to 30 tries a site.
-        Sites::Scatter { .. } => 15 * sites * sites,
+        // Placing each site against those near it: at least one try a site.
+        Sites::Scatter { .. } => sites,
         Sites::Explicit(_) => 0,
     };
-    // Keeping sites apart: every site against the earlier ones at the start, then each ring's
+    // Keeping sites apart: every site against those near it at the start, then each ring's
     // capsules (two) against those sharing its bins, once when grown and once for the
     // coating's clearances — at the least, capsules spread evenly over the bins.
     let c = &params.chamber;
@@ -98,11 +100,15 @@ pub fn estimate(params: &GrowCaveParams, seed: u64, _terrain: &dyn TerrainLookup
     let bins = ((c.width_m / cell).ceil().clamp(1.0, 128.0) * (c.depth_m / cell).ceil().clamp(1.0, 128.0)) as u64;
     let capsules = 2 * recorded;
     let per_bin = (capsules / bins.max(1)).max(1);
-    let neighbours = sites * sites / 2 + 2 * capsules * per_bin;
+    let neighbours = sites + 2 * capsules * per_bin;
     // Surfaces are generated for each live snapshot and the final scene (about three times).
     let work = recorded * segments + scatter + neighbours + 3 * surface * 50 + 3 * tube_vertices * 20;
     let field = if tube_vertices * 60 > surface * 150 { "rings" } else { "chamber.samples" };
-    Ok(cost.work(field, work).build("units", UNITS_PER_SECOND))
+    // Tubes and surfaces have about two triangles a vertex (or sample).
+    cost.work(field, work).lods(2 * (tube_vertices + surface), 0);
+    let mut cost = cost.build("units", UNITS_PER_SECOND);
+    cost.lod_bytes = cost.memory_bytes / 100 * LOD_PERCENT_OF_REST;
+    Ok(cost)
 }
 
 /// A bound on a cave's growth from its first passes.
@@ -113,6 +119,8 @@ struct Probed {
     /// Speleothems that have rings or may still get them.
     tubes: u64,
     stalactites: u64,
+    /// Sites that grow anything (a piece of the scene each).
+    sites: u64,
 }
 
 /// Grow the first [`PROBE_PASSES`] passes as the run would (the same seed, the same sites, the
@@ -123,7 +131,7 @@ fn probe(params: &GrowCaveParams, seed: u64) -> Option<Probed> {
     let passes = PROBE_PASSES.min(params.rings);
     let sequence = super::grow_passes(params, seed, passes, &mut |_, _| Ok(())).ok()?;
     let left = u64::from(params.rings - passes);
-    let mut probed = Probed { recorded: 0, tubes: 0, stalactites: 0 };
+    let mut probed = Probed { recorded: 0, tubes: 0, stalactites: 0, sites: 0 };
     for g in sequence.sites.iter().map(|s| &s.growth).filter(|g| g.merged_into.is_none()) {
         let vertical = g.column_at.is_none();
         let more = [vertical && !g.stalactite_done, vertical && !g.stalagmite_done];
@@ -132,6 +140,7 @@ fn probe(params: &GrowCaveParams, seed: u64) -> Option<Probed> {
             (g.stalactite.len() + g.stalagmite.len()) as u64 + left * more.iter().filter(|&&m| m).count() as u64;
         probed.tubes += has.iter().filter(|&&h| h).count() as u64;
         probed.stalactites += u64::from(has[0]);
+        probed.sites += u64::from(has[0] || has[1]);
     }
     Some(probed)
 }
