@@ -473,12 +473,12 @@ impl Engine {
         }
         self.check_references(&prepared.references, owner.clone()).await?;
         let lods = mesh.lods.len();
-        let (cost, uploads) =
-            self.estimate(kind, &prepared.params, seed, prepared.references.uploads, owner.clone(), lods).await?;
+        let (cost, params, uploads) =
+            self.estimate(kind, prepared.params, seed, prepared.references.uploads, owner.clone(), lods).await?;
         self.check_quota(who, &cost).await?;
         let named: Vec<String> = prepared.references.inputs.into_iter().map(|(_, sha)| sha).collect();
 
-        let mut request = match prepared.params {
+        let mut request = match params {
             Value::Object(m) => m,
             _ => Map::new(),
         };
@@ -521,24 +521,24 @@ impl Engine {
     }
 
     /// The cost of a prepared request, checked against the memory budget and the time limit.
-    /// Uploads sent with the request (not stored yet) are sized from `uploads`, which is
-    /// handed back.
+    /// Uploads sent with the request (not stored yet) are sized from `uploads`. The request and
+    /// the uploads are handed back: moved, not copied, as a copy of a request of many
+    /// megabytes would be its size many times over in memory.
     async fn estimate(
         &self,
         kind: &str,
-        params: &Value,
+        params: Value,
         seed: u64,
         uploads: Vec<(String, Vec<u8>)>,
         owner: Option<String>,
         lods: usize,
-    ) -> Result<(super::Cost, Vec<(String, Vec<u8>)>), EngineError> {
+    ) -> Result<(super::Cost, Value, Vec<(String, Vec<u8>)>), EngineError> {
         let kind_impl = self.inner.kinds.get(kind).cloned().ok_or_else(|| EngineError::UnknownKind(kind.into()))?;
         let store = self.inner.store.clone();
-        let params = params.clone();
-        let (cost, uploads) = tokio::task::spawn_blocking(move || {
+        let (cost, params, uploads) = tokio::task::spawn_blocking(move || {
             let lookup = PendingUploads { uploads: &uploads, store: StoreTerrain { store, owner: owner.clone() } };
             let cost = kind_impl.estimate(&params, seed, &lookup);
-            (cost, uploads)
+            (cost, params, uploads)
         })
         .await
         .map_err(|e| EngineError::Internal(e.to_string()))?;
@@ -551,7 +551,7 @@ impl Engine {
         let (bytes, seconds) = lod_cost(&cost, lods);
         let cost = cost.with_stage("lods", bytes, seconds);
         self.check_cost(&cost)?;
-        Ok((cost, uploads))
+        Ok((cost, params, uploads))
     }
 
     fn check_cost(&self, cost: &super::Cost) -> Result<(), EngineError> {
@@ -608,8 +608,8 @@ impl Engine {
         })?;
         let lods = original.request.get("lods").and_then(Value::as_array).map_or(0, Vec::len);
         let seed = original.request.get("seed").and_then(Value::as_u64).unwrap_or(0);
-        let (cost, _) =
-            self.estimate(&original.kind, &prepared.params, seed, Vec::new(), original.owner.clone(), lods).await?;
+        let (cost, _, _) =
+            self.estimate(&original.kind, prepared.params, seed, Vec::new(), original.owner.clone(), lods).await?;
         self.check_quota(who, &cost).await?;
         let replay_of = Some((id.to_string(), until_step));
         let mut job = new_job(&original.kind, original.label.clone(), original.request.clone(), replay_of);
