@@ -61,6 +61,34 @@ impl Default for HttpConfig {
 pub struct App {
     pub engine: Engine,
     pub config: HttpConfig,
+    /// Submitted bodies being parsed and prepared at once, in [`PREPARING_UNIT`]s of their
+    /// bytes: the largest body allowed and 8 MiB more, so the API's memory for submissions
+    /// (tens of times a body while its JSON is parsed and stored) stays that of about one
+    /// large body however many arrive together, while small ones go past a large one.
+    pub preparing: tokio::sync::Semaphore,
+}
+
+/// Bytes of a submitted body per permit of [`App::preparing`].
+pub const PREPARING_UNIT: usize = 64 << 10;
+/// Room beside the largest body for small ones, bytes.
+const PREPARING_HEADROOM: usize = 8 << 20;
+
+impl App {
+    pub fn new(engine: Engine, config: HttpConfig) -> Self {
+        let preparing = tokio::sync::Semaphore::new(Self::preparing_capacity(&config) as usize);
+        Self { engine, config, preparing }
+    }
+
+    fn preparing_capacity(config: &HttpConfig) -> u32 {
+        let units = config.max_body_bytes.saturating_add(PREPARING_HEADROOM).div_ceil(PREPARING_UNIT);
+        units.min(u32::MAX as usize) as u32
+    }
+
+    /// Permits for preparing a body of `bytes` (at least one, at most all).
+    pub fn preparing_units(&self, bytes: usize) -> u32 {
+        let units = bytes.div_ceil(PREPARING_UNIT).min(u32::MAX as usize) as u32;
+        units.clamp(1, Self::preparing_capacity(&self.config))
+    }
 }
 
 /// Shared state of every handler.
@@ -79,7 +107,7 @@ pub fn app(engine: Engine, config: HttpConfig) -> Router {
     let cors = cors_layer(&config.cors_origins);
     let max_body = config.max_body_bytes;
     let body_timeout = config.body_timeout;
-    let state = AppState(Arc::new(App { engine, config }));
+    let state = AppState(Arc::new(App::new(engine, config)));
     let doc = openapi_document(&state.engine.kinds(), state.config.keys.is_some());
     let protect_operations = state.config.keys.as_ref().is_some_and(|k| k.protect_operations);
     // With keys, the counts of every key's jobs are not for anyone without one.

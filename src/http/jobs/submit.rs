@@ -35,6 +35,10 @@ pub async fn submit_job(
         Some(owner) => format!("{owner}/{kind}"),
         None => kind.clone(),
     };
+    // One large body at a time is parsed and prepared (see `App::preparing`); a client that
+    // goes away while waiting gives its turn up.
+    let units = state.preparing_units(body.as_ref().map_or(0, |b| b.len()));
+    let preparing = state.preparing.acquire_many(units).await.map_err(|_| crate::http::problem::internal())?;
     // Parsing and hashing a body of many megabytes is CPU work: off the async threads.
     let (body, body_bytes, idempotency) = tokio::task::spawn_blocking(move || {
         let body_bytes = body.as_ref().map_or(0, |b| b.len());
@@ -46,7 +50,9 @@ pub async fn submit_job(
     .await
     .map_err(|_| crate::http::problem::internal())??;
     let wait = prefer_wait(&headers);
-    match state.engine.submit(&kind, body, body_bytes, idempotency, &who).await? {
+    let submitted = state.engine.submit(&kind, body, body_bytes, idempotency, &who).await;
+    drop(preparing);
+    match submitted? {
         Submitted::Created(job) => super::accepted(&state, job, wait, false).await,
         Submitted::Existing(job) => super::accepted(&state, job, wait, true).await,
     }
