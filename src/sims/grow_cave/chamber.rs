@@ -84,7 +84,9 @@ pub fn drip_sites(params: &GrowCaveParams, seed: u64) -> Vec<Site> {
             // candidate is taken at once), so only the sites within the spacing are measured;
             // the gap is then the same as against every site (placing thousands of sites
             // stays linear, and the estimate can place them too).
-            let mut placed = PointGrid::new(*min_spacing_m);
+            // Cells no smaller than 1/4096 of the chamber's side: a spacing of 1e-30 m would
+            // otherwise give cell numbers past any integer.
+            let mut placed = PointGrid::new(min_spacing_m.max(c.width_m.max(c.depth_m) / 4096.0));
             for i in 0..*count {
                 let mut best = None;
                 for _ in 0..30 {

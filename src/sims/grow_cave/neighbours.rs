@@ -296,7 +296,7 @@ impl PointGrid {
     pub fn near(&self, x: f32, z: f32) -> impl Iterator<Item = u32> + '_ {
         let (cx, cz) = self.key(x, z);
         (-1..=1)
-            .flat_map(move |dz| (-1..=1).map(move |dx| (cx + dx, cz + dz)))
+            .flat_map(move |dz| (-1..=1).map(move |dx| (cx.saturating_add(dx), cz.saturating_add(dz))))
             .filter_map(|k| self.cells.get(&k))
             .flatten()
             .copied()

@@ -360,7 +360,9 @@ fn a_run_of_k_passes_is_the_first_k_passes_of_a_longer_run() {
 #[test]
 fn scattered_sites_and_merges_match_the_search_against_every_site() {
     use rand::Rng;
-    for (count, spacing, seed) in [(3000u32, 0.25f32, 3u64), (800, 0.6, 11), (200, 0.0, 5), (1500, 2.0, 7)] {
+    for (count, spacing, seed) in
+        [(3000u32, 0.25f32, 3u64), (800, 0.6, 11), (200, 0.0, 5), (1500, 2.0, 7), (300, 1e-30, 9)]
+    {
         let p = params(json!({"sites": {"scatter": {"count": count, "min_spacing_m": spacing}}}));
         let c = &p.chamber;
         let margin = p.stalactite_radius_m.max(p.stalagmite_radius_m).min(c.width_m.min(c.depth_m) / 4.0);
