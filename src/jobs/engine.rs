@@ -14,7 +14,7 @@ use tokio::sync::Notify;
 use super::live::{LiveJob, StopReason};
 use super::metrics::Metrics;
 use super::store_terrain::StoreTerrain;
-use super::{Job, JobEvent, JobKind, JobStatus, Progress, RequestError};
+use super::{Job, JobEvent, JobKind, JobStatus, Progress, RequestError, SimError};
 use crate::export::{lod_cost, GlbForm, MeshSettings};
 use crate::store::{EventLog, IdempotentInsert, JobInputs, ListFilter, StoreError};
 use crate::validate::{FieldError, Limits};
@@ -591,7 +591,12 @@ impl Engine {
             .await?
             .ok_or_else(|| EngineError::Conflict(format!("job {id} has no recorded sequence")))?
             .1;
-        let steps = kind.sequence_steps(&sequence).map_err(|e| EngineError::Internal(e.to_string()))?;
+        let steps = kind.sequence_steps(&sequence).map_err(|e| match e {
+            SimError::Invalid { message, .. } => {
+                EngineError::Conflict(format!("job {id} cannot be replayed: {message}"))
+            }
+            other => EngineError::Internal(other.to_string()),
+        })?;
         if let Some(k) = until_step {
             if k > steps {
                 return Err(EngineError::field("until_step", format!("the sequence has {steps} steps (got {k})")));

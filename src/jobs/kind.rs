@@ -2,7 +2,7 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use serde::{de::DeserializeOwned, Serialize};
+use serde::{de::DeserializeOwned, Deserialize, Serialize};
 use serde_json::Value;
 use utoipa::openapi::{RefOr, Schema};
 use utoipa::ToSchema;
@@ -133,6 +133,11 @@ pub trait Simulation: Send + Sync + 'static {
     const KIND: &'static str;
     /// One line for the API docs.
     const SUMMARY: &'static str;
+    /// The version of the kind's generator: every sequence it records carries it, and a
+    /// sequence recorded by another version is refused on replay (it would not give the same
+    /// bytes). Raise it with any change that alters what a recorded sequence replays to.
+    /// Sequences recorded before versions were kept count as version 1.
+    const GENERATOR_VERSION: u32;
     type Params: Serialize + DeserializeOwned + ToSchema + Validate + Send + Sync;
     type Sequence: Sequence;
 
@@ -236,7 +241,8 @@ pub trait JobKind: Send + Sync {
     /// The cost of a prepared request (see [`Simulation::estimate`]).
     fn estimate(&self, params: &Value, seed: u64, terrain: &dyn TerrainLookup) -> Result<Cost, SimError>;
     fn run(&self, params: &Value, seed: u64, ctx: &RunContext) -> Result<JobOutput, SimError>;
-    /// Number of steps in a stored `sequence.json`.
+    /// Number of steps in a stored `sequence.json`; `Invalid` when another version of the
+    /// kind's generator recorded it.
     fn sequence_steps(&self, sequence_json: &[u8]) -> Result<u64, SimError>;
     fn replay(
         &self,
@@ -314,16 +320,27 @@ fn compact(value: &mut Value) {
     }
 }
 
-fn sequence_artifact<Q: Serialize>(sequence: &Q) -> Result<Artifact, SimError> {
-    let bytes = serde_json::to_vec_pretty(sequence).map_err(|e| SimError::Failed(e.to_string()))?;
+/// The key of `sequence.json` that names what recorded it: `{"kind": …, "version": …}`.
+const GENERATOR_KEY: &str = "generator";
+
+/// `sequence.json`: the kind's sequence with the generator that recorded it.
+fn sequence_artifact<S: Simulation>(sequence: &S::Sequence) -> Result<Artifact, SimError> {
+    let failed = |e: serde_json::Error| SimError::Failed(e.to_string());
+    let mut value = serde_json::to_value(sequence).map_err(failed)?;
+    let Value::Object(fields) = &mut value else {
+        return Err(SimError::Failed(format!("{} records a sequence that is not an object", S::KIND)));
+    };
+    let generator = serde_json::json!({"kind": S::KIND, "version": S::GENERATOR_VERSION});
+    fields.insert(GENERATOR_KEY.into(), generator);
+    let bytes = serde_json::to_vec_pretty(&value).map_err(failed)?;
     Ok(Artifact::new("sequence.json", "application/json", bytes))
 }
 
 /// The result gains `sequence_steps`, the steps a replay can stop after, so a client (the
 /// playground's timeline) knows the range of `until_step` without reading the sequence.
-fn finish<Q: Sequence>(outcome: Outcome<Q>) -> Result<JobOutput, SimError> {
+fn finish<S: Simulation>(outcome: Outcome<S::Sequence>) -> Result<JobOutput, SimError> {
     let mut artifacts = outcome.artifacts;
-    artifacts.push(sequence_artifact(&outcome.sequence)?);
+    artifacts.push(sequence_artifact::<S>(&outcome.sequence)?);
     let mut result = outcome.result;
     if let Value::Object(figures) = &mut result {
         figures.insert("sequence_steps".into(), Value::from(outcome.sequence.steps()));
@@ -337,8 +354,30 @@ fn stored_params<T: DeserializeOwned>(params: &Value) -> Result<T, SimError> {
     T::deserialize(params).map_err(|e| SimError::Failed(format!("stored request unreadable: {e}")))
 }
 
-fn stored_sequence<Q: DeserializeOwned>(json: &[u8]) -> Result<Q, SimError> {
-    serde_json::from_slice(json).map_err(|e| SimError::Failed(format!("stored sequence unreadable: {e}")))
+/// A stored `sequence.json`, after checking that this server's generator recorded it: one of
+/// another version answers `Invalid` on `sequence`, saying which (a replay would not give the
+/// recorded bytes).
+fn stored_sequence<S: Simulation>(json: &[u8]) -> Result<S::Sequence, SimError> {
+    let unreadable = |e: serde_json::Error| SimError::Failed(format!("stored sequence unreadable: {e}"));
+    let mut value: Value = serde_json::from_slice(json).map_err(unreadable)?;
+    let generator = match &mut value {
+        Value::Object(fields) => fields.remove(GENERATOR_KEY),
+        _ => None,
+    };
+    let version = generator.as_ref().map_or(Some(1), |g| g.get("version").and_then(Value::as_u64));
+    if version != Some(u64::from(S::GENERATOR_VERSION)) {
+        let recorded = version.map_or_else(|| "an unknown version".to_string(), |v| format!("version {v}"));
+        return Err(SimError::Invalid {
+            field: "sequence".into(),
+            message: format!(
+                "the sequence was recorded by {} generator {recorded}; this server runs version {} and would not \
+                 rebuild the same result from it (run the request again for a new result)",
+                S::KIND,
+                S::GENERATOR_VERSION
+            ),
+        });
+    }
+    S::Sequence::deserialize(value).map_err(unreadable)
 }
 
 impl<S: Simulation> JobKind for Kind<S> {
@@ -379,11 +418,11 @@ impl<S: Simulation> JobKind for Kind<S> {
     }
 
     fn run(&self, params: &Value, seed: u64, ctx: &RunContext) -> Result<JobOutput, SimError> {
-        finish(S::run(&stored_params(params)?, seed, ctx)?)
+        finish::<S>(S::run(&stored_params(params)?, seed, ctx)?)
     }
 
     fn sequence_steps(&self, sequence_json: &[u8]) -> Result<u64, SimError> {
-        Ok(stored_sequence::<S::Sequence>(sequence_json)?.steps())
+        Ok(stored_sequence::<S>(sequence_json)?.steps())
     }
 
     fn replay(
@@ -393,8 +432,8 @@ impl<S: Simulation> JobKind for Kind<S> {
         until_step: Option<u64>,
         ctx: &RunContext,
     ) -> Result<JobOutput, SimError> {
-        let sequence = stored_sequence::<S::Sequence>(sequence_json)?;
-        finish(S::replay(&stored_params(params)?, &sequence, until_step, ctx)?)
+        let sequence = stored_sequence::<S>(sequence_json)?;
+        finish::<S>(S::replay(&stored_params(params)?, &sequence, until_step, ctx)?)
     }
 
     fn request_schema(&self) -> RequestSchema {

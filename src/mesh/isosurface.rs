@@ -32,15 +32,17 @@ pub struct ScalarField<'a> {
 /// smooth, uvs = (x, z) over the grid's extent in [0,1], colors None. Empty mesh when nothing
 /// is inside.
 ///
-/// A sample equal to `iso` (or NaN) is outside. Crossings are linearly interpolated, then kept
-/// at least [`MIN_CROSSING`] of an edge away from both ends: a sample lying on the surface
-/// (exactly `iso`, as on flat caps and floors that fall on a sample plane) would otherwise put
-/// the vertices of all its edges at one point, giving duplicated positions and zero-area
-/// triangles, which engines' physics and lightmappers reject. Kept apart, vertices on distinct
-/// edges never coincide and no triangle is degenerate (the points on a tetrahedron's edges
-/// strictly between its corners never lie three on a line); the surface moves by at most
-/// 1/1024 of a sample spacing (1 mm on a 1 m grid, far above f32's resolution at any
-/// coordinate below 4 km). Where the region reaches the grid's side the surface closes half a
+/// A sample equal to `iso` (or NaN) is outside. Crossings are linearly interpolated, between
+/// values moved off the surface where a sample lies too near it (see `kept_off`), then kept
+/// at least [`min_crossing`] of an edge away from both ends: a sample lying on the surface
+/// (exactly `iso`, as on flat caps, walls and floors that fall on a sample plane) would
+/// otherwise put the vertices of all its edges at one point, giving duplicated positions and
+/// zero-area triangles, which engines' physics and lightmappers reject. Kept apart, vertices on
+/// distinct edges never coincide and no triangle is degenerate (the points on a tetrahedron's
+/// edges strictly between its corners never lie three on a line), and they stay apart once
+/// written: the distance is at least four steps of the coarsest position grid a glb form uses
+/// for a box the grid's size. The surface moves by at most that distance, and only where it
+/// passes that close to a sample. Where the region reaches the grid's side the surface closes half a
 /// sample beyond the last sample, as for a voxel centred on its sample. Identical output
 /// whatever the thread count.
 ///
@@ -95,8 +97,20 @@ pub fn extract_isosurface(field: &ScalarField, iso: f32, stop: Stop) -> Result<M
     Ok(mesh)
 }
 
-/// The closest a crossing comes to either end of its edge, as a fraction of the edge.
-pub const MIN_CROSSING: f32 = 1.0 / 1024.0;
+/// Bits per coordinate of the coarsest position grid a glb form writes (meshopt's 14, as
+/// gltfpack's default; the quantised form has 16).
+const COARSEST_POSITION_BITS: u32 = 14;
+
+/// The closest a crossing comes to either end of its edge, as a fraction of the edge, for a
+/// grid of `dims` samples: four steps of a [`COARSEST_POSITION_BITS`] grid over the longest
+/// side (rounding moves a point by at most √3/2 of a step, so points four steps apart never
+/// share a written position, and the short sides of the triangles around a sample on the
+/// surface keep their shape), and never under 1/1024 of an edge. 1/64 of a voxel for a
+/// 257-sample side, 1/16 for 1025.
+pub fn min_crossing(dims: [usize; 3]) -> f32 {
+    let longest = dims.into_iter().max().unwrap_or(0) as f32;
+    (4.0 * longest / ((1u32 << COARSEST_POSITION_BITS) - 1) as f32).max(1.0 / 1024.0)
+}
 
 /// The six Kuhn tetrahedra of a cube as corner numbers (`dx | dy << 1 | dz << 2`), each
 /// ordered so every edge runs from a corner to one with more bits, with the sign of its
@@ -123,6 +137,8 @@ struct PaddedGrid<'a> {
     /// Padded side lengths `[nx + 2, ny + 2, nz + 2]`.
     size: [usize; 3],
     inside: Vec<bool>,
+    /// [`min_crossing`] of the field's grid.
+    min_crossing: f32,
 }
 
 /// The surface vertices on edges based in one padded plane y, and that plane's cubes that
@@ -153,7 +169,7 @@ impl<'a> PaddedGrid<'a> {
                 }
             }
         });
-        Self { field, iso, size, inside }
+        Self { field, iso, size, inside, min_crossing: min_crossing(field.dims) }
     }
 
     fn index(&self, px: usize, py: usize, pz: usize) -> usize {
@@ -219,17 +235,51 @@ impl<'a> PaddedGrid<'a> {
         layer
     }
 
+    /// Sample `p`'s value `v`, moved off the surface if it lies too near it: to
+    /// `min_crossing / (1 − min_crossing)` of the largest difference from `iso` among its 14
+    /// lattice neighbours, on its own side. The surface near such a sample then shifts as a
+    /// whole (a plane moves parallel to itself), so every crossing on its edges keeps
+    /// `min_crossing` from it and the small triangles around it keep the surface's normal;
+    /// clamping each crossing alone put them on a little cap around the sample, whose
+    /// normals were off by 35°. A sample exactly on the surface (flat caps, walls and floors
+    /// on a sample plane, whose neighbours along the plane are on it too) is left to the
+    /// clamp, which keeps such a cap flat.
+    fn kept_off(&self, p: [usize; 3], v: f32) -> f32 {
+        let gap = v - self.iso;
+        if gap == 0.0 || gap.is_nan() {
+            return v;
+        }
+        let mut largest = 0.0f32;
+        for offset in 1..8u8 {
+            let d = [(offset & 1) as usize, ((offset >> 1) & 1) as usize, ((offset >> 2) & 1) as usize];
+            let up = self.value(p[0] + d[0], p[1] + d[1], p[2] + d[2]);
+            let down = (p[0] >= d[0] && p[1] >= d[1] && p[2] >= d[2])
+                .then(|| self.value(p[0] - d[0], p[1] - d[1], p[2] - d[2]))
+                .flatten();
+            for w in up.into_iter().chain(down) {
+                largest = largest.max((w - self.iso).abs());
+            }
+        }
+        let least = self.min_crossing / (1.0 - self.min_crossing) * largest;
+        if gap.abs() >= least {
+            v
+        } else {
+            self.iso + least.copysign(gap)
+        }
+    }
+
     /// Where the field crosses `iso` on the edge from padded sample `base` to `base + offset`.
     fn crossing_point(&self, base: [usize; 3], offset: u8) -> [f32; 3] {
         let d = [(offset & 1) as usize, ((offset >> 1) & 1) as usize, ((offset >> 2) & 1) as usize];
-        let a = self.value(base[0], base[1], base[2]);
-        let b = self.value(base[0] + d[0], base[1] + d[1], base[2] + d[2]);
+        let far = [base[0] + d[0], base[1] + d[1], base[2] + d[2]];
+        let a = self.value(base[0], base[1], base[2]).map(|v| self.kept_off(base, v));
+        let b = self.value(far[0], far[1], far[2]).map(|v| self.kept_off(far, v));
         let t = match (a, b) {
             // Exactly one end is inside (> iso), so va != vb unless NaN or overflow intervene.
             (Some(va), Some(vb)) => {
                 let t = (self.iso - va) / (vb - va);
                 if t.is_finite() {
-                    t.clamp(MIN_CROSSING, 1.0 - MIN_CROSSING)
+                    t.clamp(self.min_crossing, 1.0 - self.min_crossing)
                 } else {
                     0.5
                 }
@@ -470,7 +520,7 @@ pub(crate) mod tests {
         assert_eq!(mesh.degeneracies(), (0, 0));
         assert!(consistently_wound(&mesh));
         // A slab whose faces fall on sample planes (exactly 0 there) keeps flat faces, moved by
-        // at most 1/1024 of a sample.
+        // the least crossing.
         let slab: Vec<f32> = (0..n * n * n).map(|i| 3.0 - ((i / (n * n)) as f32 - 6.0).abs()).collect();
         let mesh = extract_isosurface(
             &ScalarField { dims: [n; 3], origin_m: [0.0; 3], spacing_m: 1.0, values: &slab },
@@ -480,7 +530,8 @@ pub(crate) mod tests {
         .unwrap();
         assert_eq!(mesh.degeneracies(), (0, 0));
         let (lo, hi) = mesh.bounds().unwrap();
-        assert_eq!((lo[1], hi[1]), (3.0 + MIN_CROSSING, 9.0 - MIN_CROSSING));
+        let e = min_crossing([n; 3]);
+        assert_eq!((lo[1], hi[1]), (3.0 + e, 9.0 - e));
         let faces = mesh.positions.iter().filter(|p| p[1] == lo[1] || p[1] == hi[1]).count();
         let near_faces = mesh.positions.iter().filter(|p| p[1] < 3.5 || p[1] > 8.5).count();
         assert_eq!(faces, near_faces, "every vertex near a face lies on its plane");

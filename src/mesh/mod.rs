@@ -19,7 +19,7 @@ pub use deviation::max_deviation;
 pub use gpu_order::GpuOrder;
 pub use grid_tiles::{grid_patch, tile_edges};
 pub use heightfield_mesh::{heightfield_mesh, mesh_stride, HeightfieldMesh, VertexColorFn, DEFAULT_MAX_SIDE_SAMPLES};
-pub use isosurface::{extract_isosurface, ScalarField, MIN_CROSSING};
+pub use isosurface::{extract_isosurface, min_crossing, ScalarField};
 pub use lod::{sample_spacing, simplify_within, Lod};
 pub use normals::recompute_normals;
 pub use rtin::Rtin;

@@ -24,30 +24,3 @@ pub fn closed_nodes(glb: &[u8]) -> Vec<(String, bool)> {
         })
         .collect()
 }
-
-/// Per node with a mesh, of a glb with f32 positions (`compression: none`): its name, its
-/// zero-area triangles (corners' cross product exactly zero, in f64) and its vertices at the
-/// position of another (bit for bit).
-pub fn degenerate_nodes(glb: &[u8]) -> Vec<(String, usize, usize)> {
-    let gltf = gltf::Gltf::from_slice_without_validation(glb).expect("glb parses");
-    let blob = gltf.blob.as_deref().expect("a BIN chunk");
-    gltf.nodes()
-        .filter_map(|node| {
-            let prim = node.mesh()?.primitives().next()?;
-            let reader = prim.reader(|_| Some(blob));
-            let positions: Vec<[f32; 3]> = reader.read_positions().expect("f32 positions").collect();
-            let indices: Vec<u32> = reader.read_indices()?.into_u32().collect();
-            // The library's own count, on the mesh as the file gives it back.
-            let n = positions.len();
-            let mesh = landform::mesh::Mesh {
-                positions,
-                normals: vec![[0.0, 1.0, 0.0]; n],
-                uvs: vec![[0.0; 2]; n],
-                colors: None,
-                indices,
-            };
-            let (zero, duplicates) = mesh.degeneracies();
-            Some((node.name().unwrap_or_default().to_string(), zero, duplicates))
-        })
-        .collect()
-}

@@ -51,6 +51,7 @@ impl Simulation for Bulldoze {
     const KIND: &'static str = "bulldoze";
     const SUMMARY: &'static str =
         "Edit a heightfield with blades swept along paths and landform primitives combined by operators";
+    const GENERATOR_VERSION: u32 = 1;
     type Params = BulldozeParams;
     type Sequence = BulldozeSequence;
 

@@ -245,3 +245,40 @@ pub fn columns(values: &[f32], grid: &Grid) -> (Vec<u32>, Heightfield) {
     }
     (crossings, hf)
 }
+
+/// Set the box's outer ring of `top` (from [`columns`]) to the carved terrain's topmost
+/// surface there. The sampled field is air on the box's walls (the solid's sides stand half a
+/// voxel's clamp inside them), so those columns find no crossing and would report the box's
+/// bottom: a heightmap whose border is a moat tens of metres deep, and a wrong `z_min`. Each
+/// wall column is searched from the top down on the implicit function without its walls, and
+/// the crossing interpolated as [`columns`] does inside.
+pub fn surface_at_walls(implicit: &Implicit, grid: &Grid, top: &mut Heightfield) {
+    let (nx, nz) = (grid.nx, grid.nz);
+    let mut ring: Vec<usize> = (0..nx).flat_map(|x| [x, (nz - 1) * nx + x]).collect();
+    ring.extend((1..nz.saturating_sub(1)).flat_map(|z| [z * nx, z * nx + nx - 1]));
+    ring.sort_unstable();
+    ring.dedup();
+    let (w, d) = (implicit.hf.width_m(), implicit.hf.depth_m());
+    let tops: Vec<f32> = ring
+        .par_iter()
+        .map(|&k| {
+            // Sample positions on the walls lie on them exactly, even where the footprint is not
+            // a whole number of voxels.
+            let (x, z) = (((k % nx) as f32 * grid.voxel_m).min(w), ((k / nx) as f32 * grid.voxel_m).min(d));
+            let rock = |j: usize| -implicit.carved([x, grid.y_m(j), z]);
+            let mut above = rock(grid.ny - 1);
+            for j in (1..grid.ny - 1).rev() {
+                let below = rock(j);
+                if above <= 0.0 && below > 0.0 {
+                    let t = -above / (below - above);
+                    return grid.y_m(j + 1) - t * grid.voxel_m;
+                }
+                above = below;
+            }
+            grid.bottom_y
+        })
+        .collect();
+    for (k, h) in ring.into_iter().zip(tops) {
+        top.heights_m[k] = h;
+    }
+}

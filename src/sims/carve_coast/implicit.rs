@@ -265,10 +265,16 @@ impl<'a> Implicit<'a> {
         self.sphere_distance_at(self.warp(p))
     }
 
+    /// The carved terrain at world point `p` without the box's walls: positive in air. On a
+    /// wall it gives the surface the solid's side meets.
+    pub fn carved(&self, p: [f32; 3]) -> f32 {
+        let q = self.warp(p);
+        self.terrain_distance_at(q).max(-self.sphere_distance_at(q))
+    }
+
     /// The full implicit function at world point `p`: positive in air.
     pub fn distance(&self, p: [f32; 3]) -> f32 {
-        let q = self.warp(p);
-        let carved = self.terrain_distance_at(q).max(-self.sphere_distance_at(q));
+        let carved = self.carved(p);
         let walls = (-p[0]).max(p[0] - self.hf.width_m()).max(-p[2]).max(p[2] - self.hf.depth_m());
         carved.max(walls)
     }

@@ -35,6 +35,9 @@ impl Simulation for CarveCoast {
     const KIND: &'static str = "carve-coast";
     const SUMMARY: &'static str =
         "Carve a coastline with overhangs, sea caves and arches out of a terrain's implicit form, meshed as a closed solid";
+    /// Version 2: the heightmap's border is the surface there (it was the box's bottom) and the
+    /// mesh's vertices keep apart on every written grid.
+    const GENERATOR_VERSION: u32 = 2;
     type Params = CarveCoastParams;
     type Sequence = CoastSequence;
 
@@ -63,7 +66,7 @@ impl Simulation for CarveCoast {
             });
             Ok(())
         })?;
-        let sequence = CoastSequence { seed, spheres };
+        let sequence = CoastSequence { terrain: params.terrain.clone(), seed, spheres };
         finish(params, &hf, sequence, voxel_m, ctx)
     }
 

@@ -6,7 +6,7 @@ use rayon::prelude::*;
 use serde_json::{json, Value};
 
 use super::caves;
-use super::field::{bands, columns, grid_for, remove_fragments, sample_planes, Grid};
+use super::field::{bands, columns, grid_for, remove_fragments, sample_planes, surface_at_walls, Grid};
 use super::implicit::{Carving, Implicit};
 use super::params::CarveCoastParams;
 use crate::export::{
@@ -255,7 +255,8 @@ pub fn build(
 ) -> Result<(Value, Vec<Artifact>), SimError> {
     let sampled = sample(implicit, params, voxel_m, false, on_chunk)?;
     stop.check()?;
-    let (crossings, top) = columns(&sampled.values, &sampled.grid);
+    let (crossings, mut top) = columns(&sampled.values, &sampled.grid);
+    surface_at_walls(implicit, &sampled.grid, &mut top);
     let mut mesh = surface(&sampled, stop)?;
     let caves = caves::count(&sampled.values, &sampled.grid, &top, params.sea_level);
     drop(sampled.values);

@@ -1,14 +1,18 @@
-//! The recorded sequence: the carvings in order (authored before, eroded spheres, authored
-//! after). The terrain
-//! source and warp are in the request; replay until k carves the first k spheres.
+//! The recorded sequence: the terrain it started from and the carvings in order (authored
+//! before, eroded spheres, authored after). The warp is in the request; replay until k carves
+//! the first k spheres.
 
 use serde::{Deserialize, Serialize};
 
 use super::implicit::Carving;
 use crate::jobs::Sequence;
+use crate::terrain::TerrainSource;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CoastSequence {
+    /// The starting terrain, as requested (replay reads it from the request, which holds the
+    /// same).
+    pub terrain: TerrainSource,
     /// Seeds the warp's noise.
     pub seed: u64,
     /// In carving order: spheres `[[x, y, z, radius], pass]` and authored capsules
@@ -26,6 +30,6 @@ impl Sequence for CoastSequence {
 impl CoastSequence {
     pub fn until(&self, until: Option<u64>) -> CoastSequence {
         let k = until.map_or(self.spheres.len(), |k| (k as usize).min(self.spheres.len()));
-        CoastSequence { seed: self.seed, spheres: self.spheres[..k].to_vec() }
+        CoastSequence { terrain: self.terrain.clone(), seed: self.seed, spheres: self.spheres[..k].to_vec() }
     }
 }

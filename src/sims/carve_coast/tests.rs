@@ -62,10 +62,10 @@ fn without_carving_or_warp_every_column_crosses_once_at_the_heightfield() {
     let mesh = surface(&s, Stop::NEVER).unwrap();
     assert!(mesh.is_closed());
     assert_eq!(topology(&mesh), (1, 0), "one solid, no through-hole");
-    // The caps lie flat just inside the box (1/1024 of a voxel, where the extraction keeps
+    // The caps lie flat just inside the box (the least crossing, where the extraction keeps
     // vertices off the box's samples): nothing below its bottom or beyond its walls.
     let (lo, hi) = mesh.bounds().unwrap();
-    let inset = crate::mesh::MIN_CROSSING * g.voxel_m;
+    let inset = crate::mesh::min_crossing([g.nx, g.ny, g.nz]) * g.voxel_m;
     assert_eq!(lo[1], g.bottom_y + inset);
     assert!(lo[0] >= 0.0 && lo[2] >= 0.0 && hi[0] <= hf.width_m() && hi[2] <= hf.depth_m());
     let bottom = mesh.positions.iter().filter(|p| p[1] < g.bottom_y + 0.5 * g.voxel_m).count();
@@ -469,4 +469,74 @@ fn authored_carvings_before_the_passes_are_eroded_after_them_are_not() {
         deep_before > deep_none,
         "first-pass spheres deep in the cliff: {deep_before} with the tunnel, {deep_none} without"
     );
+}
+
+#[test]
+fn the_heightmap_border_is_the_terrain_surface_not_the_box_bottom() {
+    // No warp: where no carving reaches, the topmost surface is the heightfield itself, so the
+    // border of heightfield.npy must equal the input's heights there (the field is linear in y
+    // along a column, so the interpolated crossing is exact up to rounding).
+    let p = island(129, 0.2);
+    let hf = terrain(&p);
+    let out = CarveCoast::run(&p, 5, &ctx().ctx()).unwrap();
+    let npy = out.artifacts.iter().find(|a| a.name == crate::jobs::HEIGHTFIELD_ARTIFACT).unwrap();
+    let top = crate::export::read_heightfield_npy(&npy.bytes, 1.0).unwrap();
+    assert_eq!((top.cols, top.rows), (129, 129));
+    let untouched = |x: f32, z: f32| {
+        out.sequence.spheres.iter().all(|s| {
+            let (a, b) = s.bounds();
+            x < a[0] - 1.0 || x > b[0] + 1.0 || z < a[2] - 1.0 || z > b[2] + 1.0
+        })
+    };
+    let (mut checked, mut worst) = (0, 0.0f32);
+    for k in 0..top.cols * top.rows {
+        let (c, r) = (k % top.cols, k / top.cols);
+        if c != 0 && r != 0 && c != top.cols - 1 && r != top.rows - 1 {
+            continue;
+        }
+        let (x, z) = (c as f32, r as f32);
+        if untouched(x, z) {
+            checked += 1;
+            worst = worst.max((top.heights_m[k] - hf.sample(x, z)).abs());
+        }
+    }
+    assert!(checked > 400, "{checked} of 512 border samples untouched by carving");
+    assert!(worst < 1e-3, "border off the terrain by {worst} m");
+    let (lo, _) = top.min_max();
+    assert_eq!(out.result["z_min"], json!(lo));
+    assert!(lo >= hf.min_max().0 - 1.0, "z_min {lo} below the terrain's lowest point {:?}", hf.min_max());
+}
+
+#[test]
+fn a_sequence_names_its_generator_and_terrain_and_another_versions_is_refused() {
+    use crate::jobs::{JobKind, Kind};
+    let t = ctx();
+    let kind = Kind::<CarveCoast>::default();
+    let body = serde_json::to_value(island(65, 0.2)).unwrap();
+    let prepared = kind.prepare(body, &t.limits).expect("valid");
+    let run = kind.run(&prepared.params, 5, &t.ctx()).unwrap();
+    let bytes = &run.artifacts.iter().find(|a| a.name == "sequence.json").unwrap().bytes;
+    let mut stored: Value = serde_json::from_slice(bytes).unwrap();
+    assert_eq!(stored["generator"], json!({"kind": "carve-coast", "version": CarveCoast::GENERATOR_VERSION}));
+    let terrain = |v: &Value| serde_json::from_value::<TerrainSource>(v.clone()).unwrap();
+    assert_eq!(terrain(&stored["terrain"]), terrain(&prepared.params["terrain"]), "the terrain it started from");
+    let steps = kind.sequence_steps(bytes).unwrap();
+    assert!(steps > 10);
+    // The same sequence stamped by another version, or by none (recorded before versions were
+    // kept: version 1), is refused with the versions named, not rebuilt into other bytes.
+    for (stamp, recorded) in [(json!({"kind": "carve-coast", "version": 1}), "version 1"), (Value::Null, "version 1")] {
+        if stamp.is_null() {
+            stored.as_object_mut().unwrap().remove("generator");
+        } else {
+            stored["generator"] = stamp;
+        }
+        let old = serde_json::to_vec(&stored).unwrap();
+        for err in
+            [kind.sequence_steps(&old).unwrap_err(), kind.replay(&prepared.params, &old, None, &t.ctx()).unwrap_err()]
+        {
+            let SimError::Invalid { field, message } = err else { panic!("{err:?}") };
+            assert_eq!(field, "sequence");
+            assert!(message.contains(recorded) && message.contains("version 2"), "{message}");
+        }
+    }
 }

@@ -3,6 +3,7 @@
 //! the fitness change of a deformation evaluated over its kernel's window only, candidates
 //! evaluated in parallel, and the deformation sequence recorded as the terrain (§4.5).
 
+mod bounds;
 mod candidates;
 mod constraints;
 mod cost;
@@ -13,6 +14,8 @@ mod prediction;
 mod search;
 mod sequence;
 
+#[cfg(test)]
+mod limit_tests;
 #[cfg(test)]
 mod tests;
 
@@ -50,6 +53,7 @@ impl Simulation for DeformTerrain {
     const KIND: &'static str = "deform-terrain";
     const SUMMARY: &'static str =
         "Deform a terrain by stochastic local search over Gaussian operations until it satisfies constraints";
+    const GENERATOR_VERSION: u32 = 1;
     type Params = DeformTerrainParams;
     type Sequence = DeformSequence;
 
@@ -83,8 +87,13 @@ impl Simulation for DeformTerrain {
         let mut h = problem.original.clone();
         let grid = problem.grid();
         let fields = problem.fields(&grid)?;
-        let settings = problem.settings(params, &fields)?;
-        let fitness = Fitness::new(&fields, grid.cols, grid.rows);
+        let mut settings = problem.settings(params, &fields)?;
+        let bounds = bounds::Bounds::new(&fields, &grid, params.max_free_change);
+        let mut fitness = Fitness::new(&fields, grid.cols, grid.rows);
+        if let Some(keep) = constraints::keep(&bounds.asked, &grid, params.keep_weight) {
+            fitness = fitness.with(&keep);
+        }
+        settings.bounds = params.limited().then_some(bounds);
         let interest = constraints::interest(&fields, grid.cells());
         let vertices = vertices(params, &settings, &fields, &interest, &grid);
         let entries: usize = vertices.iter().map(|v| v.2.count_ones() as usize).sum();
@@ -216,7 +225,16 @@ impl<'p> Problem<'p> {
     }
 
     fn grid(&self) -> Grid<'_> {
-        Grid { cols: self.cols, rows: self.rows, cell_m: self.cell_m, original: &self.original, relief: self.relief }
+        let slope_limit =
+            bounds::slope_limit(&self.original, self.cols, self.rows, self.cell_m, self.params.max_slope_ratio);
+        Grid {
+            cols: self.cols,
+            rows: self.rows,
+            cell_m: self.cell_m,
+            original: &self.original,
+            relief: self.relief,
+            slope_limit,
+        }
     }
 
     fn fields(&self, grid: &Grid) -> Result<Vec<Field>, SimError> {
@@ -299,6 +317,7 @@ impl<'p> Problem<'p> {
             cell_m: self.cell_m,
             tile_x,
             tile_z,
+            bounds: None,
         })
     }
 }
@@ -440,6 +459,9 @@ fn finish(
         Value::Object(map) => map,
         other => [("export".to_string(), other)].into_iter().collect::<Map<_, _>>(),
     };
+    let (limits, asked) = limits_figures(fields, &grid, problem.params.max_free_change, h);
+    // Far from every cell a constraint refines around or asks to move (a road's earthworks).
+    let asked: Vec<bool> = asked.iter().zip(interest).map(|(&a, &i)| a || i).collect();
     let total: f64 = fields.iter().map(|f| f.weight * f.value(h, grid.cols, grid.rows)).sum();
     let max_radius = settings.kernels.iter().map(|k| k.radius).max().unwrap_or(1);
     let figures: Vec<Value> = fields.iter().map(|f| f.figures(h, &grid)).collect();
@@ -464,8 +486,9 @@ fn finish(
     }
     result.insert(
         "far_cells".into(),
-        far_cells(h, &problem.original, interest, grid.cols, grid.rows, 2 * max_radius, grid.relief),
+        far_cells(h, &problem.original, &asked, grid.cols, grid.rows, 2 * max_radius, grid.relief),
     );
+    result.insert("limits".into(), limits);
     result.insert("sequence_bytes".into(), json!(sequence_bytes));
     result.insert(
         "sequence_bin".into(),
@@ -486,6 +509,33 @@ fn finish(
         artifacts.push(Artifact::new("road.json", "application/json", bytes));
     }
     Ok(Outcome { result: Value::Object(result), sequence, artifacts })
+}
+
+/// How the result keeps to the limits ([`bounds`]): the limits, the footprint's size, and
+/// outside it the share of samples within a tenth of the relief of their input height and the
+/// largest change; the steepest step against the input's.
+fn limits_figures(fields: &[Field], grid: &Grid, max_free_change: f64, h: &[f64]) -> (Value, Vec<bool>) {
+    let b = bounds::Bounds::new(fields, grid, max_free_change);
+    let (mut outside, mut within, mut worst) = (0u64, 0u64, 0.0f64);
+    for (i, (&v, &o)) in h.iter().zip(grid.original).enumerate() {
+        if !b.footprint[i] {
+            outside += 1;
+            within += u64::from((v - o).abs() <= 0.1 * grid.relief);
+            worst = worst.max((v - o).abs());
+        }
+    }
+    let figures = json!({
+        "max_step_m": b.step_max,
+        "footprint_samples": b.footprint.iter().filter(|&&f| f).count(),
+        "outside_footprint": {
+            "samples": outside,
+            "share_within_tenth_of_relief": if outside == 0 { 1.0 } else { within as f64 / outside as f64 },
+            "max_change_of_relief": worst / grid.relief,
+        },
+        "steepest_step_m": bounds::steepest_step(h, grid.cols, grid.rows),
+        "input_steepest_step_m": bounds::steepest_step(grid.original, grid.cols, grid.rows),
+    });
+    (figures, b.asked)
 }
 
 /// The heights with the 3 × 1 seam filter of every `edge_match` that asks for it, if any does.
@@ -513,7 +563,7 @@ fn pack(problem: &Problem, sequence: &DeformSequence, h: &[f64]) -> packed::Pack
     packed::encode(sequence, &start, h, tolerance)
 }
 
-/// Cells at least `distance` cells (Chebyshev) from every cell of interest: how many, and
+/// Cells at least `distance` cells (Chebyshev) from every marked cell: how many, and
 /// their largest change from the original as a share of the relief.
 fn far_cells(
     h: &[f64],

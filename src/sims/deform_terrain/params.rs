@@ -187,6 +187,42 @@ pub struct DeformTerrainParams {
     // 1e6 = MAX_METRES
     #[schema(minimum = 0.0, maximum = 1000000.0)]
     pub sequence_tolerance_m: Option<f64>,
+    /// The pull of every sample no constraint asks about back to its input height (the
+    /// paper's "the original terrain be preserved as much as possible", §3.1): the mean
+    /// square of their changes in units of relief², weighted against the constraints. It is
+    /// not part of the fitness the search stops on (`epsilon`) or reports per constraint.
+    /// 0 (the default for now): none, the constraints alone decide, within the limits below.
+    #[serde(default)]
+    #[schema(default = 0.0, minimum = 0.0, maximum = 1000000.0)]
+    pub keep_weight: f64,
+    /// How far a sample outside every constraint's footprint may move, as a share of the
+    /// input's relief (a hard limit the search keeps). A constraint's footprint is what it
+    /// needs to move (a road's cells, a mask's samples on the wrong side, a point, a region, a
+    /// seam band) and the room around it for transitions half as steep as `max_slope_ratio`
+    /// allows. Past a seam band, also at most the band's own largest wanted change. 1 (the
+    /// default for now): no limit on the change.
+    #[serde(default = "one")]
+    #[schema(default = 1.0, minimum = 0.0, maximum = 1.0)]
+    pub max_free_change: f64,
+    /// The steepest step between neighbouring samples the result may have, as a multiple of
+    /// the input's steepest (a hard limit the search keeps; on a flat input, 5 %). 1: never
+    /// steeper than the input anywhere; raise it for sharp terraces or cliffs. 100 (the
+    /// default for now): no limit on the slope. With both limits at their defaults the
+    /// search runs without them.
+    #[serde(default = "default_max_slope_ratio")]
+    #[schema(default = 100.0, minimum = 1.0, maximum = 100.0)]
+    pub max_slope_ratio: f64,
+}
+
+fn default_max_slope_ratio() -> f64 {
+    100.0
+}
+
+impl DeformTerrainParams {
+    /// Whether the request asks for the limits ([`super::bounds`]).
+    pub fn limited(&self) -> bool {
+        self.max_free_change < 1.0 || self.max_slope_ratio < 100.0
+    }
 }
 
 /// One constraint: exactly one of the kinds.
@@ -301,6 +337,7 @@ pub struct Road {
     // 1e6 = MAX_METRES
     #[schema(minimum = 0.0, maximum = 1e6)]
     pub shoulder_m: Option<f64>,
+
     /// The weight of the preservation term (other cells pulled back to their original heights)
     /// relative to the road-cell term; both are mean squares in units of relief². 0 leaves the
     /// rest of the terrain to the other constraints.
@@ -702,6 +739,11 @@ impl Validate for DeformTerrainParams {
         if self.prediction_constant <= 0.0 {
             v.error("prediction_constant", "must be greater than 0");
         }
+        if v.finite("keep_weight", self.keep_weight) && !(0.0..=1e6).contains(&self.keep_weight) {
+            v.error("keep_weight", "must be between 0 and 1000000");
+        }
+        v.in_range("max_free_change", self.max_free_change, 0.0, 1.0);
+        v.in_range("max_slope_ratio", self.max_slope_ratio, 1.0, 100.0);
     }
 }
 

@@ -31,6 +31,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::bounds::Bounds;
 use super::constraints::{Best, Field, Fitness};
 use super::kernel::{self, Kernel, Rect};
 use super::prediction;
@@ -53,6 +54,8 @@ pub struct Settings {
     pub cell_m: f64,
     pub tile_x: bool,
     pub tile_z: bool,
+    /// The limits every applied deformation keeps ([`Bounds`]); none in a replay.
+    pub bounds: Option<Bounds>,
 }
 
 /// Radii in cells: `count` geometric steps from `min` to `max`, rounded, without repeats.
@@ -229,7 +232,7 @@ pub fn search<W: Watch>(
     let eval = |h: &[f64], residual: &[f64], e: &Entry| {
         let k = e.radius as usize;
         let kernel = &s.kernels[k];
-        fitness.best_change(
+        fitness.best_change_within(
             h,
             residual,
             e.col as usize,
@@ -240,6 +243,7 @@ pub fn search<W: Watch>(
             s.d_max[k],
             true,
             (!e.curvature.is_nan()).then_some(e.curvature),
+            allowed(fitness, s, h, e, stride(kernel.radius)),
         )
     };
     // Per radius and row, the entries in column order: what a change can reach is found
@@ -279,7 +283,7 @@ pub fn search<W: Watch>(
     let unchecked = |e: &Entry| stride(s.kernels[e.radius as usize].radius) > 1 && !e.checked;
     let check = |h: &[f64], residual: &[f64], e: &Entry| {
         let k = e.radius as usize;
-        fitness.best_change(
+        fitness.best_change_within(
             h,
             residual,
             e.col as usize,
@@ -290,6 +294,7 @@ pub fn search<W: Watch>(
             s.d_max[k],
             true,
             (!e.exact_curvature.is_nan()).then_some(e.exact_curvature),
+            allowed(fitness, s, h, e, 1),
         )
     };
     let exact = |h: &[f64], residual: &[f64], e: &mut Entry, key: &mut f64| {
@@ -367,7 +372,7 @@ pub fn search<W: Watch>(
         iterations = iteration;
         // The batch: the choice, then further improving entries best first whose windows the
         // changes so far leave untouched, so each entry's change is still exact and they add.
-        let mut batch = vec![e];
+        let mut batch = vec![(first, e)];
         ahead.clear();
         let mut dirty = dirty_rects(window(&e), cols, rows, s.tile_x, s.tile_z);
         if s.batch > 1 {
@@ -434,15 +439,28 @@ pub fn search<W: Watch>(
                     }
                 }
                 dirty.extend(dirty_rects(w, cols, rows, s.tile_x, s.tile_z));
-                batch.push(table[j]);
+                batch.push((j, table[j]));
                 k += 1;
             }
         }
         changes.clear();
-        for e in &batch {
+        // What the applied deformations changed (a deformation the limits hold back changes
+        // nothing, and what it reaches stays as it is).
+        let mut changed: Vec<Rect> = Vec::with_capacity(dirty.len());
+        for &(i, e) in &batch {
             let kernel = &s.kernels[e.radius as usize];
             let (col, row) = (e.col as usize, e.row as usize);
-            let amplitude = (h[row * cols + col] + e.delta) as f32;
+            let mut delta = e.delta;
+            if let Some(bounds) = &s.bounds {
+                let (lo, hi) = bounds.range(h, col, row, kernel);
+                let kept = delta.max(lo).min(hi);
+                if lo.is_nan() || hi.is_nan() || lo > hi || kept * delta <= 0.0 {
+                    keys[i] = 0.0;
+                    continue;
+                }
+                delta = kept;
+            }
+            let amplitude = (h[row * cols + col] + delta) as f32;
             let op = Deformation {
                 x: col as f64 * s.cell_m,
                 z: row as f64 * s.cell_m,
@@ -453,6 +471,7 @@ pub fn search<W: Watch>(
                 radius_m: kernel.radius as f64 * s.cell_m,
             };
             let rect = tracker.apply(h, &op, kernel);
+            changed.extend(dirty_rects(rect, cols, rows, s.tile_x, s.tile_z));
             let mut change = Vec::new();
             fitness.refresh_residual(&mut residual, h, rect, incremental.then_some(&mut change));
             if incremental {
@@ -464,7 +483,7 @@ pub fn search<W: Watch>(
         // Invalidate what the change can reach; recompute (with prediction, only the likely).
         // Only entries within their radius of a changed cell can reach it: per radius, the
         // rows within that radius, and in each row the columns within it.
-        for d in &dirty {
+        for d in &changed {
             for (k, rows_of) in by_radius.iter().enumerate() {
                 let r = reach[k];
                 let (lo, hi) = (d.r0.saturating_sub(r), (d.r1 + r).min(rows - 1));
@@ -502,7 +521,7 @@ pub fn search<W: Watch>(
         let summed = todo.len();
         todo.extend(update);
         let sum = |e: &Entry| eval(h, &residual, e);
-        let update = |e: &Entry| updated(fitness, &changes, e, s);
+        let update = |e: &Entry| updated(fitness, &changes, e, s, h);
         evaluations += refresh(&mut table, &mut keys, &todo, summed, &sum, &update);
         for &i in &todo[..summed] {
             missed[i] = false;
@@ -704,7 +723,7 @@ fn refresh(
 /// An entry's best change from its sum b brought up to date with the residual's `changes`
 /// (each a window and the change over it, row by row): exact, as a recomputation, when the
 /// fitness is residual-only.
-fn updated(fitness: &Fitness, changes: &[(Rect, Vec<f64>)], e: &Entry, s: &Settings) -> Best {
+fn updated(fitness: &Fitness, changes: &[(Rect, Vec<f64>)], e: &Entry, s: &Settings, h: &[f64]) -> Best {
     let k = e.radius as usize;
     let kernel = &s.kernels[k];
     let (col, row) = (e.col as usize, e.row as usize);
@@ -713,7 +732,17 @@ fn updated(fitness: &Fitness, changes: &[(Rect, Vec<f64>)], e: &Entry, s: &Setti
         .iter()
         .filter(|(rect, _)| rect.intersects(&window))
         .fold(e.b, |b, (rect, change)| b + fitness.lattice_sum(change, *rect, col, row, kernel, stride(kernel.radius)));
-    fitness.change_from_sums(e.curvature, b, &s.deltas[k], s.d_max[k], true)
+    let range = allowed(fitness, s, h, e, stride(kernel.radius));
+    fitness.change_from_sums_within(e.curvature, b, &s.deltas[k], s.d_max[k], true, range)
+}
+
+/// The displacements the limits allow the entry now, on the lattice its change is summed on
+/// (every displacement without limits).
+fn allowed(fitness: &Fitness, s: &Settings, h: &[f64], e: &Entry, stride: usize) -> (f64, f64) {
+    let Some(bounds) = &s.bounds else { return super::constraints::ANY };
+    let kernel = &s.kernels[e.radius as usize];
+    let (col, row) = (e.col as usize, e.row as usize);
+    bounds.range_on(h, col, row, kernel, fitness.lattice_step(col, row, kernel.radius, stride))
 }
 
 /// How much of the way back to 1 an estimate's scale goes at each recomputation, so an entry

@@ -36,6 +36,7 @@ impl Simulation for GrowCave {
     const KIND: &'static str = "grow-cave";
     const SUMMARY: &'static str =
         "Grow stalactites, stalagmites and columns ring by ring in a cave chamber from geological parameters (glTF scene)";
+    const GENERATOR_VERSION: u32 = 1;
     type Params = GrowCaveParams;
     type Sequence = CaveSequence;
 

@@ -42,6 +42,9 @@ impl Simulation for WeatherColumn {
     const KIND: &'static str = "weather-column";
     const SUMMARY: &'static str =
         "Weather a rock column into sandstone goblins by spheroidal weathering on a voxel grid (glTF mesh, lit preview)";
+    /// Version 2: the mesh's vertices keep apart on every written grid (the least crossing
+    /// follows the grid's size).
+    const GENERATOR_VERSION: u32 = 2;
     type Params = WeatherColumnParams;
     type Sequence = WeatherSequence;
 

@@ -13,6 +13,8 @@ pub use edge_match::seam_filter;
 mod match_heightmap;
 mod points;
 mod preserve;
+
+pub use preserve::keep;
 mod road;
 mod shape_mask;
 mod terraces;
@@ -32,6 +34,8 @@ pub struct Grid<'a> {
     pub original: &'a [f64],
     /// Max − min of the original heights (1 for a flat terrain), metres.
     pub relief: f64,
+    /// The steepest slope the result may have, metres per metre ([`super::bounds`]).
+    pub slope_limit: f64,
 }
 
 impl Grid<'_> {
@@ -372,6 +376,20 @@ impl Fitness {
         Self { cols, rows, q, m, one_sided, pairs }
     }
 
+    /// Add a quadratic term the search weighs but no constraint reports (the request's
+    /// `keep_weight`).
+    pub fn with(mut self, extra: &Quadratic) -> Self {
+        for i in 0..self.q.len() {
+            let w = extra.w[i];
+            if w > 0.0 {
+                let q = self.q[i] + w;
+                self.m[i] = (self.q[i] * self.m[i] + w * extra.t[i]) / q;
+                self.q[i] = q;
+            }
+        }
+        self
+    }
+
     /// The weighted residual `q (h − m)` of every cell: the quadratic part's slope, which
     /// [`Fitness::best_change`] correlates with the kernel.
     pub fn residual(&self, h: &[f64]) -> Vec<f64> {
@@ -458,10 +476,24 @@ impl Fitness {
 
     /// The best change over `deltas` (and the closed-form optimum) from the quadratic part's
     /// sums alone, as [`Fitness::best_change`] finds it when [`Fitness::residual_only`].
+    #[cfg(test)]
     pub fn change_from_sums(&self, a: f64, b: f64, deltas: &[f64], d_max: f64, with_optimum: bool) -> Best {
+        self.change_from_sums_within(a, b, deltas, d_max, with_optimum, ANY)
+    }
+
+    /// [`Fitness::change_from_sums`] over the displacements within `range` only.
+    pub fn change_from_sums_within(
+        &self,
+        a: f64,
+        b: f64,
+        deltas: &[f64],
+        d_max: f64,
+        with_optimum: bool,
+        range: (f64, f64),
+    ) -> Best {
         debug_assert!(self.residual_only());
-        let sampled = &deltas[..deltas.len().min(MAX_DELTAS - 1)];
-        quadratic_best(a, b, sampled, closed_form(a, b, d_max, with_optimum))
+        let sampled = within(&deltas[..deltas.len().min(MAX_DELTAS - 1)], range);
+        quadratic_best(a, b, sampled, closed_form(a, b, d_max, with_optimum).and_then(|d| clamp_into(d, range)))
     }
 
     /// The best change in F over `deltas` (sorted ascending) (and the closed-form optimum of the quadratic part,
@@ -471,6 +503,7 @@ impl Fitness {
     /// part (Σ q K², plus the pairs') depends on the weights and the kernel only, never on the
     /// heights: pass the one an earlier call at the same place and stride returned, and it is
     /// not summed again. Sums run in a fixed order; nothing is allocated.
+    #[cfg(test)]
     #[allow(clippy::too_many_arguments)]
     pub fn best_change(
         &self,
@@ -484,6 +517,26 @@ impl Fitness {
         d_max: f64,
         with_optimum: bool,
         curvature: Option<f64>,
+    ) -> Best {
+        self.best_change_within(h, residual, col, row, kernel, stride, deltas, d_max, with_optimum, curvature, ANY)
+    }
+
+    /// [`Fitness::best_change`] over the displacements within `range` only (the sampled ones
+    /// in it, and the optimum clamped into it): the search's limits ([`super::bounds`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn best_change_within(
+        &self,
+        h: &[f64],
+        residual: &[f64],
+        col: usize,
+        row: usize,
+        kernel: &Kernel,
+        stride: usize,
+        deltas: &[f64],
+        d_max: f64,
+        with_optimum: bool,
+        curvature: Option<f64>,
+        range: (f64, f64),
     ) -> Best {
         let cols = self.cols;
         let rad = kernel.radius as i64;
@@ -565,10 +618,10 @@ impl Fitness {
         }
 
         let a = curvature.unwrap_or(a);
-        let n = deltas.len().min(MAX_DELTAS - 1);
-        let sampled = &deltas[..n];
+        let sampled = within(&deltas[..deltas.len().min(MAX_DELTAS - 1)], range);
+        let n = sampled.len();
         debug_assert!(sampled.windows(2).all(|w| w[0] <= w[1]), "displacements are sampled in order");
-        let optimum = closed_form(a, b, d_max, with_optimum);
+        let optimum = closed_form(a, b, d_max, with_optimum).and_then(|d| clamp_into(d, range));
         let Some(m) = &self.one_sided else {
             return quadratic_best(a, b, sampled, optimum);
         };
@@ -660,6 +713,28 @@ pub struct Best {
     pub curvature: f64,
     /// The quadratic part's sum b = Σ K·q(h − m) (scaled on the lattice, with the pairs').
     pub b: f64,
+}
+
+/// Every displacement.
+pub const ANY: (f64, f64) = (f64::NEG_INFINITY, f64::INFINITY);
+
+/// The displacements of `sorted` within `range` (none when it is empty).
+fn within(sorted: &[f64], (lo, hi): (f64, f64)) -> &[f64] {
+    if lo.is_nan() || hi.is_nan() || lo > hi {
+        return &sorted[..0];
+    }
+    let start = sorted.partition_point(|&d| d < lo);
+    let end = sorted.partition_point(|&d| d <= hi).max(start);
+    &sorted[start..end]
+}
+
+/// `d` clamped into `range`, unless that leaves nothing to move.
+fn clamp_into(d: f64, (lo, hi): (f64, f64)) -> Option<f64> {
+    if lo.is_nan() || hi.is_nan() || lo > hi {
+        return None;
+    }
+    let d = d.max(lo).min(hi);
+    (d != 0.0).then_some(d)
 }
 
 /// The over-relaxed closed-form optimum of the quadratic part a·d² + 2b·d, clamped to ±d_max.

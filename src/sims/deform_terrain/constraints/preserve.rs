@@ -1,4 +1,5 @@
-//! `preserve`: divergence from the original terrain everywhere, (h − original)².
+//! `preserve`: divergence from the original terrain everywhere, (h − original)²; and the
+//! request's `keep_weight`, the same pull on the samples no constraint asks about.
 
 use serde_json::{json, Value};
 
@@ -27,4 +28,17 @@ pub fn figures(h: &[f64], grid: &Grid) -> Value {
         "rms_change_of_relief": rms(diff()) / grid.relief,
         "max_change_of_relief": diff().fold(0.0f64, |m, d| m.max(d.abs())) / grid.relief,
     })
+}
+
+/// The pull back to the original of every sample not `asked` about, weighted `weight` over their
+/// count × relief² (a mean square in units of relief², as each constraint is); `None` when
+/// there is none.
+pub fn keep(asked: &[bool], grid: &Grid, weight: f64) -> Option<Quadratic> {
+    let free = asked.iter().filter(|&&a| !a).count();
+    if weight <= 0.0 || free == 0 {
+        return None;
+    }
+    let w = weight / (free as f64 * grid.relief * grid.relief);
+    let terms = (0..grid.cells()).filter(|&i| !asked[i]).map(|i| (i, w, grid.original[i]));
+    Some(Quadratic::from_terms(grid.cells(), terms))
 }
