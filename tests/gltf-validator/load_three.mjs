@@ -23,33 +23,56 @@ const loader = new GLTFLoader();
 function degeneracies(geometry) {
   const position = geometry.attributes.position;
   const n = position.count;
-  const p = (i) => [position.getX(i), position.getY(i), position.getZ(i)];
-  const index = geometry.index ? Array.from(geometry.index.array) : [...Array(n).keys()];
-  const welded = new Map();
-  const id = new Int32Array(n);
-  let duplicates = 0;
+  const xyz = new Float64Array(3 * n);
   for (let i = 0; i < n; i++) {
-    const key = p(i).join(',');
-    if (welded.has(key)) duplicates++;
-    else welded.set(key, welded.size);
-    id[i] = welded.get(key);
+    xyz[3 * i] = position.getX(i);
+    xyz[3 * i + 1] = position.getY(i);
+    xyz[3 * i + 2] = position.getZ(i);
+  }
+  const index = geometry.index ? geometry.index.array : Uint32Array.from({ length: n }, (_, i) => i);
+  // Vertices at one position, found by sorting (numeric keys: string maps took minutes on the
+  // carved coasts' millions of vertices).
+  const order = Uint32Array.from({ length: n }, (_, i) => i);
+  order.sort((a, b) => xyz[3 * a] - xyz[3 * b] || xyz[3 * a + 1] - xyz[3 * b + 1] || xyz[3 * a + 2] - xyz[3 * b + 2]);
+  const id = new Uint32Array(n);
+  let duplicates = 0;
+  let next = 0;
+  for (let k = 0; k < n; k++) {
+    const i = order[k];
+    if (k > 0) {
+      const j = order[k - 1];
+      if (xyz[3 * i] === xyz[3 * j] && xyz[3 * i + 1] === xyz[3 * j + 1] && xyz[3 * i + 2] === xyz[3 * j + 2]) {
+        duplicates++;
+        id[i] = id[j];
+        continue;
+      }
+    }
+    id[i] = next++;
   }
   let zeroArea = 0;
-  const edges = new Map();
-  for (let t = 0; t + 2 < index.length; t += 3) {
-    const [a, b, c] = [p(index[t]), p(index[t + 1]), p(index[t + 2])];
-    const u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-    const v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+  const triangles = Math.floor(index.length / 3);
+  const edges = new Float64Array(3 * triangles);
+  for (let t = 0; t < triangles; t++) {
+    const [a, b, c] = [index[3 * t], index[3 * t + 1], index[3 * t + 2]];
+    const u = [xyz[3 * b] - xyz[3 * a], xyz[3 * b + 1] - xyz[3 * a + 1], xyz[3 * b + 2] - xyz[3 * a + 2]];
+    const v = [xyz[3 * c] - xyz[3 * a], xyz[3 * c + 1] - xyz[3 * a + 1], xyz[3 * c + 2] - xyz[3 * a + 2]];
     const cross = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
     if (cross[0] === 0 && cross[1] === 0 && cross[2] === 0) zeroArea++;
-    const w = [id[index[t]], id[index[t + 1]], id[index[t + 2]]];
-    for (const [x, y] of [[w[0], w[1]], [w[1], w[2]], [w[2], w[0]]]) {
-      const key = x < y ? `${x},${y}` : `${y},${x}`;
-      edges.set(key, (edges.get(key) || 0) + 1);
+    const w = [id[a], id[b], id[c]];
+    for (let e = 0; e < 3; e++) {
+      const [x, y] = [w[e], w[(e + 1) % 3]];
+      // Welded ids stay below 2^26, so the pair is exact in a double.
+      edges[3 * t + e] = Math.min(x, y) * 67108864 + Math.max(x, y);
     }
   }
+  edges.sort();
   let unpaired = 0;
-  for (const count of edges.values()) if (count !== 2) unpaired++;
+  for (let k = 0; k < edges.length; ) {
+    let run = 1;
+    while (k + run < edges.length && edges[k + run] === edges[k]) run++;
+    if (run !== 2) unpaired++;
+    k += run;
+  }
   return { zero_area: zeroArea, duplicates, welded_unpaired_edges: unpaired };
 }
 loader.setMeshoptDecoder(MeshoptDecoder);
