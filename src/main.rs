@@ -164,8 +164,7 @@ async fn serve(http: HttpArgs, service: ServiceArgs, role: Role, worker_args: Wo
         memory_budget = engine.config().memory_budget,
         "listening"
     );
-    println!("listening on http://{addr}");
-    std::io::stdout().flush()?;
+    announce(&format!("listening on http://{addr}"));
     let (engine_handle, deadline_secs) = (engine.clone(), service.shutdown_deadline_secs);
     let app = landform::http::app(engine, http_config);
     let (stopping_tx, stopping_rx) = tokio::sync::oneshot::channel::<()>();
@@ -225,8 +224,7 @@ async fn worker(service: ServiceArgs, args: WorkerArgs) -> anyhow::Result<()> {
         lease_secs = config.lease.as_secs(),
         "worker started"
     );
-    println!("worker {} started", config.name);
-    std::io::stdout().flush()?;
+    announce(&format!("worker {} started", config.name));
     let worker = Worker::new(store, landform::sims::registry(), config);
     let running = tokio::spawn({
         let worker = worker.clone();
@@ -415,4 +413,12 @@ impl Drop for ScratchDb {
             let _ = std::fs::remove_file(p);
         }
     }
+}
+
+/// A line for the process that started this one, which reads it to learn the address or that
+/// the worker is up. A parent already gone (a closed pipe) is no reason to fail: `println!`
+/// would panic.
+fn announce(line: &str) {
+    let mut out = std::io::stdout().lock();
+    let _ = writeln!(out, "{line}").and_then(|()| out.flush());
 }

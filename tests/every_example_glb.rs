@@ -1,14 +1,15 @@
-//! Every example in `api/`, run by the real binary with three levels of detail in each
-//! compression form, and every glb loaded as a web client does: three.js's `GLTFLoader` with
-//! `MeshoptDecoder` must build the vertex and triangle counts the result states for each level,
-//! the Khronos validator must find no error, and every level must keep within its error bound.
-//! Positions compared as three.js decodes them, no mesh of any level has a zero-area triangle
-//! or two vertices at one position, which game engines' physics and lightmappers reject: in the
-//! 32-bit form for every kind and level, and in the quantised forms too for carve-coast's full
-//! mesh, whose welded meshes must also open or pinch no edge the 32-bit form's does not. (The
-//! quantised forms still collapse a few triangles elsewhere — carve-coast's and weather-column's
-//! simplified levels, grow-cave's thinnest stalactite tips, a tileable terrain's coarse levels
-//! in `meshopt` — which issues 29 and 31 leave to their own items.)
+//! Every example in `api/`, run by the real binary with three levels of detail (in each
+//! compression form for carve-coast's examples and one of every other kind), and every glb
+//! loaded as a web client does: three.js's `GLTFLoader` with `MeshoptDecoder` must build the
+//! vertex and triangle counts the result states for each level, the Khronos validator must
+//! find no error, and every level must keep within its error bound. Positions compared as
+//! three.js decodes them, no mesh of any level has a zero-area triangle or two vertices at one
+//! position, which game engines' physics and lightmappers reject: in the 32-bit form for every
+//! kind and level, and in the quantised forms too for carve-coast's full mesh, whose welded
+//! meshes must also open or pinch no edge the 32-bit form's does not. (The quantised forms
+//! still collapse a few triangles elsewhere — carve-coast's and weather-column's simplified
+//! levels, grow-cave's thinnest stalactite tips, a tileable terrain's coarse levels in
+//! `meshopt` — which issues 29 and 31 leave to their own items.)
 //!
 //! Needs `npm ci --prefix tests/gltf-validator` first.
 
@@ -39,6 +40,18 @@ fn examples() -> Vec<PathBuf> {
 
 const FORMS: [&str; 3] = ["none", "quantize", "meshopt"];
 
+/// Besides carve-coast's, whose every mesh must be clean in every form, the examples also run
+/// in the quantised forms: one per kind, each with several pieces or a tileable border, so
+/// every kind's encoder is read back by three.js and the validator in every form and level.
+/// (All 40 in all three forms took 21 of CI's minutes; the encoding does not depend on the
+/// example beyond what these hold.)
+const QUANTISED_TOO: [&str; 4] = [
+    "bulldoze/mill-creek.json",
+    "deform-terrain/tileable.json",
+    "grow-cave/chamber-with-entrance.json",
+    "weather-column/goblin-valley.json",
+];
+
 /// Per level file and mesh name, its edges not shared by exactly two triangles after welding.
 type Unpaired = std::collections::BTreeMap<(String, String), u64>;
 
@@ -47,6 +60,9 @@ fn check(example: &Path, dir: &Path) -> Vec<String> {
     let mut plain = Unpaired::new();
     let mut problems = check_form(example, FORMS[0], dir, &mut plain);
     let closed_in_every_form = example.parent().is_some_and(|kind| kind.ends_with("carve-coast"));
+    if !closed_in_every_form && !QUANTISED_TOO.iter().any(|e| example.ends_with(e)) {
+        return problems;
+    }
     for form in &FORMS[1..] {
         let mut unpaired = Unpaired::new();
         problems.extend(check_form(example, form, dir, &mut unpaired));

@@ -35,7 +35,8 @@ fn result_heights(out: &Outcome<DeformSequence>) -> Vec<f64> {
     hf.heights_m.iter().map(|&v| v as f64).collect()
 }
 
-/// The steepest step between row or column neighbours, computed here.
+/// The steepest step between row or column neighbours, computed here on purpose rather than by
+/// `bounds::steepest_step`: the test measures the limit the code keeps with a reckoning of its own.
 fn steepest(h: &[f64], n: usize) -> f64 {
     let mut m = 0.0f64;
     for r in 0..n {

@@ -232,7 +232,7 @@ pub fn search<W: Watch>(
     let eval = |h: &[f64], residual: &[f64], e: &Entry| {
         let k = e.radius as usize;
         let kernel = &s.kernels[k];
-        fitness.best_change_within(
+        fitness.best_change(
             h,
             residual,
             e.col as usize,
@@ -283,7 +283,7 @@ pub fn search<W: Watch>(
     let unchecked = |e: &Entry| stride(s.kernels[e.radius as usize].radius) > 1 && !e.checked;
     let check = |h: &[f64], residual: &[f64], e: &Entry| {
         let k = e.radius as usize;
-        fitness.best_change_within(
+        fitness.best_change(
             h,
             residual,
             e.col as usize,
@@ -733,7 +733,7 @@ fn updated(fitness: &Fitness, changes: &[(Rect, Vec<f64>)], e: &Entry, s: &Setti
         .filter(|(rect, _)| rect.intersects(&window))
         .fold(e.b, |b, (rect, change)| b + fitness.lattice_sum(change, *rect, col, row, kernel, stride(kernel.radius)));
     let range = allowed(fitness, s, h, e, stride(kernel.radius));
-    fitness.change_from_sums_within(e.curvature, b, &s.deltas[k], s.d_max[k], true, range)
+    fitness.change_from_sums(e.curvature, b, &s.deltas[k], s.d_max[k], true, range)
 }
 
 /// The displacements the limits allow the entry now, on the lattice its change is summed on

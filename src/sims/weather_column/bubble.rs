@@ -25,8 +25,10 @@ pub struct BubbleTable {
     pub cells: u32,
     /// Largest |offset| along X, Y, Z.
     pub reach: [i32; 3],
-    /// `(air / rock)^exponent` for each air count: the curvature term of the decimation.
-    ratio_power: Vec<f32>,
+    /// Cells in the bubble's central plane across X, Y and Z (offset 0 along that axis).
+    pub central: [u32; 3],
+    /// The air-to-rock ratio is raised to this power.
+    ratio_exponent: f32,
 }
 
 impl BubbleTable {
@@ -54,9 +56,15 @@ impl BubbleTable {
             }
             rows.push(row);
         }
-        let ratio_power =
-            (0..cells).map(|air| (air as f64 / (cells - air) as f64).powf(ratio_exponent as f64) as f32).collect();
-        Self { dy_min, dy_max: ey, rows, cells, reach: [ex, ey, ez], ratio_power }
+        let mut central = [0u32; 3];
+        for (dy, row) in (dy_min..=ey).zip(&rows) {
+            for run in row {
+                central[0] += (run.x_lo <= 0 && 0 <= run.x_hi) as u32;
+                central[1] += if dy == 0 { (run.x_hi - run.x_lo + 1) as u32 } else { 0 };
+                central[2] += if run.dz == 0 { (run.x_hi - run.x_lo + 1) as u32 } else { 0 };
+            }
+        }
+        Self { dy_min, dy_max: ey, rows, cells, reach: [ex, ey, ez], central, ratio_exponent }
     }
 
     pub fn row(&self, dy: i32) -> &[Run] {
@@ -67,11 +75,25 @@ impl BubbleTable {
         }
     }
 
-    /// Decimation per step for a voxel with `air` of the bubble's cells empty (paper section 4:
-    /// the air-to-rock ratio, scaled by the rate and divided by the resistance). The centre is
-    /// rock, so `air < cells`.
-    pub fn decimation(&self, air: u16, rate: f32, resistance: f32) -> f32 {
-        rate * self.ratio_power[air as usize] / resistance
+    /// Decimation per step for a voxel with `air` of the bubble's cells empty and `open[k]` of
+    /// its faces across axis `k` open to air (paper section 4: the air-to-rock ratio, scaled by
+    /// the rate and divided by the resistance).
+    ///
+    /// The ratio is the one of a bubble centred on the surface, as the paper's Figure 5 draws
+    /// it, not on the voxel's centre half a voxel inside: each open face moves the centre out
+    /// by half a voxel, turning half of the central plane across it from rock to air. Centred
+    /// on the voxel, a flat face counts its whole central plane as rock, and a bubble thin
+    /// across a face (so more of it is central plane) sees that face as flatter than a bubble
+    /// deep across it: an ellipsoid bubble long along Z weathered the Z faces fastest and left
+    /// the rock short along its long axis. Centred on the surface, every flat face holds as
+    /// much air as rock, whatever the bubble's shape.
+    pub fn decimation(&self, air: u16, open: [u8; 3], rate: f32, resistance: f32) -> f32 {
+        let shift: f32 = (0..3).map(|k| 0.5 * open[k] as f32 * self.central[k] as f32).sum();
+        let cells = self.cells as f32;
+        let air = (air as f32 + shift).min(cells - 0.5);
+        let ratio = air / (cells - air);
+        let curvature = if self.ratio_exponent == 1.0 { ratio } else { ratio.powf(self.ratio_exponent) };
+        rate * curvature / resistance
     }
 }
 
@@ -118,11 +140,13 @@ mod tests {
         let t = BubbleTable::new(&Bubble::Sphere { radius: 4.0 }, 1.0);
         // A face voxel sees the half-space above its plane as air; a corner seven octants.
         let face_air = ((t.cells - 49) / 2) as u16;
-        assert!(t.decimation(face_air * 3 / 2, 1.0, 1.0) > 2.0 * t.decimation(face_air, 1.0, 1.0));
-        assert!(t.decimation(face_air, 1.0, 2.0) < t.decimation(face_air, 1.0, 1.0));
+        assert!(t.decimation(face_air * 3 / 2, [0; 3], 1.0, 1.0) > 2.0 * t.decimation(face_air, [0; 3], 1.0, 1.0));
+        assert!(t.decimation(face_air, [0; 3], 1.0, 2.0) < t.decimation(face_air, [0; 3], 1.0, 1.0));
         // A higher exponent favours the corner more.
         let sharp = BubbleTable::new(&Bubble::Sphere { radius: 4.0 }, 8.0);
-        let ratio = |t: &BubbleTable| t.decimation(face_air * 3 / 2, 1.0, 1.0) / t.decimation(face_air, 1.0, 1.0);
+        let ratio = |t: &BubbleTable| {
+            t.decimation(face_air * 3 / 2, [0; 3], 1.0, 1.0) / t.decimation(face_air, [0; 3], 1.0, 1.0)
+        };
         assert!(ratio(&sharp) > 10.0 * ratio(&t));
     }
 }

@@ -7,6 +7,21 @@ pub const ROCK: u16 = 0;
 /// State of a voxel that never held rock. Any other state is the step that removed it.
 pub const NEVER_ROCK: u16 = u16::MAX;
 
+/// Offsets to the 26 voxels around one.
+pub const NEIGHBOURS_26: [(i64, i64, i64); 26] = {
+    let mut out = [(0, 0, 0); 26];
+    let mut n = 0;
+    let mut k = 0;
+    while k < 27 {
+        if k != 13 {
+            out[n] = (k % 3 - 1, k / 9 - 1, (k / 3) % 3 - 1);
+            n += 1;
+        }
+        k += 1;
+    }
+    out
+};
+
 /// Voxel `(x, y, z)` has its centre at `((x, y, z) + 0.5) × voxel_size_m`, Y up; index
 /// `x + nx × (z + nz × y)`, so a horizontal plane is contiguous and planes go bottom to top.
 #[derive(Clone, Debug, PartialEq)]
@@ -58,6 +73,22 @@ impl Grid {
             return false;
         }
         state[self.index(x as usize, y as usize, z as usize)] == ROCK
+    }
+
+    /// For a voxel `i` that touches air through a face, an edge or a corner, how many of its
+    /// faces across X, Y and Z are open to air; `None` for a voxel that touches none. Only
+    /// touching voxels weather: the paper centres its bubbles "on exposed voxels" (section 4).
+    /// Voxels deeper within a bubble's reach keep their air count but do not decay until a
+    /// removal exposes them.
+    pub fn exposure(&self, state: &[u16], i: usize) -> Option<[u8; 3]> {
+        let (x, y, z) = self.coords(i);
+        let (x, y, z) = (x as i64, y as i64, z as i64);
+        let air = |dx: i64, dy: i64, dz: i64| !self.solid(state, x + dx, y + dy, z + dz);
+        if !NEIGHBOURS_26.iter().any(|&(dx, dy, dz)| air(dx, dy, dz)) {
+            return None;
+        }
+        let open = |a: bool, b: bool| a as u8 + b as u8;
+        Some([open(air(-1, 0, 0), air(1, 0, 0)), open(air(0, -1, 0), air(0, 1, 0)), open(air(0, 0, -1), air(0, 0, 1))])
     }
 }
 

@@ -27,7 +27,7 @@ fn default_voxel_size() -> f32 {
     0.1
 }
 fn default_rate() -> f32 {
-    0.25
+    0.05
 }
 fn default_ratio_exponent() -> f32 {
     1.0
@@ -282,15 +282,18 @@ pub struct WeatherColumnParams {
     // 64 = MAX_LAYERS
     #[schema(min_items = 1, max_items = 64)]
     pub layers: Vec<Layer>,
-    /// Decimation per step of a voxel whose bubble holds as much air as rock, at resistance 1;
-    /// a voxel starts at level 1 and is removed at 0.
+    /// Decimation per step of an exposed voxel whose bubble, centred on the surface, holds as
+    /// much air as rock (a flat face), at resistance 1; a voxel starts at level 1 and is removed
+    /// at 0. The synchronized update removes a step's voxels together, so a rate at which
+    /// corners go within one step (above about 0.1) blurs the difference between a corner and
+    /// an edge: 0.05 rounds a cube to the digital sphere, 0.25 leaves it 10 % rougher.
     #[serde(default = "default_rate")]
-    #[schema(default = 0.25, exclusive_minimum = 0.0, maximum = 100.0)]
+    #[schema(default = 0.05, exclusive_minimum = 0.0, maximum = 100.0)]
     pub rate: f32,
     /// The decimation grows with the air-to-rock ratio raised to this power. 1 is the paper's
-    /// product; there a flat face weathers at two thirds the rate of a gently rounded one, so a
-    /// cube at half its volume is still a rounded cube. Higher values make weathering follow
-    /// curvature more sharply: 8 turns a cube into a sphere by half its volume.
+    /// product, which turns a floating cube into a sphere by a tenth of its volume (its Figure
+    /// 7). Higher values make weathering follow curvature more sharply: corners go at once and
+    /// the rock rounds sooner, at the cost of the bubble's finer shape.
     #[serde(default = "default_ratio_exponent")]
     #[schema(default = 1.0, minimum = 1.0, maximum = 16.0)]
     pub ratio_exponent: f32,

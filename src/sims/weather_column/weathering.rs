@@ -12,7 +12,7 @@ use std::collections::{BinaryHeap, HashMap};
 
 use rayon::prelude::*;
 
-use super::grid::ROCK;
+use super::grid::{NEIGHBOURS_26, ROCK};
 use super::rock::{Active, Rock};
 use crate::jobs::SimError;
 use crate::stop::Stop;
@@ -71,8 +71,10 @@ pub fn synchronized_step(rock: &mut Rock, active: &mut Active, rate: f32, step: 
         let rock = &*rock;
         active.level.par_iter_mut().zip(active.index.par_iter()).zip(active.resistance.par_iter()).for_each(
             |((level, &i), &resistance)| {
-                let bubble = rock.bubble_of_plane(i as usize / plane);
-                *level -= bubble.decimation(rock.air[i as usize], rate, resistance);
+                if let Some(open) = rock.grid.exposure(&rock.state, i as usize) {
+                    let bubble = rock.bubble_of_plane(i as usize / plane);
+                    *level -= bubble.decimation(rock.air[i as usize], open, rate, resistance);
+                }
             },
         );
     }
@@ -188,15 +190,21 @@ pub const STALE_EVENTS_PER_LIVE: usize = 4;
 pub fn weather_event_based(rock: &mut Rock, schedule: Schedule, on_step: &mut OnStep) -> Result<History, SimError> {
     let initial = rock.initialise(schedule.stop)?;
     let plane = rock.grid.plane();
+    // Unexposed voxels do not decay: rate 0, and no event until a removal exposes them.
     let rate_of = |rock: &Rock, i: u32, resistance: f32| -> f64 {
-        rock.bubble_of_plane(i as usize / plane).decimation(rock.air[i as usize], schedule.rate, resistance) as f64
+        let Some(open) = rock.grid.exposure(&rock.state, i as usize) else { return 0.0 };
+        rock.bubble_of_plane(i as usize / plane).decimation(rock.air[i as usize], open, schedule.rate, resistance)
+            as f64
+    };
+    let scheduled = |t: f64, level: f64, rate: f64, index: u32, version: u32| {
+        (rate > 0.0).then(|| Reverse(Event { time: t + level.max(0.0) / rate, index, version }))
     };
     let mut voxels: HashMap<u32, EventVoxel> = HashMap::with_capacity(initial.len());
     let mut queue = BinaryHeap::with_capacity(initial.len());
     for (&i, &resistance) in initial.index.iter().zip(&initial.resistance) {
         let rate = rate_of(rock, i, resistance);
         voxels.insert(i, EventVoxel { level: 1.0, since: 0.0, rate, resistance, version: 0 });
-        queue.push(Reverse(Event { time: 1.0 / rate, index: i, version: 0 }));
+        queue.extend(scheduled(0.0, 1.0, rate, i, 0));
     }
     drop(initial);
     let mut history = History::default();
@@ -256,20 +264,35 @@ pub fn weather_event_based(rock: &mut Rock, schedule: Schedule, on_step: &mut On
                         v.since = t;
                         v.rate = rate_of(rock, i, v.resistance);
                         v.version += 1;
-                        queue.push(Reverse(Event {
-                            time: t + v.level.max(0.0) / v.rate,
-                            index: i,
-                            version: v.version,
-                        }));
+                        queue.extend(scheduled(t, v.level, v.rate, i, v.version));
                     }
                     None => {
                         let resistance = rock.resistance_of(i as usize);
                         let rate = rate_of(rock, i, resistance);
                         voxels.insert(i, EventVoxel { level: 1.0, since: t, rate, resistance, version: 0 });
-                        queue.push(Reverse(Event { time: t + 1.0 / rate, index: i, version: 0 }));
+                        queue.extend(scheduled(t, 1.0, rate, i, 0));
                     }
                 }
             }
+        }
+        // The removal opened faces of, or exposed, the voxels around it: their rates change
+        // even where their bubble does not reach it (a small or a gumdrop bubble). Re-rating
+        // one already updated above changes nothing (no time has passed).
+        let (x, y, z) = rock.grid.coords(event.index as usize);
+        for (dx, dy, dz) in NEIGHBOURS_26 {
+            let (nx, ny, nz) = (x as i64 + dx, y as i64 + dy, z as i64 + dz);
+            if ny < 0 || !rock.grid.solid(&rock.state, nx, ny, nz) {
+                continue;
+            }
+            let i = rock.grid.index(nx as usize, ny as usize, nz as usize) as u32;
+            let Some(resistance) = voxels.get(&i).map(|v| v.resistance) else { continue };
+            let rate = rate_of(rock, i, resistance);
+            let v = voxels.get_mut(&i).expect("looked up above");
+            v.level -= v.rate * (t - v.since);
+            v.since = t;
+            v.rate = rate;
+            v.version += 1;
+            queue.extend(scheduled(t, v.level, rate, i, v.version));
         }
     }
     // Stopped within `step`: it counts when it removed anything.

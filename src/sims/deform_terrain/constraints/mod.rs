@@ -474,15 +474,10 @@ impl Fitness {
         sum * (s * s) as f64
     }
 
-    /// The best change over `deltas` (and the closed-form optimum) from the quadratic part's
-    /// sums alone, as [`Fitness::best_change`] finds it when [`Fitness::residual_only`].
-    #[cfg(test)]
-    pub fn change_from_sums(&self, a: f64, b: f64, deltas: &[f64], d_max: f64, with_optimum: bool) -> Best {
-        self.change_from_sums_within(a, b, deltas, d_max, with_optimum, ANY)
-    }
-
-    /// [`Fitness::change_from_sums`] over the displacements within `range` only.
-    pub fn change_from_sums_within(
+    /// The best change over `deltas` within `range` (and the closed-form optimum clamped into
+    /// it) from the quadratic part's sums alone, as [`Fitness::best_change`] finds it when
+    /// [`Fitness::residual_only`]. [`ANY`] is no range.
+    pub fn change_from_sums(
         &self,
         a: f64,
         b: f64,
@@ -496,35 +491,17 @@ impl Fitness {
         quadratic_best(a, b, sampled, closed_form(a, b, d_max, with_optimum).and_then(|d| clamp_into(d, range)))
     }
 
-    /// The best change in F over `deltas` (sorted ascending) (and the closed-form optimum of the quadratic part,
-    /// times [`OVER_RELAXATION`], clamped to ±`d_max`) of a deformation at (col, row) with `kernel`. With `stride` > 1
-    /// only every stride-th cell (through the centre) is summed, scaled by stride², as an
+    /// The best change in F over the `deltas` (sorted ascending) within `range` (and the
+    /// closed-form optimum of the quadratic part, times [`OVER_RELAXATION`], clamped to
+    /// ±`d_max` and into `range`) of a deformation at (col, row) with `kernel`. [`ANY`] is no
+    /// range; the search's limits ([`super::bounds`]) give one. With `stride` > 1 only every
+    /// stride-th cell (through the centre) is summed, scaled by stride², as an
     /// estimate. `residual` is [`Fitness::residual`] of `h`. The curvature `a` of the quadratic
     /// part (Σ q K², plus the pairs') depends on the weights and the kernel only, never on the
     /// heights: pass the one an earlier call at the same place and stride returned, and it is
     /// not summed again. Sums run in a fixed order; nothing is allocated.
-    #[cfg(test)]
     #[allow(clippy::too_many_arguments)]
     pub fn best_change(
-        &self,
-        h: &[f64],
-        residual: &[f64],
-        col: usize,
-        row: usize,
-        kernel: &Kernel,
-        stride: usize,
-        deltas: &[f64],
-        d_max: f64,
-        with_optimum: bool,
-        curvature: Option<f64>,
-    ) -> Best {
-        self.best_change_within(h, residual, col, row, kernel, stride, deltas, d_max, with_optimum, curvature, ANY)
-    }
-
-    /// [`Fitness::best_change`] over the displacements within `range` only (the sampled ones
-    /// in it, and the optimum clamped into it): the search's limits ([`super::bounds`]).
-    #[allow(clippy::too_many_arguments)]
-    pub fn best_change_within(
         &self,
         h: &[f64],
         residual: &[f64],

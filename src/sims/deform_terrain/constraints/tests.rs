@@ -74,7 +74,8 @@ fn the_windowed_change_equals_the_full_recomputation() {
         let delta = rng.random_range(-8.0..8.0);
         let kernel = Kernel::new(radius);
         let before = total(&fields, &h, cols, rows);
-        let best = fitness.best_change(&h, &fitness.residual(&h), col, row, &kernel, 1, &[delta], 8.0, false, None);
+        let best =
+            fitness.best_change(&h, &fitness.residual(&h), col, row, &kernel, 1, &[delta], 8.0, false, None, ANY);
         let (change, d) = (best.change, best.delta);
         assert_eq!(d, delta);
         let mut after_h = h.clone();
@@ -114,7 +115,8 @@ fn the_best_of_many_displacements_is_the_best_full_recomputation() {
         let deltas: Vec<f64> = (0..count).map(|k| d_max * (2.0 * k as f64 / count as f64 - 1.0)).collect();
         let kernel = Kernel::new(radius);
         let before = total(&fields, &h0, cols, rows);
-        let best = fitness.best_change(&h0, &fitness.residual(&h0), col, row, &kernel, 1, &deltas, d_max, false, None);
+        let best =
+            fitness.best_change(&h0, &fitness.residual(&h0), col, row, &kernel, 1, &deltas, d_max, false, None, ANY);
         let full = |delta: f64| {
             let mut h = h0.clone();
             let amplitude = h[row * cols + col] + delta;
@@ -141,7 +143,8 @@ fn the_closed_form_displacement_is_the_best_of_the_quadratic_part() {
     // One point: the optimum moves it exactly onto its height, removing all of F; the step
     // taken is ω times that, which removes (2ω − ω²) of F.
     let (w, optimum) = (OVER_RELAXATION, 50.0 - h0[15 * cols + 15]);
-    let best = fitness.best_change(&h0, &fitness.residual(&h0), 15, 15, &kernel, 1, &[-1.0, 1.0], 100.0, true, None);
+    let best =
+        fitness.best_change(&h0, &fitness.residual(&h0), 15, 15, &kernel, 1, &[-1.0, 1.0], 100.0, true, None, ANY);
     let (change, d) = (best.change, best.delta);
     assert!((d - w * optimum).abs() < 1e-9, "{d} vs {}", w * optimum);
     let f = fields[0].value(&h0, cols, rows);
@@ -211,7 +214,7 @@ fn a_sum_brought_up_to_date_equals_one_summed_again() {
         let (col, row) = (rng.random_range(0..cols), rng.random_range(0..rows));
         let stride = rng.random_range(1..5usize);
         let before =
-            fitness.best_change(&h, &fitness.residual(&h), col, row, &kernel, stride, &deltas, 6.0, true, None);
+            fitness.best_change(&h, &fitness.residual(&h), col, row, &kernel, stride, &deltas, 6.0, true, None, ANY);
         let mut residual = fitness.residual(&h);
         let mut b = before.b;
         // Two deformations near the entry, each its own change, as in one iteration's batch.
@@ -232,10 +235,11 @@ fn a_sum_brought_up_to_date_equals_one_summed_again() {
             assert_eq!(change, expected, "trial {trial}: the change refresh_residual reports");
             b += fitness.lattice_sum(&change, rect, col, row, &kernel, stride);
         }
-        let again = fitness.best_change(&h, &fitness.residual(&h), col, row, &kernel, stride, &deltas, 6.0, true, None);
+        let again =
+            fitness.best_change(&h, &fitness.residual(&h), col, row, &kernel, stride, &deltas, 6.0, true, None, ANY);
         let tol = 1e-9 * (again.b.abs() + before.b.abs() + 1.0);
         assert!((b - again.b).abs() <= tol, "trial {trial}: {b} vs {}", again.b);
-        let from_sums = fitness.change_from_sums(again.curvature, b, &deltas, 6.0, true);
+        let from_sums = fitness.change_from_sums(again.curvature, b, &deltas, 6.0, true, ANY);
         assert!((from_sums.change - again.change).abs() <= 1e-9 * (again.change.abs() + 1e-12), "trial {trial}");
     }
 }
