@@ -27,6 +27,11 @@ impl<'a> Stop<'a> {
         Stop(Some(flag))
     }
 
+    /// Whether a stop can ever be requested (`false` for [`Stop::NEVER`]).
+    pub fn can_stop(&self) -> bool {
+        self.0.is_some()
+    }
+
     pub fn requested(&self) -> bool {
         self.0.is_some_and(|f| f.load(Ordering::Relaxed))
     }

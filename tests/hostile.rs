@@ -341,7 +341,8 @@ async fn hostile_coast_requests_are_refused_or_bounded() {
 
 /// Levels of detail and tiles stop at the job's limit or a cancel like every other stage: a
 /// carved island with three levels (which took 28–76 s under a 5 s limit before) ends within
-/// 2 s of its limit, and within 2 s of a cancel.
+/// 2 s of its limit, and within 2 s of a cancel during its levels (meshoptimizer's simplifier,
+/// which cannot be interrupted, runs on a thread the cancel leaves behind).
 #[tokio::test]
 async fn levels_of_detail_stop_at_the_time_limit_and_on_cancel() {
     const LIMIT_S: u64 = 5;
@@ -357,16 +358,19 @@ async fn levels_of_detail_stop_at_the_time_limit_and_on_cancel() {
 
     let server = TestServer::start_with(Options { job_timeout_secs: 300, ..Options::default() }).await;
     let id = server.submit("carve-coast", &body).await["id"].as_str().unwrap().to_string();
-    // Into its levels of detail: the carving and meshing take about a second.
+    // Into its levels of detail: past the stage's report, and past writing the full mesh
+    // (1.4 s on this machine, 4 s under load), well inside the first level (tens of seconds).
     let started = Instant::now();
     loop {
         let (_, job) = server.get_json(&format!("/v1/jobs/{id}")).await;
-        if job["status"] == "running" && started.elapsed() > Duration::from_secs(6) {
+        if job["progress"]["message"].as_str().is_some_and(|m| m.contains("levels of detail")) {
             break;
         }
         assert!(!job["status"].as_str().is_some_and(|s| s != "queued" && s != "running"), "{job}");
+        assert!(started.elapsed() < Duration::from_secs(240), "never reached its levels of detail: {job}");
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
+    tokio::time::sleep(Duration::from_secs(4)).await;
     let asked = Instant::now();
     let res = server.client.post(server.url(&format!("/v1/jobs/{id}/cancel"))).send().await.unwrap();
     assert_eq!(res.status(), 200);

@@ -34,7 +34,7 @@ pub fn max_deviation(a: &Mesh, b: &Mesh, spacing_m: f32, stop: Stop) -> Result<f
 /// A stopped search returns early with what it found (the caller looks at `stop` again).
 fn one_sided(from: &Mesh, to: &Mesh, spacing_m: f32, stop: Stop) -> f64 {
     use std::sync::atomic::{AtomicU64, Ordering};
-    let index = TriangleIndex::new(to);
+    let Some(index) = TriangleIndex::new(to, stop) else { return 0.0 };
     let spacing = f64::from(spacing_m.max(1e-6));
     // Non-negative f64s order as their bits do.
     let found = AtomicU64::new(0f64.to_bits());
@@ -124,7 +124,8 @@ struct TriangleIndex<'a> {
 }
 
 impl<'a> TriangleIndex<'a> {
-    fn new(mesh: &'a Mesh) -> Self {
+    /// `None` once `stop` is raised: a million triangles take seconds to index.
+    fn new(mesh: &'a Mesh, stop: Stop) -> Option<Self> {
         let (lo, hi) = mesh.bounds().expect("a mesh with triangles");
         let origin = lo.map(f64::from);
         let extent = (0..3).map(|k| f64::from(hi[k] - lo[k])).fold(0.0, f64::max).max(1e-6);
@@ -139,12 +140,15 @@ impl<'a> TriangleIndex<'a> {
             .par_chunks_exact(3)
             .enumerate()
             .flat_map_iter(|(n, t)| {
+                let mut out = Vec::new();
+                if stop.requested() {
+                    return out;
+                }
                 let tri = [0, 1, 2].map(|k| point(mesh, t[k]));
                 let cell_of = |v: f64, k: usize| (((v - origin[k]) / cell).floor() as i64).clamp(0, dims[k] - 1);
                 let lo: [i64; 3] = std::array::from_fn(|k| cell_of(tri[0][k].min(tri[1][k]).min(tri[2][k]), k));
                 let hi: [i64; 3] = std::array::from_fn(|k| cell_of(tri[0][k].max(tri[1][k]).max(tri[2][k]), k));
                 let small = (0..3).all(|k| hi[k] - lo[k] <= 1);
-                let mut out = Vec::new();
                 for z in lo[2]..=hi[2] {
                     for y in lo[1]..=hi[1] {
                         for x in lo[0]..=hi[0] {
@@ -160,6 +164,9 @@ impl<'a> TriangleIndex<'a> {
                 out
             })
             .collect();
+        if stop.requested() {
+            return None;
+        }
         pairs.par_sort_unstable();
         let mut keys = Vec::new();
         let mut starts = Vec::new();
@@ -171,7 +178,7 @@ impl<'a> TriangleIndex<'a> {
         }
         starts.push(pairs.len() as u32);
         let triangles = pairs.into_iter().map(|(_, t)| t).collect();
-        Self { mesh, origin, cell, dims, keys, starts, triangles }
+        Some(Self { mesh, origin, cell, dims, keys, starts, triangles })
     }
 
     /// Whether some triangle lies within `radius` of `p`: the cells next to `p` first (where a

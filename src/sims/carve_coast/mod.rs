@@ -174,8 +174,9 @@ fn finish(
         ctx.report("meshing", params.passes as u64, total, format!("sampled chunk {done} of {of}"));
         Ok(())
     };
+    let on_stage = |stage: &str| ctx.report("meshing", params.passes as u64, total, stage);
     let (result, artifacts) =
-        outputs::build(&implicit, params, &sequence.spheres, voxel_m, &mut on_chunk, ctx.stop(), &ctx.mesh)?;
+        outputs::build(&implicit, params, &sequence.spheres, voxel_m, &mut on_chunk, &on_stage, ctx.stop(), &ctx.mesh)?;
     Ok(Outcome { result, sequence, artifacts })
 }
 

@@ -74,14 +74,18 @@ pub fn surface(s: &Sampled, stop: Stop) -> Result<Mesh, Stopped> {
     extract_isosurface(&field, 0.0, stop)
 }
 
-/// Colour by material: rock on steep or carved faces, sand near sea level, grass above.
-fn colour(mesh: &mut Mesh, implicit: &Implicit, sea_level: f32, voxel_m: f32) {
+/// Colour by material: rock on steep or carved faces, sand near sea level, grass above. Each
+/// vertex asks the carving spheres, seconds on a large island: `stop` is looked at throughout.
+fn colour(mesh: &mut Mesh, implicit: &Implicit, sea_level: f32, voxel_m: f32, stop: Stop) -> Result<(), Stopped> {
     let steep = ROCK_SLOPE_DEG.to_radians().cos();
     let colours = mesh
         .positions
         .par_iter()
         .zip(mesh.normals.par_iter())
         .map(|(p, n)| {
+            if stop.requested() {
+                return ROCK;
+            }
             let carved = implicit.sphere_distance(*p).abs() < voxel_m;
             if carved || n[1] < steep {
                 ROCK
@@ -92,7 +96,9 @@ fn colour(mesh: &mut Mesh, implicit: &Implicit, sea_level: f32, voxel_m: f32) {
             }
         })
         .collect();
+    stop.check()?;
     mesh.colors = Some(colours);
+    Ok(())
 }
 
 /// A flat quad at sea level over the terrain's footprint, facing up.
@@ -243,24 +249,28 @@ pub fn snapshot_png(
     render_png(&scene, &SNAPSHOT, stop)
 }
 
-/// Everything the job delivers for the terrain carved by `spheres`.
+/// Everything the job delivers for the terrain carved by `spheres`. `on_chunk` hears of the
+/// sampling's chunks, `on_stage` of the stages after it.
+#[allow(clippy::too_many_arguments)]
 pub fn build(
     implicit: &Implicit,
     params: &CarveCoastParams,
     spheres: &[Carving],
     voxel_m: f32,
     on_chunk: &mut dyn FnMut(usize, usize) -> Result<(), SimError>,
+    on_stage: &dyn Fn(&str),
     stop: Stop,
     mesh_settings: &MeshSettings,
 ) -> Result<(Value, Vec<Artifact>), SimError> {
     let sampled = sample(implicit, params, voxel_m, false, on_chunk)?;
     stop.check()?;
+    on_stage("extracting the surface");
     let (crossings, mut top) = columns(&sampled.values, &sampled.grid);
     surface_at_walls(implicit, &sampled.grid, &mut top);
     let mut mesh = surface(&sampled, stop)?;
     let caves = caves::count(&sampled.values, &sampled.grid, &top, params.sea_level);
     drop(sampled.values);
-    colour(&mut mesh, implicit, params.sea_level, voxel_m);
+    colour(&mut mesh, implicit, params.sea_level, voxel_m, stop)?;
     let closed = mesh.is_closed();
     stop.check()?;
     let (pieces, genus) = topology(&mesh);
@@ -297,6 +307,11 @@ pub fn build(
             SceneNode::new("sea", sea_plane(implicit.hf, params.sea_level), MaterialKind::Water),
         ],
     };
+    on_stage(if mesh_settings.lods.is_empty() {
+        "writing the mesh"
+    } else {
+        "writing the mesh and its levels of detail"
+    });
     let ((glbs, preview), (heightmap, npy)) = rayon::join(
         || rayon::join(|| mesh_glbs(&scene, mesh_settings, stop), || render_png_framed(&scene, &view, focus, stop)),
         || rayon::join(|| heightmap_png16(&top), || heightfield_npy(&top)),

@@ -83,7 +83,7 @@ fn carving_makes_overhangs_only_around_sea_level() {
     assert!(spheres.iter().any(|s| s.pass() == 2), "the second pass seeds on the carved surface");
     let implicit = Implicit::new(&hf, &spheres, None, 2, 2.0);
     let (result, _) =
-        build(&implicit, &p, &spheres, 1.0, &mut no_progress, Stop::NEVER, &MeshSettings::default()).unwrap();
+        build(&implicit, &p, &spheres, 1.0, &mut no_progress, &|_| {}, Stop::NEVER, &MeshSettings::default()).unwrap();
     assert!(result["overhangs"]["with_overhang"].as_u64().unwrap() > 0, "{result}");
     assert_eq!(result["mesh"]["closed"], true);
     // Compare carved and uncarved fields sample by sample.
@@ -133,7 +133,7 @@ fn floating_fragments_are_removed() {
     .unwrap();
     assert!(kept["pieces"].as_u64().unwrap() >= 2, "{kept}");
     let (result, _) =
-        build(&implicit, &p, &spheres, 1.0, &mut no_progress, Stop::NEVER, &MeshSettings::default()).unwrap();
+        build(&implicit, &p, &spheres, 1.0, &mut no_progress, &|_| {}, Stop::NEVER, &MeshSettings::default()).unwrap();
     assert_eq!(result["pieces"], 1, "{result}");
     assert!(result["fragments_removed"].as_u64().unwrap() >= 1);
     assert_eq!(result["mesh"]["closed"], true);
@@ -145,7 +145,8 @@ fn warp_makes_strata_on_cliffs() {
     p.warp = Some(params::Warp { amplitude_m: 2.5, frequency_per_m: 0.3 });
     let hf = terrain(&p);
     let implicit = Implicit::new(&hf, &[], p.warp.as_ref(), 4, 2.0);
-    let (result, _) = build(&implicit, &p, &[], 1.0, &mut no_progress, Stop::NEVER, &MeshSettings::default()).unwrap();
+    let (result, _) =
+        build(&implicit, &p, &[], 1.0, &mut no_progress, &|_| {}, Stop::NEVER, &MeshSettings::default()).unwrap();
     assert_eq!(result["mesh"]["closed"], true, "{result}");
     assert_eq!(result["pieces"], 1, "{result}");
     assert!(result["overhangs"]["with_overhang"].as_u64().unwrap() > 0, "{result}");
@@ -177,7 +178,7 @@ fn replay_until_k_carves_only_the_first_k_spheres() {
     let first = &full.sequence.spheres[..k as usize];
     let implicit = Implicit::new(&hf, first, None, 5, 2.0);
     let (result, artifacts) =
-        build(&implicit, &p, first, 1.0, &mut no_progress, Stop::NEVER, &MeshSettings::default()).unwrap();
+        build(&implicit, &p, first, 1.0, &mut no_progress, &|_| {}, Stop::NEVER, &MeshSettings::default()).unwrap();
     assert_eq!(part.result, result);
     assert_eq!(part.artifacts, artifacts);
     assert_ne!(hashes(&part), hashes(&full));
@@ -388,7 +389,7 @@ fn carve_and_measure(p: &CarveCoastParams, hf: &Heightfield) -> (Vec<Carving>, V
     let carvings = carve(p, hf, 5, 1.0, Stop::NEVER, &mut |_, _| Ok(())).unwrap();
     let implicit = Implicit::new(hf, &carvings, p.warp.as_ref(), 5, 2.0);
     let (result, _) =
-        build(&implicit, p, &carvings, 1.0, &mut no_progress, Stop::NEVER, &MeshSettings::default()).unwrap();
+        build(&implicit, p, &carvings, 1.0, &mut no_progress, &|_| {}, Stop::NEVER, &MeshSettings::default()).unwrap();
     assert_eq!(result["mesh"]["closed"], true, "{result}");
     (carvings, result)
 }
