@@ -127,6 +127,7 @@ fn floating_fragments_are_removed() {
         &spheres,
         1.0,
         &mut no_progress,
+        &|_| {},
         Stop::NEVER,
         &MeshSettings::default(),
     )
