@@ -1,7 +1,11 @@
 //! Bubbles (paper section 4, Figure 5): the volume around a voxel whose air-to-rock ratio
 //! estimates the local curvature, stored as the lookup table of runs a removal increments.
 
+use super::grid::Exposure;
 use super::params::Bubble;
+
+/// Air cells among the 26 around a voxel on a flat face.
+const FLAT_FACE_AIR: f32 = 9.0;
 
 /// The cells `(x_lo..=x_hi, dy, dz)` of a bubble in one row, relative to its centre.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -75,20 +79,31 @@ impl BubbleTable {
         }
     }
 
-    /// Decimation per step for a voxel with `air` of the bubble's cells empty and `open[k]` of
-    /// its faces across axis `k` open to air (paper section 4: the air-to-rock ratio, scaled by
-    /// the rate and divided by the resistance).
+    /// Decimation per step for an exposed voxel with `air` of the bubble's cells empty (paper
+    /// section 4: the air-to-rock ratio, scaled by the rate and divided by the resistance).
     ///
     /// The ratio is the one of a bubble centred on the surface, as the paper's Figure 5 draws
-    /// it, not on the voxel's centre half a voxel inside: each open face moves the centre out
-    /// by half a voxel, turning half of the central plane across it from rock to air. Centred
-    /// on the voxel, a flat face counts its whole central plane as rock, and a bubble thin
-    /// across a face (so more of it is central plane) sees that face as flatter than a bubble
+    /// it, not on the voxel's centre half a voxel inside. Centred on the voxel, a flat face
+    /// counts the bubble's whole central plane across it as rock, and a bubble thin across a
+    /// face (where that plane is a large part of it) sees the face as flatter than a bubble
     /// deep across it: an ellipsoid bubble long along Z weathered the Z faces fastest and left
-    /// the rock short along its long axis. Centred on the surface, every flat face holds as
-    /// much air as rock, whatever the bubble's shape.
-    pub fn decimation(&self, air: u16, open: [u8; 3], rate: f32, resistance: f32) -> f32 {
-        let shift: f32 = (0..3).map(|k| 0.5 * open[k] as f32 * self.central[k] as f32).sum();
+    /// the rock short along its long axis. Moving the centre half a voxel out turns half of
+    /// that plane from rock to air, so every flat face holds as much air as rock, whatever the
+    /// bubble. The plane is the one across the surface's normal (from the 26 cells around),
+    /// and the move grows with the air among them: half a voxel on a flat face or a diagonal
+    /// staircase (9 of 26; counting each open face's plane in full would weather a
+    /// staircase's steps twice as fast and square a round column), more on an edge (15) or a
+    /// corner (19), which stand out of the surface.
+    pub fn decimation(&self, air: u16, exposure: Exposure, rate: f32, resistance: f32) -> f32 {
+        let t = exposure.towards.map(f32::from);
+        let norm2 = t.iter().map(|v| v * v).sum::<f32>();
+        let plane = if norm2 > 0.0 {
+            (0..3).map(|k| t[k] * t[k] / norm2 * self.central[k] as f32).sum::<f32>()
+        } else {
+            // Air all around in balance (a thin fin or a lone voxel): no one plane.
+            (0..3).map(|k| self.central[k] as f32).sum::<f32>() / 3.0
+        };
+        let shift = 0.5 * plane * f32::from(exposure.air) / FLAT_FACE_AIR;
         let cells = self.cells as f32;
         let air = (air as f32 + shift).min(cells - 0.5);
         let ratio = air / (cells - air);
@@ -100,6 +115,8 @@ impl BubbleTable {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    const FLAT: Exposure = Exposure { air: 9, towards: [0, 9, 0] };
 
     fn count(t: &BubbleTable) -> u32 {
         t.rows.iter().flatten().map(|r| (r.x_hi - r.x_lo + 1) as u32).sum()
@@ -140,13 +157,12 @@ mod tests {
         let t = BubbleTable::new(&Bubble::Sphere { radius: 4.0 }, 1.0);
         // A face voxel sees the half-space above its plane as air; a corner seven octants.
         let face_air = ((t.cells - 49) / 2) as u16;
-        assert!(t.decimation(face_air * 3 / 2, [0; 3], 1.0, 1.0) > 2.0 * t.decimation(face_air, [0; 3], 1.0, 1.0));
-        assert!(t.decimation(face_air, [0; 3], 1.0, 2.0) < t.decimation(face_air, [0; 3], 1.0, 1.0));
+        assert!(t.decimation(face_air * 3 / 2, FLAT, 1.0, 1.0) > 2.0 * t.decimation(face_air, FLAT, 1.0, 1.0));
+        assert!(t.decimation(face_air, FLAT, 1.0, 2.0) < t.decimation(face_air, FLAT, 1.0, 1.0));
         // A higher exponent favours the corner more.
         let sharp = BubbleTable::new(&Bubble::Sphere { radius: 4.0 }, 8.0);
-        let ratio = |t: &BubbleTable| {
-            t.decimation(face_air * 3 / 2, [0; 3], 1.0, 1.0) / t.decimation(face_air, [0; 3], 1.0, 1.0)
-        };
+        let ratio =
+            |t: &BubbleTable| t.decimation(face_air * 3 / 2, FLAT, 1.0, 1.0) / t.decimation(face_air, FLAT, 1.0, 1.0);
         assert!(ratio(&sharp) > 10.0 * ratio(&t));
     }
 }

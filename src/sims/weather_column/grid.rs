@@ -22,6 +22,14 @@ pub const NEIGHBOURS_26: [(i64, i64, i64); 26] = {
     out
 };
 
+/// How an exposed voxel touches air: how many of the 26 cells around it are air, and the sum
+/// of their offsets (pointing out of the rock, the surface's normal at the scale of a voxel).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Exposure {
+    pub air: u8,
+    pub towards: [i8; 3],
+}
+
 /// Voxel `(x, y, z)` has its centre at `((x, y, z) + 0.5) × voxel_size_m`, Y up; index
 /// `x + nx × (z + nz × y)`, so a horizontal plane is contiguous and planes go bottom to top.
 #[derive(Clone, Debug, PartialEq)]
@@ -75,20 +83,23 @@ impl Grid {
         state[self.index(x as usize, y as usize, z as usize)] == ROCK
     }
 
-    /// For a voxel `i` that touches air through a face, an edge or a corner, how many of its
-    /// faces across X, Y and Z are open to air; `None` for a voxel that touches none. Only
+    /// How voxel `i` touches air among the 26 around it; `None` when it touches none. Only
     /// touching voxels weather: the paper centres its bubbles "on exposed voxels" (section 4).
     /// Voxels deeper within a bubble's reach keep their air count but do not decay until a
     /// removal exposes them.
-    pub fn exposure(&self, state: &[u16], i: usize) -> Option<[u8; 3]> {
+    pub fn exposure(&self, state: &[u16], i: usize) -> Option<Exposure> {
         let (x, y, z) = self.coords(i);
         let (x, y, z) = (x as i64, y as i64, z as i64);
-        let air = |dx: i64, dy: i64, dz: i64| !self.solid(state, x + dx, y + dy, z + dz);
-        if !NEIGHBOURS_26.iter().any(|&(dx, dy, dz)| air(dx, dy, dz)) {
-            return None;
+        let mut out = Exposure { air: 0, towards: [0; 3] };
+        for &(dx, dy, dz) in &NEIGHBOURS_26 {
+            if !self.solid(state, x + dx, y + dy, z + dz) {
+                out.air += 1;
+                for (t, d) in out.towards.iter_mut().zip([dx, dy, dz]) {
+                    *t += d as i8;
+                }
+            }
         }
-        let open = |a: bool, b: bool| a as u8 + b as u8;
-        Some([open(air(-1, 0, 0), air(1, 0, 0)), open(air(0, -1, 0), air(0, 1, 0)), open(air(0, 0, -1), air(0, 0, 1))])
+        (out.air > 0).then_some(out)
     }
 }
 

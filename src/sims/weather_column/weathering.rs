@@ -71,9 +71,9 @@ pub fn synchronized_step(rock: &mut Rock, active: &mut Active, rate: f32, step: 
         let rock = &*rock;
         active.level.par_iter_mut().zip(active.index.par_iter()).zip(active.resistance.par_iter()).for_each(
             |((level, &i), &resistance)| {
-                if let Some(open) = rock.grid.exposure(&rock.state, i as usize) {
+                if let Some(exposure) = rock.grid.exposure(&rock.state, i as usize) {
                     let bubble = rock.bubble_of_plane(i as usize / plane);
-                    *level -= bubble.decimation(rock.air[i as usize], open, rate, resistance);
+                    *level -= bubble.decimation(rock.air[i as usize], exposure, rate, resistance);
                 }
             },
         );
@@ -192,8 +192,8 @@ pub fn weather_event_based(rock: &mut Rock, schedule: Schedule, on_step: &mut On
     let plane = rock.grid.plane();
     // Unexposed voxels do not decay: rate 0, and no event until a removal exposes them.
     let rate_of = |rock: &Rock, i: u32, resistance: f32| -> f64 {
-        let Some(open) = rock.grid.exposure(&rock.state, i as usize) else { return 0.0 };
-        rock.bubble_of_plane(i as usize / plane).decimation(rock.air[i as usize], open, schedule.rate, resistance)
+        let Some(exposure) = rock.grid.exposure(&rock.state, i as usize) else { return 0.0 };
+        rock.bubble_of_plane(i as usize / plane).decimation(rock.air[i as usize], exposure, schedule.rate, resistance)
             as f64
     };
     let scheduled = |t: f64, level: f64, rate: f64, index: u32, version: u32| {
