@@ -4,9 +4,6 @@
 use super::grid::Exposure;
 use super::params::Bubble;
 
-/// Air cells among the 26 around a voxel on a flat face.
-const FLAT_FACE_AIR: f32 = 9.0;
-
 /// The cells `(x_lo..=x_hi, dy, dz)` of a bubble in one row, relative to its centre.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Run {
@@ -87,13 +84,12 @@ impl BubbleTable {
     /// counts the bubble's whole central plane across it as rock, and a bubble thin across a
     /// face (where that plane is a large part of it) sees the face as flatter than a bubble
     /// deep across it: an ellipsoid bubble long along Z weathered the Z faces fastest and left
-    /// the rock short along its long axis. Moving the centre half a voxel out turns half of
-    /// that plane from rock to air, so every flat face holds as much air as rock, whatever the
-    /// bubble. The plane is the one across the surface's normal (from the 26 cells around),
-    /// and the move grows with the air among them: half a voxel on a flat face or a diagonal
-    /// staircase (9 of 26; counting each open face's plane in full would weather a
-    /// staircase's steps twice as fast and square a round column), more on an edge (15) or a
-    /// corner (19), which stand out of the surface.
+    /// the rock 32 % short along its long axis. Moving the centre half a voxel out along the
+    /// surface's normal (from the 26 cells around) turns half of the central plane across
+    /// that normal from rock to air, so a flat face of any orientation holds as much air as
+    /// rock under any symmetric bubble. On an edge or a corner the move is the same half voxel
+    /// (the surface point nearest the voxel's centre is no farther), and a staircase of voxels
+    /// on a slanted face moves no more than a flat face: a round column stays round.
     pub fn decimation(&self, air: u16, exposure: Exposure, rate: f32, resistance: f32) -> f32 {
         let t = exposure.towards.map(f32::from);
         let norm2 = t.iter().map(|v| v * v).sum::<f32>();
@@ -103,14 +99,19 @@ impl BubbleTable {
             // Air all around in balance (a thin fin or a lone voxel): no one plane.
             (0..3).map(|k| self.central[k] as f32).sum::<f32>() / 3.0
         };
-        let shift = 0.5 * plane * f32::from(exposure.air) / FLAT_FACE_AIR;
+        let shift = 0.5 * plane;
         let cells = self.cells as f32;
         let air = (air as f32 + shift).min(cells - 0.5);
-        let ratio = air / (cells - air);
-        let curvature = if self.ratio_exponent == 1.0 { ratio } else { ratio.powf(self.ratio_exponent) };
-        rate * curvature / resistance
+        let ratio = f64::from(air / (cells - air));
+        let curvature = if self.ratio_exponent == 1.0 { ratio } else { ratio.powf(f64::from(self.ratio_exponent)) };
+        // A lone voxel under a high exponent would overflow to infinity (and infinity × 0 is
+        // NaN in the event-based update's bookkeeping); past 1 a step it is gone either way.
+        (f64::from(rate) * curvature / f64::from(resistance)).min(MAX_DECIMATION) as f32
     }
 }
+
+/// The most decimation a voxel can take in a step: far past the 1 that removes it at once.
+const MAX_DECIMATION: f64 = 1e6;
 
 #[cfg(test)]
 mod tests {
@@ -150,6 +151,23 @@ mod tests {
         let t = BubbleTable::new(&Bubble::Ellipsoid { radii: [2.0, 5.0, 3.0] }, 1.0);
         assert_eq!(t.reach, [2, 5, 3]);
         assert_eq!((t.dy_min, t.dy_max), (-5, 5));
+    }
+
+    #[test]
+    fn a_flat_face_holds_as_much_air_as_rock_under_any_bubble_and_orientation() {
+        // A face voxel's bubble, centred on the voxel, holds as air the cells past its face:
+        // half of those off its central plane, by symmetry. Centred on the surface, the ratio
+        // is 1 whatever the bubble's shape and the face's axis.
+        for bubble in [Bubble::Ellipsoid { radii: [6.0, 2.5, 2.5] }, Bubble::Ellipsoid { radii: [2.0, 7.0, 3.0] }] {
+            let t = BubbleTable::new(&bubble, 1.0);
+            for k in 0..3 {
+                let mut towards = [0i8; 3];
+                towards[k] = 9;
+                let air = ((t.cells - t.central[k]) / 2) as u16;
+                let d = t.decimation(air, Exposure { air: 9, towards }, 0.05, 1.0);
+                assert!((d - 0.05).abs() < 1e-6, "{bubble:?} axis {k}: {d}");
+            }
+        }
     }
 
     #[test]

@@ -16,8 +16,9 @@ pub struct Rock {
     pub grid: Grid,
     /// `ROCK`, `NEVER_ROCK`, or the step that removed the voxel.
     pub state: Vec<u16>,
-    /// Air cells in each rock voxel's bubble. A rock voxel is active — close enough to the
-    /// surface to weather (paper section 5) — when this is above 0. (Cells that are not rock
+    /// Air cells in each rock voxel's bubble. A rock voxel is active — its weathering state
+    /// kept, as it is close enough to the surface (paper section 5) — when this is above 0; it
+    /// decays once it touches air ([`Grid::exposure`]). (Cells that are not rock
     /// accumulate counts too; they are never read.)
     pub air: Vec<u16>,
     pub layer_of_plane: Vec<u8>,

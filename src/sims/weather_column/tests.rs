@@ -88,7 +88,7 @@ fn remaining(rock: &Rock) -> f64 {
 }
 
 /// The surface voxels' distance spread of the digital sphere holding `voxels` voxels, centred
-/// in a `side`³ grid: the floor no voxel rock can go below, by a count of its own.
+/// in a `side`³ grid, by a count of its own: the staircase any voxel sphere has.
 fn digital_sphere_spread(side: usize, voxels: f64) -> f64 {
     let r = (3.0 * voxels / (4.0 * std::f64::consts::PI)).cbrt();
     let c = side as f64 / 2.0;
@@ -134,7 +134,7 @@ fn floating_cube_weathers_into_a_sphere_at_the_papers_settings() {
     // Within 0.035: about a quarter of a voxel at a radius of 8, the digital sphere's own
     // staircase, which no voxel rock can beat.
     assert!(cv < 0.035, "surface distances spread {cv} of their mean {mean} voxels");
-    assert!(cv < floor + 0.01, "cv {cv} against the digital sphere's {floor}");
+    assert!(cv < 1.1 * floor, "cv {cv} against the digital sphere's {floor}");
     // Every axis alike: a sphere, not a rounded box or a lens.
     let s = spread(&rock);
     assert!(s.iter().all(|&v| (v - s[0]).abs() < 0.02 * s[0]), "spread along the axes {s:?}");
@@ -371,13 +371,14 @@ fn spread(rock: &Rock) -> [f64; 3] {
 fn a_cube_weathers_toward_the_shape_of_an_ellipsoid_bubble() {
     // The paper: "a cube weathers into approximately the same shape as the bubble used". A
     // cube's spread is the same along every axis; at the paper's settings (exponent 1) a bubble
-    // long along one axis leaves the rock long along it. Before, the bubble centred on the
-    // voxel's centre counted its whole central plane as rock, which on a face across the long
-    // axis is a small part of the bubble: those faces weathered fastest and the rock came out
-    // 32 % short along the long axis.
+    // long along one axis leaves the rock long along it: 23–47 % longer at a tenth of the
+    // volume (1 % at a third: the shape grows as the weathering goes on). Before, the bubble
+    // centred on the voxel's centre counted its whole central plane as rock, which on a face
+    // across the long axis is a small part of the bubble: those faces weathered fastest and
+    // the rock came out 32 % short along the long axis.
     for (radii, long) in [([6.0, 2.5, 2.5], 0), ([2.5, 2.5, 6.0], 2), ([2.0, 7.0, 2.0], 1)] {
         for update in ["synchronized", "event_based"] {
-            let p = floating_cube(30, json!({"ellipsoid": {"radii": radii}}), 0.35, update);
+            let p = floating_cube(30, json!({"ellipsoid": {"radii": radii}}), 0.1, update);
             let (rock, history) = weather(&p, 1);
             let s = spread(&rock);
             eprintln!(

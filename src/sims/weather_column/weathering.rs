@@ -1,6 +1,7 @@
-//! The weathering loop (paper sections 4–5): every active voxel's decimation level falls by
-//! its rate each step; voxels that reach zero are removed and their neighbours' air counts
-//! grow by the bubble's lookup table.
+//! The weathering loop (paper sections 4–5): every active voxel that touches air has its
+//! decimation level fall by its rate each step (the others wait, at level 1, until a removal
+//! exposes them); voxels that reach zero are removed and their neighbours' air counts grow by
+//! the bubble's lookup table.
 //!
 //! The synchronized two-step update finds all removals of a step from the levels at its start,
 //! then applies them; it runs in parallel and gives the same result on any number of threads.
