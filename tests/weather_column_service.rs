@@ -21,7 +21,7 @@ fn small_goblin(steps: u32) -> Value {
             {"top_m": 1.6, "resistance": 0.5, "noise": {"amplitude": 0.3, "frequency_per_m": 2.0}, "bubble": {"sphere": {"radius": 3}}},
             {"top_m": 2.6, "resistance": 3.0, "bubble": {"gumdrop": {"radius": 3}}}
         ],
-        "rate": 0.3,
+        "rate": 0.05,
         "steps": steps
     })
 }
