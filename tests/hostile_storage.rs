@@ -193,5 +193,7 @@ async fn large_submissions_at_once_are_prepared_a_few_at_a_time() {
     let four = status_bytes(pid, "VmHWM").saturating_sub(before);
     eprintln!("one 7 MB submission: API peak +{} MB; four at once: +{} MB", one >> 20, four >> 20);
     assert_eq!(statuses, [202; 4]);
-    assert!(four < one * 13 / 5, "four at once peaked at +{} MB, one alone at +{} MB", four >> 20, one >> 20);
+    // Two bodies' worth with the allocator's slack (2.2–2.6 × one measured), never three (3 × was
+    // seen about one time in three while a job's answer still held its request after its turn).
+    assert!(four < one * 14 / 5, "four at once peaked at +{} MB, one alone at +{} MB", four >> 20, one >> 20);
 }
