@@ -9,7 +9,8 @@
 //! meshes must also open or pinch no edge the 32-bit form's does not. (The quantised forms
 //! still collapse a few triangles elsewhere — carve-coast's and weather-column's simplified
 //! levels, grow-cave's thinnest stalactite tips, a tileable terrain's coarse levels in
-//! `meshopt` — which issues 29 and 31 leave to their own items.)
+//! `meshopt` — which issues 29 and 31 leave to their own items.) A deform-terrain example's
+//! `sequence.bin` must be no larger than its `heightmap.png`.
 //!
 //! Needs `npm ci --prefix tests/gltf-validator` first.
 
@@ -94,6 +95,13 @@ fn check_form(example: &Path, form: &str, dir: &Path, unpaired: &mut Unpaired) -
     let Some(job) = run_job(kind, &body, &out) else { return vec![format!("{name}: the job failed")] };
     let levels = job["result"]["glb"]["levels"].as_array().cloned().unwrap_or_default();
     let mut problems = Vec::new();
+    if kind == "deform-terrain" {
+        // The sequence is the terrain compressed (the paper's §4.5): no larger than its 16-bit PNG.
+        let (bin, png) = (&job["result"]["sequence_bin"]["bytes"], &job["result"]["heightmap_png_bytes"]);
+        if !(bin.as_u64().unwrap() <= png.as_u64().unwrap()) {
+            problems.push(format!("{name}: sequence.bin {bin} B, heightmap.png {png} B"));
+        }
+    }
     if levels.len() != 4 {
         problems.push(format!("{name}: {} levels in the result", levels.len()));
     }

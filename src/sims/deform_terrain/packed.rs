@@ -1,13 +1,13 @@
 //! `sequence.bin`: the deformation sequence as the compressed terrain (paper §4.5) — the
 //! starting terrain's source and what replay needs of each operation, nothing more.
 //!
-//! Layout, version 1 (integers little-endian; "varint" is unsigned LEB128, "zigzag" maps a
+//! Layout, version 2 (integers little-endian; "varint" is unsigned LEB128, "zigzag" maps a
 //! signed n to 2n or −2n − 1 before it):
 //!
 //! | bytes | field |
 //! |---|---|
 //! | 4 | magic `LFDS` |
-//! | 1 | version, 1 |
+//! | 1 | version, 2 |
 //! | 1 | amplitudes: 0 = exact (f32), 1 = quantised |
 //! | 2 | reserved, 0 |
 //! | 4 | u32 L, then L bytes: the starting terrain's source, compact JSON (as in `sequence.json`) |
@@ -17,18 +17,19 @@
 //! | 4 | f32 the largest difference, metres, the encoder measured between this replay and the run |
 //! | 1 | u8 R, then R × u16: the radii used, cells |
 //! | 4 | u32 N, the operations |
-//! | 4 | u32 P, then P bytes: a raw DEFLATE stream (RFC 1951) of four columns, N entries each: |
-//! | | zigzag varint col − previous col (the first from 0) |
-//! | | zigzag varint row − previous row |
+//! | 4 | u32 P, then P bytes: a raw DEFLATE stream (RFC 1951) of three columns, N entries each: |
+//! | | zigzag varint v − previous v, v = row · cols + col the operation's vertex (the first from 0) |
 //! | | u8 index into the radii |
 //! | | exact: f32 amplitude, metres; quantised: zigzag varint d, the amplitude being h + d·q with h the height the replay has at that vertex before the operation (f64 sum, rounded to f32) |
 //!
 //! Replay applies the operations in order with the kernel of `kernel.rs`. Exact amplitudes
-//! replay bit for bit what `sequence.json` does. Quantised ones are chosen by replaying while
-//! encoding: an operation superseded by a later one at the same vertex and radius with nothing
-//! else touching its window in between is merged into it (the later one alone gives the same
-//! heights), one that would move its vertex by less than q/2 is pruned, and q is halved until
-//! the whole replay stays within the tolerance of the run, cell by cell.
+//! are the run's own, in the run's order: they replay bit for bit what `sequence.json` does.
+//! Quantised ones use that every operation adds (a − h(v))·K to the heights: additions
+//! commute, so all of a vertex's operations of one radius sum to one, and the sums are stored
+//! in raster order (small steps between vertices, which DEFLATE packs tightly). Each sum is
+//! rounded to a multiple of q after taking off the rounding error the sums before it left at
+//! its vertex (error feedback); a sum of no step is left out, and q is halved until the whole
+//! replay stays within the tolerance of the run, cell by cell.
 
 use std::io::{Read, Write};
 
@@ -37,9 +38,11 @@ use super::sequence::{DeformSequence, Deformation};
 use crate::terrain::TerrainSource;
 
 const MAGIC: &[u8; 4] = b"LFDS";
-const VERSION: u8 = 1;
-/// Halvings of q tried before the amplitudes are stored exactly.
-const HALVINGS: u32 = 6;
+const VERSION: u8 = 2;
+/// The first quantum tried, in tolerances, and the halvings tried after it before the
+/// amplitudes are stored exactly (q from 4 × the tolerance down to a 128th of it).
+const FIRST_QUANTUM: f64 = 4.0;
+const HALVINGS: u32 = 9;
 /// The most operations a file may declare (a job records at most 1 000 000).
 const MAX_OPERATIONS: u64 = super::params::MAX_OPERATIONS_PER_JOB;
 
@@ -76,14 +79,13 @@ pub struct Start<'a> {
 pub fn encode(sequence: &DeformSequence, start: &Start, run_final: &[f64], tolerance_m: f64) -> Packed {
     let ops = &sequence.operations;
     if tolerance_m > 0.0 {
-        let kept = unsuperseded(ops, start);
-        let mut q = tolerance_m;
+        let sums = summed(ops, start);
+        let mut q = tolerance_m * FIRST_QUANTUM;
         for _ in 0..=HALVINGS {
-            let (codes, h) = quantise(ops, &kept, start, q as f32);
+            let (codes, h) = quantise(&sums, start, q as f32);
             let error = max_difference(&h, run_final);
             if error <= tolerance_m {
-                let chosen: Vec<(Deformation, Amplitude)> = codes.into_iter().collect();
-                return write(&sequence.terrain, start, &chosen, q as f32, tolerance_m, error);
+                return write(&sequence.terrain, start, &codes, q as f32, tolerance_m, error);
             }
             q /= 2.0;
         }
@@ -101,65 +103,63 @@ enum Amplitude {
     Steps(i64),
 }
 
-/// Indices of the operations not superseded: an operation is dropped when a later one at the
-/// same vertex and radius follows with no operation in between touching its window — then
-/// the later one moves the vertex to its amplitude from wherever the earlier left it, and the
-/// window ends as if only the later had run (h + (a₂ − h(v))·K either way).
-fn unsuperseded(ops: &[Deformation], start: &Start) -> Vec<usize> {
-    let (cols, rows) = (start.cols, start.rows);
-    // The last operation (index + 1) that touched each cell; 0 none.
-    let mut touched = vec![0u32; cols * rows];
-    let mut last_at: std::collections::HashMap<(u32, u32, u32), usize> = std::collections::HashMap::new();
-    let mut dropped = vec![false; ops.len()];
-    for (j, op) in ops.iter().enumerate() {
-        let r = op.radius_cells as usize;
-        let rect = kernel::Rect::around(op.col as usize, op.row as usize, r, cols, rows);
-        let key = (op.col, op.row, op.radius_cells);
-        let mut latest = 0u32;
-        for row in rect.r0..=rect.r1 {
-            for &t in &touched[row * cols + rect.c0..=row * cols + rect.c1] {
-                latest = latest.max(t);
-            }
-        }
-        if let Some(&i) = last_at.get(&key) {
-            if latest as usize == i + 1 {
-                dropped[i] = true;
-            }
-        }
-        for row in rect.r0..=rect.r1 {
-            touched[row * cols + rect.c0..=row * cols + rect.c1].fill(j as u32 + 1);
-        }
-        last_at.insert(key, j);
-    }
-    (0..ops.len()).filter(|&i| !dropped[i]).collect()
+/// One vertex's operations of one radius, summed: the change (a − h(v)) each made there.
+#[derive(Clone, Copy, Debug)]
+struct Sum {
+    op: Deformation,
+    change: f64,
 }
 
-/// Replay the kept operations with amplitudes rounded to steps of `q` from the height the
-/// replay has at each vertex, dropping those of no step; returns the stored operations and the
-/// heights they give.
-fn quantise(ops: &[Deformation], kept: &[usize], start: &Start, q: f32) -> (Vec<(Deformation, Amplitude)>, Vec<f64>) {
+/// Replay the run's operations and sum each vertex's changes per radius, in raster order
+/// (vertex, then radius).
+fn summed(ops: &[Deformation], start: &Start) -> Vec<Sum> {
     let mut h = start.original.to_vec();
     let mut kernels = KernelCache::default();
-    let mut out = Vec::with_capacity(kept.len());
-    for &i in kept {
-        let op = ops[i];
+    let mut sums: std::collections::BTreeMap<(u32, u32, u32), Sum> = std::collections::BTreeMap::new();
+    for op in ops {
         let v = op.row as usize * start.cols + op.col as usize;
-        let steps = ((op.amplitude as f64 - h[v]) / q as f64).round() as i64;
-        if steps == 0 {
-            continue;
-        }
-        let amplitude = stepped(h[v], steps, q);
-        let op = Deformation { amplitude, ..op };
+        let change = op.amplitude as f64 - h[v];
+        sums.entry((op.row, op.col, op.radius_cells)).or_insert(Sum { op: *op, change: 0.0 }).change += change;
         kernel::apply(
             &mut h,
             start.cols,
             start.rows,
-            v % start.cols,
-            v / start.cols,
-            amplitude as f64,
-            kernels.get(op),
+            op.col as usize,
+            op.row as usize,
+            op.amplitude as f64,
+            kernels.get(*op),
         );
-        out.push((op, Amplitude::Steps(steps)));
+    }
+    sums.into_values().collect()
+}
+
+/// Round the sums to steps of `q` from the height the replay has at each vertex, each after
+/// taking off the error the sums before it left at its vertex, dropping those of no step;
+/// returns the stored operations and the heights they give.
+fn quantise(sums: &[Sum], start: &Start, q: f32) -> (Vec<(Deformation, Amplitude)>, Vec<f64>) {
+    let (cols, rows) = (start.cols, start.rows);
+    let mut h = start.original.to_vec();
+    // Σ (stored change − summed change)·K over the sums so far.
+    let mut error = vec![0.0; h.len()];
+    let mut kernels = KernelCache::default();
+    let mut out = Vec::with_capacity(sums.len());
+    for sum in sums {
+        let (col, row) = (sum.op.col as usize, sum.op.row as usize);
+        let v = row * cols + col;
+        let kernel = kernels.get(sum.op);
+        let steps = ((sum.change - error[v]) / q as f64).round() as i64;
+        let stored = if steps == 0 {
+            0.0
+        } else {
+            let amplitude = stepped(h[v], steps, q);
+            let stored = amplitude as f64 - h[v];
+            kernel::apply(&mut h, cols, rows, col, row, amplitude as f64, kernel);
+            out.push((Deformation { amplitude, ..sum.op }, Amplitude::Steps(steps)));
+            stored
+        };
+        // error + (stored − change)·K, through the same kernel loop.
+        let pinned = error[v] + stored - sum.change;
+        kernel::apply(&mut error, cols, rows, col, row, pinned, kernel);
     }
     (out, h)
 }
@@ -217,16 +217,16 @@ fn write(
     radii.sort_unstable();
     radii.dedup();
     let exact = ops.iter().all(|(_, a)| matches!(a, Amplitude::Exact(_)));
-    let mut columns: [Vec<u8>; 4] = Default::default();
-    let (mut col, mut row) = (0i64, 0i64);
+    let mut columns: [Vec<u8>; 3] = Default::default();
+    let mut previous = 0i64;
     for (op, amplitude) in ops {
-        varint(&mut columns[0], zigzag(op.col as i64 - col));
-        varint(&mut columns[1], zigzag(op.row as i64 - row));
-        (col, row) = (op.col as i64, op.row as i64);
-        columns[2].push(radii.binary_search(&op.radius_cells).expect("listed") as u8);
+        let v = op.row as i64 * start.cols as i64 + op.col as i64;
+        varint(&mut columns[0], zigzag(v - previous));
+        previous = v;
+        columns[1].push(radii.binary_search(&op.radius_cells).expect("listed") as u8);
         match amplitude {
-            Amplitude::Exact(a) => columns[3].extend_from_slice(&a.to_le_bytes()),
-            Amplitude::Steps(d) => varint(&mut columns[3], zigzag(*d)),
+            Amplitude::Exact(a) => columns[2].extend_from_slice(&a.to_le_bytes()),
+            Amplitude::Steps(d) => varint(&mut columns[2], zigzag(*d)),
         }
     }
     let mut deflate = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::best());
@@ -280,8 +280,8 @@ pub fn decode(bytes: &[u8], original: &[f64], cell_m: f64) -> Result<DeformSeque
     if original.len() != cols * rows {
         return bad(format!("the starting terrain has {} samples, not {cols} × {rows}", original.len()));
     }
-    // Each entry is at most 10 + 10 + 1 + 10 bytes; read no more than that could need.
-    let limit = (n as u64) * 31;
+    // Each entry is at most 10 + 1 + 10 bytes; read no more than that could need.
+    let limit = (n as u64) * 21;
     let mut body = Vec::new();
     flate2::read::DeflateDecoder::new(payload)
         .take(limit + 1)
@@ -291,16 +291,7 @@ pub fn decode(bytes: &[u8], original: &[f64], cell_m: f64) -> Result<DeformSeque
         return bad("payload longer than its operations");
     }
     let mut at = 0usize;
-    let mut read_column = |signed: bool| -> Result<Vec<i64>, PackError> {
-        (0..n)
-            .map(|_| {
-                let v = read_varint(&body, &mut at)?;
-                Ok(if signed { unzigzag(v) } else { v as i64 })
-            })
-            .collect()
-    };
-    let dcols = read_column(true)?;
-    let drows = read_column(true)?;
+    let steps: Vec<i64> = (0..n).map(|_| read_varint(&body, &mut at).map(unzigzag)).collect::<Result<_, _>>()?;
     let mut radius_index = Vec::with_capacity(n);
     for _ in 0..n {
         radius_index.push(*body.get(at).ok_or_else(|| PackError("payload ends early".into()))?);
@@ -309,15 +300,15 @@ pub fn decode(bytes: &[u8], original: &[f64], cell_m: f64) -> Result<DeformSeque
     let mut h = original.to_vec();
     let mut kernels = KernelCache::default();
     let mut operations = Vec::with_capacity(n);
-    let (mut col, mut row) = (0i64, 0i64);
-    for k in 0..n {
-        col += dcols[k];
-        row += drows[k];
-        if !(0..cols as i64).contains(&col) || !(0..rows as i64).contains(&row) {
-            return bad(format!("operation {k} is off the grid"));
-        }
+    let mut v = 0i64;
+    for (k, step) in steps.iter().enumerate() {
+        v = v
+            .checked_add(*step)
+            .filter(|v| (0..(cols * rows) as i64).contains(v))
+            .ok_or_else(|| PackError(format!("operation {k} is off the grid")))?;
+        let (col, row) = (v % cols as i64, v / cols as i64);
         let radius = *radii.get(radius_index[k] as usize).ok_or_else(|| PackError(format!("operation {k}: radius")))?;
-        let v = row as usize * cols + col as usize;
+        let v = v as usize;
         let amplitude = if exact {
             let b = body.get(at..at + 4).ok_or_else(|| PackError("payload ends early".into()))?;
             at += 4;
@@ -472,29 +463,32 @@ mod tests {
     }
 
     #[test]
-    fn an_operation_is_merged_only_when_nothing_touches_its_window_before_the_next_at_its_vertex() {
+    fn a_vertexs_operations_of_one_radius_sum_to_one_that_gives_the_same_heights() {
         let h = ramp();
-        // A at (10, 10); B far away; C again at (10, 10): A is superseded.
-        let ops = [op(10, 10, 3, 5.0), op(30, 30, 3, 2.0), op(10, 10, 3, 7.0)];
-        assert_eq!(unsuperseded(&ops, &start(&h)), vec![1, 2]);
-        // D at (12, 10) reaches A's window between them: nothing is merged.
-        let ops = [op(10, 10, 3, 5.0), op(12, 10, 3, 2.0), op(10, 10, 3, 7.0)];
-        assert_eq!(unsuperseded(&ops, &start(&h)), vec![0, 1, 2]);
-        // Another radius at the same vertex is another operation.
-        let ops = [op(10, 10, 3, 5.0), op(10, 10, 4, 7.0)];
-        assert_eq!(unsuperseded(&ops, &start(&h)), vec![0, 1]);
-        // By hand: the merged sequence gives the heights of the whole one, h + (7 − h(v))·K.
-        let ops = [op(10, 10, 3, 5.0), op(30, 30, 3, 2.0), op(10, 10, 3, 7.0)];
-        let (mut all, mut merged) = (h.clone(), h.clone());
+        // A and C at (10, 10) with B between them reaching A's window; D at another radius.
+        let ops = [op(10, 10, 3, 5.0), op(12, 10, 3, 2.0), op(10, 10, 3, 7.0), op(10, 10, 4, 1.0)];
+        let sums = summed(&ops, &start(&h));
+        let keys: Vec<(u32, u32, u32)> = sums.iter().map(|s| (s.op.col, s.op.row, s.op.radius_cells)).collect();
+        assert_eq!(keys, vec![(10, 10, 3), (10, 10, 4), (12, 10, 3)], "raster order, then radius");
+        // By hand: each operation adds (a − h(v))·K, with h(v) the height just before it.
+        let (k3, k4) = (Kernel::new(3), Kernel::new(4));
+        let at = |c: usize, r: usize| r * N + c;
+        let a_change = 5.0 - h[at(10, 10)];
+        let b_change = 2.0 - (h[at(12, 10)] + a_change * k3.at(2, 0));
+        let c_change = 7.0 - (5.0 + b_change * k3.at(-2, 0));
+        let d_change = 1.0 - 7.0;
+        assert!((sums[0].change - (a_change + c_change)).abs() < 1e-12);
+        assert!((sums[1].change - d_change).abs() < 1e-12);
+        assert!((sums[2].change - b_change).abs() < 1e-12);
+        let mut all = h.clone();
         replay(&mut all, &start(&h), &ops);
-        replay(&mut merged, &start(&h), &[ops[1], ops[2]]);
-        let k = Kernel::new(3);
-        for (i, (&a, &m)) in all.iter().zip(&merged).enumerate() {
+        for (i, &a) in all.iter().enumerate() {
             let (c, r) = ((i % N) as i64, (i / N) as i64);
-            assert!((a - m).abs() < 1e-12, "cell {i}");
-            let want =
-                h[i] + (7.0 - h[10 * N + 10]) * k.at(c - 10, r - 10) + (2.0 - h[30 * N + 30]) * k.at(c - 30, r - 30);
-            assert!((a - want).abs() < 1e-12, "cell {i}: {a} vs {want}");
+            let want = h[i]
+                + (a_change + c_change) * k3.at(c - 10, r - 10)
+                + d_change * k4.at(c - 10, r - 10)
+                + b_change * k3.at(c - 12, r - 10);
+            assert!((a - want).abs() < 1e-9, "cell {i}: {a} vs {want}");
         }
     }
 
@@ -512,7 +506,7 @@ mod tests {
         assert_eq!(back.operations, ops);
         assert_eq!(back.terrain, seq.terrain);
         assert_eq!(exact.max_error_m, 0.0);
-        for tolerance in [0.05, 0.002] {
+        for tolerance in [0.05, 0.002, 1e-5] {
             let packed = encode(&seq, &start(&h), &run, tolerance);
             let header = header(&packed.bytes).unwrap();
             assert!(header.quantum_m > 0.0 && header.operations == packed.operations);

@@ -458,6 +458,47 @@ fn sequence_bin_replays_within_its_tolerance_and_exactly_without_one() {
     assert_eq!(replayed.heights_m, final_heights(&exact).iter().map(|&v| v as f32).collect::<Vec<_>>());
 }
 
+/// Every fractal source in a request at `size`² with cells of `cell_m` (the same square when
+/// size − 1 times cell_m is unchanged).
+fn resized(mut v: Value, size: u32, cell_m: f64) -> Value {
+    fn walk(v: &mut Value, size: u32, cell_m: f64) {
+        match v {
+            Value::Object(map) => {
+                if let Some(Value::Object(f)) = map.get_mut("fractal") {
+                    f.insert("size".into(), json!(size));
+                    f.insert("cell_size".into(), json!(cell_m));
+                }
+                map.values_mut().for_each(|x| walk(x, size, cell_m));
+            }
+            Value::Array(items) => items.iter_mut().for_each(|x| walk(x, size, cell_m)),
+            _ => {}
+        }
+    }
+    walk(&mut v, size, cell_m);
+    v
+}
+
+#[test]
+fn sequence_bin_is_no_larger_than_the_heightmap_png_for_every_example_at_161() {
+    // The shipped examples are 257² (every_example_glb checks them as run); here each on 161
+    // samples of 1.6 m over the same 256 m square.
+    let examples = examples();
+    assert!(examples.len() >= 6, "{}", examples.len());
+    for (example, mut body) in examples {
+        let obj = body.as_object_mut().unwrap();
+        let seed = obj.remove("seed").and_then(|s| s.as_u64()).unwrap_or(1);
+        obj.remove("label");
+        let run = run_with(&params(resized(body, 161, 1.6)), seed);
+        let bin = run.result["sequence_bin"]["bytes"].as_u64().unwrap();
+        let png = run.result["heightmap_png_bytes"].as_u64().unwrap();
+        eprintln!(
+            "{example}: sequence.bin {bin} B, heightmap.png {png} B, {} operations",
+            run.sequence.operations.len()
+        );
+        assert!(bin <= png, "{example}: sequence.bin {bin} B, heightmap.png {png} B");
+    }
+}
+
 #[test]
 fn road_json_gives_each_road_centreline_in_metres_with_its_heights_and_gradient() {
     // 2 m cells: a straight road from (10, 40) m to (110, 40) m at 70 m, beside a point.
