@@ -179,9 +179,10 @@ pub struct DeformTerrainParams {
     #[serde(default)]
     pub tiles: Option<TileGrid>,
     /// `sequence.bin` (the compressed terrain) replays to within this many metres of the
-    /// result at every sample: amplitudes are quantised, superseded operations merged and
-    /// negligible ones pruned until it holds. 0: amplitudes exact and every operation kept, so
-    /// its replay is bit-identical to `sequence.json`'s. Absent: half a step of the 16-bit
+    /// result at every sample: each vertex's operations of one radius are summed into one (in
+    /// raster order, not the run's), the sums quantised and those of no step left out until
+    /// it holds. 0: amplitudes exact and every operation kept in the run's order, so its
+    /// replay is bit-identical to `sequence.json`'s. Absent: half a step of the 16-bit
     /// `heightmap.png` (the result's height range / 65 535 / 2), the PNG's own rounding.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     // 1e6 = MAX_METRES

@@ -1,7 +1,7 @@
 //! What a grow-cave job costs before it runs. Memory: the recorded rings, the roof and floor
 //! grids and their meshes, and the speleothem tubes with their glb and render copies (each
-//! tube has at most two rings per pass and `segments` vertices a ring). Work: rings grown,
-//! chamber samples generated, tube vertices written and rendered.
+//! tube has its recorded rings and at most three more at its end, `segments` vertices a
+//! ring). Work: rings grown, chamber samples generated, tube vertices written and rendered.
 
 use super::chamber::surface_grid;
 use super::params::{Conditions, GrowCaveParams, Pluviometric, Sites};
@@ -76,7 +76,7 @@ pub fn estimate(params: &GrowCaveParams, seed: u64, _terrain: &dyn TerrainLookup
         None => (recorded, tubes, stalactites, sites),
     };
     let canal = if params.canal_radius_m > 0.0 { stalactites } else { 0 };
-    let tube_vertices = (recorded + 2 * tubes) * segments * (tubes + canal) / tubes.max(1);
+    let tube_vertices = (recorded + 3 * tubes) * segments * (tubes + canal) / tubes.max(1);
     let (cols, rows, _) = surface_grid(&params.chamber);
     // The mesh of a surface keeps at most 1025 samples a side; the grids here have at most 513.
     // Roof, floor and walls (at most 64 levels round the edge).

@@ -7,6 +7,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use super::chamber::ChamberShape;
 use super::params::{Co2, Conditions, DripInterval, GrowCaveParams, ManualRing, Pluviometric};
 
 /// Radii below this close the tip (condition ii: the new ring's radius is zero).
@@ -36,6 +37,14 @@ impl Ring {
     }
     pub fn displacement(&self) -> f32 {
         self.1[4]
+    }
+    /// Keep `share` of the ring's growth: its height and the wind's shift alike (the shift is
+    /// made in proportion to the height, so a ring cut short leans as its whole would).
+    fn trim(&mut self, share: f32) {
+        let share = share.clamp(0.0, 1.0);
+        for v in &mut self.1[1..4] {
+            *v *= share;
+        }
     }
 }
 
@@ -200,10 +209,11 @@ fn axis_end(x: f32, z: f32, rings: &[Ring]) -> [f32; 2] {
     rings.iter().fold([x, z], |[x, z], r| [x + r.shift()[0], z + r.shift()[1]])
 }
 
-/// Everything a pass needs besides the site: the request's numbers.
+/// Everything a pass needs besides the site: the request's numbers and the chamber.
 pub struct Grower<'a> {
     pub params: &'a GrowCaveParams,
     pub conditions: Conditions,
+    pub shape: &'a ChamberShape,
 }
 
 impl Grower<'_> {
@@ -367,8 +377,10 @@ impl Grower<'_> {
             if grown > 0.0 {
                 let keep = ((grown - overlap) / grown).max(0.0);
                 for r in site.stalactite.iter_mut().chain(site.stalagmite.iter_mut()).filter(|r| r.pass() == pass) {
-                    r.1[1] *= keep;
+                    r.trim(keep);
                 }
+                // The drip point moved back with the stalactite's trimmed shift.
+                site.place_under_drip(pass);
             }
             let closed = |rings: &[Ring]| rings.last().is_some_and(|r| r.radius() < CLOSED_RADIUS_M);
             // The tip must hang over the top: a stalagmite that did not grow this pass may stand
@@ -384,17 +396,61 @@ impl Grower<'_> {
             site.stalagmite_done = true;
             return;
         }
-        if tip <= site.floor_y_m {
-            let last = site.stalactite.last_mut().expect("a stalactite reached the floor");
-            last.1[1] -= site.floor_y_m - tip;
-            site.stalactite_done = true;
+        // The floor and the roof where the new step runs, not only under the site: the wind
+        // carries a tip over humps and hollows. The tip stops where its disc first touches.
+        let shape = self.shape;
+        if site.stalactite.last().is_some_and(|r| r.pass() == pass && r.height() > 0.0) {
+            let c = super::neighbours::centres(site, &site.stalactite, true);
+            let (a, b) = (c[c.len().saturating_sub(2)], c[c.len() - 1]);
+            let r = site.stalactite.last().map_or(0.0, |r| r.radius() + r.displacement());
+            if let Some(t) = first_contact(a, b, |p| disc(p, r).any(|(x, z)| p[1] <= shape.floor_y(x, z))) {
+                site.stalactite.last_mut().expect("a ring").trim(t);
+                site.stalactite_done = true;
+            }
         }
-        if top >= site.roof_y_m {
-            let last = site.stalagmite.last_mut().expect("a stalagmite reached the roof");
-            last.1[1] -= top - site.roof_y_m;
-            site.stalagmite_done = true;
+        if site.stalagmite.last().is_some_and(|r| r.pass() == pass && r.height() > 0.0) {
+            let c = super::neighbours::centres(site, &site.stalagmite, false);
+            let (a, b) = (c[c.len().saturating_sub(2)], c[c.len() - 1]);
+            let r = site.stalagmite.last().map_or(0.0, |r| r.radius() + r.displacement());
+            if let Some(t) = first_contact(a, b, |p| disc(p, r).any(|(x, z)| p[1] >= shape.roof_y(x, z))) {
+                site.stalagmite.last_mut().expect("a ring").trim(t);
+                site.stalagmite_done = true;
+            }
         }
     }
+}
+
+/// The centre of a ring at `p` and eight points round its rim at radius `r`, (x, z).
+pub fn disc(p: [f32; 3], r: f32) -> impl Iterator<Item = (f32, f32)> {
+    std::iter::once((p[0], p[2])).chain((0..8).map(move |i| {
+        let (sin, cos) = (i as f32 * std::f32::consts::FRAC_PI_4).sin_cos();
+        (p[0] + r * cos, p[2] + r * sin)
+    }))
+}
+
+/// The share (0 to 1) of the step from `a` to `b` before the axis first enters rock, or None
+/// when it stays clear: sixteen steps along it, then bisection.
+fn first_contact(a: [f32; 3], b: [f32; 3], rock: impl Fn([f32; 3]) -> bool) -> Option<f32> {
+    let at = |t: f32| -> [f32; 3] { std::array::from_fn(|i| a[i] + (b[i] - a[i]) * t) };
+    const STEPS: u32 = 16;
+    let mut lo = 0.0f32;
+    for i in 1..=STEPS {
+        let t = i as f32 / STEPS as f32;
+        if rock(at(t)) {
+            let mut hi = t;
+            for _ in 0..24 {
+                let m = 0.5 * (lo + hi);
+                if rock(at(m)) {
+                    hi = m;
+                } else {
+                    lo = m;
+                }
+            }
+            return Some(lo);
+        }
+        lo = t;
+    }
+    None
 }
 
 /// The RNG stream of drip site `index`: the same numbers whatever thread grows it.

@@ -36,7 +36,7 @@ impl Simulation for GrowCave {
     const KIND: &'static str = "grow-cave";
     const SUMMARY: &'static str =
         "Grow stalactites, stalagmites and columns ring by ring in a cave chamber from geological parameters (glTF scene)";
-    const GENERATOR_VERSION: u32 = 1;
+    const GENERATOR_VERSION: u32 = 2;
     type Params = GrowCaveParams;
     type Sequence = CaveSequence;
 
@@ -94,8 +94,10 @@ fn grow_passes(
 ) -> Result<CaveSequence, SimError> {
     let shape = ChamberShape::new(&params.chamber, seed);
     let sites = drip_sites(params, seed);
-    let growers: Vec<Grower> =
-        sites.iter().map(|s| Grower { params, conditions: s.conditions.unwrap_or(params.conditions) }).collect();
+    let growers: Vec<Grower> = sites
+        .iter()
+        .map(|s| Grower { params, conditions: s.conditions.unwrap_or(params.conditions), shape: &shape })
+        .collect();
     let mut sequence = CaveSequence {
         seed,
         passes: 0,
@@ -131,7 +133,7 @@ fn grow_passes(
                 grower.check_limits(g, pass);
             }
         });
-        neighbours::settle(&mut sequence.sites, &mut bodies, width, depth, pass);
+        neighbours::settle(&mut sequence.sites, &mut bodies, &shape, pass);
         sequence.passes = pass;
         on_pass(pass, &sequence)?;
         // Once nothing grows vertically, only the coating goes on; without it, nothing does.

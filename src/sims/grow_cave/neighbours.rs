@@ -8,9 +8,12 @@
 //! larger ring's radius plus its displacement — and, past every ring, a capsule for the rounded
 //! top or the drip tip the mesh may add there. The coating and the column's waist later widen a
 //! ring by less than half its clearance to any other site's capsules ([`Bodies::gap`]), so two
-//! sites' surfaces never meet.
+//! sites' surfaces never meet. A ring whose step would run into the floor (a stalagmite) or
+//! the roof (a stalactite) away from its own foot stops it the same way: the wind can carry a
+//! speleothem over a hump.
 
-use super::growth::{Ring, SiteGrowth};
+use super::chamber::ChamberShape;
+use super::growth::{disc, Ring, SiteGrowth};
 use super::sequence::RecordedSite;
 
 /// How far past a ring the mesh may reach (rounded top or drip tip), in ring radii.
@@ -311,15 +314,46 @@ fn newest(site: &SiteGrowth, up: bool, pass: u32) -> Option<[Capsule; 2]> {
     Some(ring_capsules(site, rings, &centres, rings.len() - 1, !up))
 }
 
-/// Check this pass's new rings against the other sites' bodies and the walls — stalactites
-/// first, then stalagmites, placed under the drip point as it now stands. A ring that would
-/// come within [`MARGIN_M`] of another site's body (grown before or this pass) or of a wall is
-/// removed and its speleothem stops; a site that became a column this pass loses the pass's
+/// Whether the newest ring's step (from the ring before) stands in open air: its axis, and the
+/// rim of its disc, every quarter radius along it above the floor for a stalagmite (below the
+/// roof for a stalactite), except where its foot is buried in a sloping floor (roof) — up to
+/// the highest floor (lowest roof) under a disc of its radius round its first ring. The other surface is
+/// for [`super::growth::Grower::check_limits`], which stops the tip on it.
+pub fn in_open_air(shape: &ChamberShape, site: &SiteGrowth, up: bool) -> bool {
+    let rings = if up { &site.stalagmite } else { &site.stalactite };
+    let Some(k) = rings.len().checked_sub(1).filter(|&k| k > 0) else { return true };
+    let reach = |r: &Ring| r.radius() + r.displacement();
+    let r = reach(&rings[k - 1]).max(reach(&rings[k]));
+    let surface = |x: f32, z: f32| if up { shape.floor_y(x, z) } else { shape.roof_y(x, z) };
+    let around = |x: f32, z: f32| disc([x, 0.0, z], r);
+    let sign = if up { 1.0 } else { -1.0 };
+    let c = centres(site, rings, !up);
+    // Heights measured along the speleothem's growth: up for a stalagmite, down for the other.
+    let [x0, _, z0] = c[0];
+    let foot = around(x0, z0).map(|(x, z)| sign * surface(x, z)).fold(f32::NEG_INFINITY, f32::max);
+    let (a, b) = (c[k - 1], c[k]);
+    let length = (0..3).map(|i| (b[i] - a[i]).powi(2)).sum::<f32>().sqrt();
+    let n = ((length / (0.25 * r.max(0.01))).ceil() as usize).clamp(2, 256);
+    (0..=n).all(|i| {
+        let t = i as f32 / n as f32;
+        let p: [f32; 3] = std::array::from_fn(|j| a[j] + (b[j] - a[j]) * t);
+        let y = sign * p[1];
+        y <= foot + MARGIN_M
+            || y > sign * surface(p[0], p[2]) + MARGIN_M && around(p[0], p[2]).all(|(x, z)| y > sign * surface(x, z))
+    })
+}
+
+/// Check this pass's new rings against the other sites' bodies, the walls, and the floor or
+/// roof ([`in_open_air`]) — stalactites first, then stalagmites, placed under the drip point
+/// as it now stands. A ring that would come within [`MARGIN_M`] of another site's body (grown
+/// before or this pass) or of a wall, or into the floor or roof, is removed and its
+/// speleothem stops; a site that became a column this pass loses the pass's
 /// rings of both and both stop. Accepted rings enter `bodies`. Returns how many speleothems
 /// stopped. Every decision depends only on the state before the check, so the order of sites
 /// does not matter.
-pub fn settle(sites: &mut [RecordedSite], bodies: &mut Bodies, width: f32, depth: f32, pass: u32) -> usize {
+pub fn settle(sites: &mut [RecordedSite], bodies: &mut Bodies, shape: &ChamberShape, pass: u32) -> usize {
     use rayon::prelude::*;
+    let (width, depth) = (shape.chamber.width_m, shape.chamber.depth_m);
     let mut stopped = 0;
     for up in [false, true] {
         if up {
@@ -336,12 +370,13 @@ pub fn settle(sites: &mut [RecordedSite], bodies: &mut Bodies, width: f32, depth
         let rejected: Vec<bool> = pending
             .par_iter()
             .map(|(i, caps)| {
-                caps.iter().any(|c| {
-                    let site = *i as u32;
-                    c.wall_gap(width, depth) < MARGIN_M
-                        || bodies.gap(site, c, MARGIN_M) < MARGIN_M
-                        || this_pass.gap(site, c, MARGIN_M) < MARGIN_M
-                })
+                !in_open_air(shape, &sites[*i].growth, up)
+                    || caps.iter().any(|c| {
+                        let site = *i as u32;
+                        c.wall_gap(width, depth) < MARGIN_M
+                            || bodies.gap(site, c, MARGIN_M) < MARGIN_M
+                            || this_pass.gap(site, c, MARGIN_M) < MARGIN_M
+                    })
             })
             .collect();
         for ((i, caps), no) in pending.into_iter().zip(rejected) {

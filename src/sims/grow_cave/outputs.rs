@@ -55,7 +55,8 @@ pub fn mineral_colour(mineral: Mineral, intensity: f32) -> [f32; 3] {
 
 /// Every site's profiles.
 fn profiles(params: &GrowCaveParams, sequence: &CaveSequence, bodies: &Bodies) -> Vec<SiteProfiles> {
-    let ctx = Context { params, bodies };
+    let shape = ChamberShape::new(&params.chamber, sequence.seed);
+    let ctx = Context { params, bodies, shape: &shape };
     sequence.sites.par_iter().enumerate().map(|(i, s)| site_profiles(&ctx, i as u32, &s.growth)).collect()
 }
 
