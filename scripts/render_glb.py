@@ -1,0 +1,56 @@
+# Render a Landform glb in Blender (Debian's blender 3.4, headless) from a viewpoint of our
+# own choosing, lit by a lamp beside the eye: what a player standing there would see, drawn
+# by an importer and renderer that are not ours.
+#
+#   blender -b -P scripts/render_glb.py -- mesh.glb out.png EYE_X EYE_Y EYE_Z AT_X AT_Y AT_Z
+#
+# Points are glTF coordinates (metres, y up). Cycles on the CPU, 24 samples, no denoiser
+# (Debian builds Blender without OpenImageDenoise). Needs python3-numpy: Blender 3.4's glTF
+# importer still uses `numpy.bool`, which numpy removed.
+import sys
+
+import numpy
+
+numpy.bool = bool
+import bpy  # noqa: E402
+import mathutils  # noqa: E402
+
+argv = sys.argv[sys.argv.index("--") + 1:]
+glb, out = argv[0], argv[1]
+eye = [float(v) for v in argv[2:5]]
+target = [float(v) for v in argv[5:8]]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.import_scene.gltf(filepath=glb)
+
+
+def to_blender(p):
+    # The importer turns glTF's y-up into Blender's z-up: (x, y, z) -> (x, -z, y).
+    return mathutils.Vector((p[0], -p[2], p[1]))
+
+
+camera_data = bpy.data.cameras.new("camera")
+camera_data.lens = 18
+camera = bpy.data.objects.new("camera", camera_data)
+bpy.context.scene.collection.objects.link(camera)
+camera.location = to_blender(eye)
+camera.rotation_euler = (to_blender(target) - to_blender(eye)).to_track_quat("-Z", "Y").to_euler()
+bpy.context.scene.camera = camera
+lamp_data = bpy.data.lights.new("lamp", "POINT")
+lamp_data.energy = 400
+lamp_data.shadow_soft_size = 0.3
+lamp = bpy.data.objects.new("lamp", lamp_data)
+bpy.context.scene.collection.objects.link(lamp)
+lamp.location = to_blender(eye) + mathutils.Vector((0.1, 0.1, 0.4))
+world = bpy.data.worlds.new("world")
+world.use_nodes = True
+world.node_tree.nodes["Background"].inputs[1].default_value = 0.02
+bpy.context.scene.world = world
+scene = bpy.context.scene
+scene.render.engine = "CYCLES"
+scene.cycles.device = "CPU"
+scene.cycles.samples = 24
+scene.cycles.use_denoising = False
+scene.render.resolution_x = 800
+scene.render.resolution_y = 600
+scene.render.filepath = out
+bpy.ops.render.render(write_still=True)
