@@ -52,8 +52,8 @@ fn coating_after(weather: &str, unit: f32, stalagmite: bool, column_at: Option<u
     let mut after = vec![0.0f32; letters.len() + 1];
     for p in (0..letters.len()).rev() {
         let (t, m) = coating_units(letters[p]);
-        // letters[p] is pass p + 1.
-        let dripping = column_at.is_none_or(|c| p as u32 + 1 <= c);
+        // letters[p] is pass p + 1, still dripping when p + 1 ≤ c.
+        let dripping = column_at.is_none_or(|c| (p as u32) < c);
         after[p] = after[p + 1] + unit * if stalagmite && dripping { m } else { t };
     }
     after
