@@ -13,7 +13,7 @@
 //! | 4 | u32 L, then L bytes: the starting terrain's source, compact JSON (as in `sequence.json`) |
 //! | 4 + 4 | u32 cols, u32 rows of the grid |
 //! | 4 | f32 q, metres: the amplitude quantum (0 when exact) |
-//! | 4 | f32 the tolerance, metres, the encoder held the replay to (0 when exact) |
+//! | 4 | f32 the tolerance, metres, the encoder held the replay to (when exact, the one asked, 0 if none) |
 //! | 4 | f32 the largest difference, metres, the encoder measured between this replay and the run |
 //! | 1 | u8 R, then R × u16: the radii used, cells |
 //! | 4 | u32 N, the operations |
@@ -43,6 +43,8 @@ const VERSION: u8 = 2;
 /// amplitudes are stored exactly (q from 4 × the tolerance down to a 128th of it).
 const FIRST_QUANTUM: f64 = 4.0;
 const HALVINGS: u32 = 9;
+/// The finest tolerance held, in f32 steps (machine epsilons) of the highest height.
+const F32_STEPS: f64 = 4.0;
 /// The most operations a file may declare (a job records at most 1 000 000).
 const MAX_OPERATIONS: u64 = super::params::MAX_OPERATIONS_PER_JOB;
 
@@ -75,10 +77,15 @@ pub struct Start<'a> {
 }
 
 /// Encode `sequence` whose run ended at `run_final`, holding every cell of the replay within
-/// `tolerance_m` of it (0: exact amplitudes, every operation kept).
+/// `tolerance_m` of it (0: exact amplitudes, every operation kept). A tolerance is never held
+/// finer than [`F32_STEPS`] f32 steps of the highest height: replay stores each amplitude as
+/// an f32 height, as `heightfield.npy` stores the heights, so nothing finer could be held (at
+/// 3 000 m one step is 0.24 mm, more than half a 16-bit step of a 12 m relief).
 pub fn encode(sequence: &DeformSequence, start: &Start, run_final: &[f64], tolerance_m: f64) -> Packed {
     let ops = &sequence.operations;
     if tolerance_m > 0.0 {
+        let highest = run_final.iter().chain(start.original).fold(0.0f64, |m, v| m.max(v.abs()));
+        let tolerance_m = tolerance_m.max(F32_STEPS * f32::EPSILON as f64 * highest);
         let sums = summed(ops, start);
         let mut q = tolerance_m * FIRST_QUANTUM;
         for _ in 0..=HALVINGS {
@@ -93,7 +100,8 @@ pub fn encode(sequence: &DeformSequence, start: &Start, run_final: &[f64], toler
     let exact: Vec<(Deformation, Amplitude)> = ops.iter().map(|op| (*op, Amplitude::Exact(op.amplitude))).collect();
     let mut h = start.original.to_vec();
     replay(&mut h, start, ops);
-    write(&sequence.terrain, start, &exact, 0.0, 0.0, max_difference(&h, run_final))
+    // The tolerance asked, when it could not be held quantised.
+    write(&sequence.terrain, start, &exact, 0.0, tolerance_m, max_difference(&h, run_final))
 }
 
 /// How an amplitude is stored.
@@ -518,6 +526,30 @@ mod tests {
             assert!((worst - packed.max_error_m).abs() < 1e-12);
             assert!(packed.bytes.len() < exact.bytes.len(), "{} vs {}", packed.bytes.len(), exact.bytes.len());
         }
+    }
+
+    #[test]
+    fn high_terrain_is_quantised_within_what_its_f32_heights_hold() {
+        // 3 000 m up, one f32 step of a height is 0.24 mm: a tolerance of 0.1 mm cannot be
+        // held by f32 amplitudes, so it is raised to four such steps (not given up to the
+        // exact form, four times the size).
+        let h: Vec<f64> = ramp().iter().map(|v| v + 3000.0).collect();
+        let ops: Vec<Deformation> = (0..300u32)
+            .map(|k| op((k * 7) % 40, (k * 13) % 40, 2 + k % 4, 3003.0 + ((k as f32) * 0.37).sin() * 4.0))
+            .collect();
+        let mut run = h.clone();
+        replay(&mut run, &start(&h), &ops);
+        let seq = DeformSequence { terrain: terrain(), operations: ops };
+        let exact = encode(&seq, &start(&h), &run, 0.0);
+        let packed = encode(&seq, &start(&h), &run, 1e-4);
+        let header = header(&packed.bytes).unwrap();
+        let step = f32::EPSILON as f64 * 3025.0;
+        assert!(header.quantum_m > 0.0, "quantised");
+        assert!((packed.tolerance_m - 4.0 * step).abs() < 0.01 * step, "{}", packed.tolerance_m);
+        let mut replayed = h.clone();
+        replay(&mut replayed, &start(&h), &decode(&packed.bytes, &h, 1.0).unwrap().operations);
+        assert!(max_difference(&replayed, &run) <= packed.tolerance_m);
+        assert!(packed.bytes.len() * 2 < exact.bytes.len(), "{} vs {}", packed.bytes.len(), exact.bytes.len());
     }
 
     #[test]

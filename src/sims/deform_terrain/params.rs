@@ -183,7 +183,9 @@ pub struct DeformTerrainParams {
     /// raster order, not the run's), the sums quantised and those of no step left out until
     /// it holds. 0: amplitudes exact and every operation kept in the run's order, so its
     /// replay is bit-identical to `sequence.json`'s. Absent: half a step of the 16-bit
-    /// `heightmap.png` (the result's height range / 65 535 / 2), the PNG's own rounding.
+    /// `heightmap.png` (the result's height range / 65 535 / 2), the PNG's own rounding. Never
+    /// finer than four f32 steps of the highest height (what the f32 heights themselves hold;
+    /// 1.4 mm at 3 000 m): the result's `sequence_bin.tolerance_m` gives the one held.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     // 1e6 = MAX_METRES
     #[schema(minimum = 0.0, maximum = 1000000.0)]

@@ -365,6 +365,30 @@ impl Grower<'_> {
     /// Conditions (iii) and (iv): a speleothem reaching the floor or roof stops; a stalactite
     /// meeting its stalagmite joins it into a column at the point where they meet.
     pub fn check_limits(&self, site: &mut SiteGrowth, pass: u32) {
+        // The floor and the roof where the new step runs, not only under the site: the wind
+        // carries a tip over humps and hollows. The tip stops where its disc first touches —
+        // before it can meet its partner, so a step that meets it has not crossed a hump.
+        let shape = self.shape;
+        if site.stalactite.last().is_some_and(|r| r.pass() == pass && r.height() > 0.0) {
+            let c = super::neighbours::centres(site, &site.stalactite, true);
+            let (a, b) = (c[c.len().saturating_sub(2)], c[c.len() - 1]);
+            let r = site.stalactite.last().map_or(0.0, |r| r.radius() + r.displacement());
+            if let Some(t) = first_contact(a, b, |p| disc(p, r).any(|(x, z)| p[1] <= shape.floor_y(x, z))) {
+                site.stalactite.last_mut().expect("a ring").trim(t);
+                site.stalactite_done = true;
+                // The drip point moved back with the trimmed shift: so do this pass's drops.
+                site.place_under_drip(pass);
+            }
+        }
+        if site.stalagmite.last().is_some_and(|r| r.pass() == pass && r.height() > 0.0) {
+            let c = super::neighbours::centres(site, &site.stalagmite, false);
+            let (a, b) = (c[c.len().saturating_sub(2)], c[c.len() - 1]);
+            let r = site.stalagmite.last().map_or(0.0, |r| r.radius() + r.displacement());
+            if let Some(t) = first_contact(a, b, |p| disc(p, r).any(|(x, z)| p[1] >= shape.roof_y(x, z))) {
+                site.stalagmite.last_mut().expect("a ring").trim(t);
+                site.stalagmite_done = true;
+            }
+        }
         let tip = site.stalactite_tip_y();
         let top = site.stalagmite_top_y();
         if !site.stalagmite.is_empty() && !site.stalactite.is_empty() && tip <= top {
@@ -394,28 +418,6 @@ impl Grower<'_> {
             }
             site.stalactite_done = true;
             site.stalagmite_done = true;
-            return;
-        }
-        // The floor and the roof where the new step runs, not only under the site: the wind
-        // carries a tip over humps and hollows. The tip stops where its disc first touches.
-        let shape = self.shape;
-        if site.stalactite.last().is_some_and(|r| r.pass() == pass && r.height() > 0.0) {
-            let c = super::neighbours::centres(site, &site.stalactite, true);
-            let (a, b) = (c[c.len().saturating_sub(2)], c[c.len() - 1]);
-            let r = site.stalactite.last().map_or(0.0, |r| r.radius() + r.displacement());
-            if let Some(t) = first_contact(a, b, |p| disc(p, r).any(|(x, z)| p[1] <= shape.floor_y(x, z))) {
-                site.stalactite.last_mut().expect("a ring").trim(t);
-                site.stalactite_done = true;
-            }
-        }
-        if site.stalagmite.last().is_some_and(|r| r.pass() == pass && r.height() > 0.0) {
-            let c = super::neighbours::centres(site, &site.stalagmite, false);
-            let (a, b) = (c[c.len().saturating_sub(2)], c[c.len() - 1]);
-            let r = site.stalagmite.last().map_or(0.0, |r| r.radius() + r.displacement());
-            if let Some(t) = first_contact(a, b, |p| disc(p, r).any(|(x, z)| p[1] >= shape.roof_y(x, z))) {
-                site.stalagmite.last_mut().expect("a ring").trim(t);
-                site.stalagmite_done = true;
-            }
         }
     }
 }

@@ -295,9 +295,11 @@ fn stalagmite(ctx: &Context, index: u32, site: &SiteGrowth) -> Profile {
     let (mut sections, _) = ring_sections(ctx, index, site, &site.stalagmite, false, false);
     let start = start_apex(&sections, false);
     // Within the body's tip capsule (TIP_REACH radii, widened by the coating's limit), and
-    // never into the roof over the top.
-    let [x, z] = site.stalagmite_top_xz();
-    let roof = ctx.shape.roof_y(x, z) - site.stalagmite_top_y() - MIN_STEP_M;
+    // never into the roof over the top's disc.
+    let ([x, z], top_y) = (site.stalagmite_top_xz(), site.stalagmite_top_y());
+    let r = sections.last().map_or(0.0, |s| s.radius + s.displacement);
+    let lowest = rim([x, top_y, z], r).map(|(x, z)| ctx.shape.roof_y(x, z)).fold(f32::INFINITY, f32::min);
+    let roof = lowest - top_y - MIN_STEP_M;
     let end = dome(&mut sections, (GAP_SHARE * gap_between(site)).min(roof));
     Profile { sections, down: false, start, end }
 }
