@@ -52,6 +52,16 @@ impl ChamberShape {
     }
 }
 
+/// The centre of a disc of radius `r` at `c` and `points` round its rim, (x, z): where growth
+/// and the profiles look for the floor and roof under a ring.
+pub fn rim(c: [f32; 3], r: f32, points: u32) -> impl Iterator<Item = (f32, f32)> {
+    let step = std::f32::consts::TAU / points as f32;
+    std::iter::once((c[0], c[2])).chain((0..points).map(move |i| {
+        let (sin, cos) = (i as f32 * step).sin_cos();
+        (c[0] + r * cos, c[2] + r * sin)
+    }))
+}
+
 /// Roof and floor grids: `samples` along the chamber's longer side, square cells, the other
 /// side matched to the nearest cell — so no aspect ratio makes a grid larger than `samples²`.
 /// Returns (cols, rows, cell size in metres).

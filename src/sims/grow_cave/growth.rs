@@ -7,7 +7,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use super::chamber::ChamberShape;
+use super::chamber::{rim, ChamberShape};
 use super::params::{Co2, Conditions, DripInterval, GrowCaveParams, ManualRing, Pluviometric};
 
 /// Radii below this close the tip (condition ii: the new ring's radius is zero).
@@ -373,7 +373,7 @@ impl Grower<'_> {
             let c = super::neighbours::centres(site, &site.stalactite, true);
             let (a, b) = (c[c.len().saturating_sub(2)], c[c.len() - 1]);
             let r = site.stalactite.last().map_or(0.0, |r| r.radius() + r.displacement());
-            if let Some(t) = first_contact(a, b, |p| disc(p, r).any(|(x, z)| p[1] <= shape.floor_y(x, z))) {
+            if let Some(t) = first_contact(a, b, |p| rim(p, r, 8).any(|(x, z)| p[1] <= shape.floor_y(x, z))) {
                 site.stalactite.last_mut().expect("a ring").trim(t);
                 site.stalactite_done = true;
                 // The drip point moved back with the trimmed shift: so do this pass's drops.
@@ -384,7 +384,7 @@ impl Grower<'_> {
             let c = super::neighbours::centres(site, &site.stalagmite, false);
             let (a, b) = (c[c.len().saturating_sub(2)], c[c.len() - 1]);
             let r = site.stalagmite.last().map_or(0.0, |r| r.radius() + r.displacement());
-            if let Some(t) = first_contact(a, b, |p| disc(p, r).any(|(x, z)| p[1] >= shape.roof_y(x, z))) {
+            if let Some(t) = first_contact(a, b, |p| rim(p, r, 8).any(|(x, z)| p[1] >= shape.roof_y(x, z))) {
                 site.stalagmite.last_mut().expect("a ring").trim(t);
                 site.stalagmite_done = true;
             }
@@ -420,14 +420,6 @@ impl Grower<'_> {
             site.stalagmite_done = true;
         }
     }
-}
-
-/// The centre of a ring at `p` and eight points round its rim at radius `r`, (x, z).
-pub fn disc(p: [f32; 3], r: f32) -> impl Iterator<Item = (f32, f32)> {
-    std::iter::once((p[0], p[2])).chain((0..8).map(move |i| {
-        let (sin, cos) = (i as f32 * std::f32::consts::FRAC_PI_4).sin_cos();
-        (p[0] + r * cos, p[2] + r * sin)
-    }))
 }
 
 /// The share (0 to 1) of the step from `a` to `b` before the axis first enters rock, or None

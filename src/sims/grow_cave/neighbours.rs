@@ -12,8 +12,8 @@
 //! the roof (a stalactite) away from its own foot stops it the same way: the wind can carry a
 //! speleothem over a hump.
 
-use super::chamber::ChamberShape;
-use super::growth::{disc, Ring, SiteGrowth};
+use super::chamber::{rim, ChamberShape};
+use super::growth::{Ring, SiteGrowth};
 use super::sequence::RecordedSite;
 
 /// How far past a ring the mesh may reach (rounded top or drip tip), in ring radii.
@@ -325,7 +325,7 @@ pub fn in_open_air(shape: &ChamberShape, site: &SiteGrowth, up: bool) -> bool {
     let reach = |r: &Ring| r.radius() + r.displacement();
     let r = reach(&rings[k - 1]).max(reach(&rings[k]));
     let surface = |x: f32, z: f32| if up { shape.floor_y(x, z) } else { shape.roof_y(x, z) };
-    let around = |x: f32, z: f32| disc([x, 0.0, z], r);
+    let around = |x: f32, z: f32| rim([x, 0.0, z], r, 8);
     let sign = if up { 1.0 } else { -1.0 };
     let c = centres(site, rings, !up);
     // Heights measured along the speleothem's growth: up for a stalagmite, down for the other.

@@ -4,7 +4,7 @@
 //! by its splash, a stalactite ending in a drip tip or, while young and thin, open into its
 //! central canal, and a column's join blended into a smooth waist.
 
-use super::chamber::ChamberShape;
+use super::chamber::{rim, ChamberShape};
 use super::growth::{coating_units, Ring, SiteGrowth, CLOSED_RADIUS_M};
 use super::neighbours::{centres, ring_capsules, Bodies, Capsule, CLEARANCE_SHARE, MARGIN_M};
 use super::params::GrowCaveParams;
@@ -139,9 +139,9 @@ impl<'a> OpenAir<'a> {
         let r = rings.first().map_or(0.0, |r| r.radius() + r.displacement()) + most_coating;
         let c = centres.first().copied().unwrap_or_default();
         let foot_y = if down {
-            rim(c, r).map(|(x, z)| shape.roof_y(x, z)).fold(f32::INFINITY, f32::min)
+            rim(c, r, 16).map(|(x, z)| shape.roof_y(x, z)).fold(f32::INFINITY, f32::min)
         } else {
-            rim(c, r).map(|(x, z)| shape.floor_y(x, z)).fold(f32::NEG_INFINITY, f32::max)
+            rim(c, r, 16).map(|(x, z)| shape.floor_y(x, z)).fold(f32::NEG_INFINITY, f32::max)
         };
         Self { shape, down, foot_y }
     }
@@ -150,7 +150,7 @@ impl<'a> OpenAir<'a> {
     fn clear(&self, c: [f32; 3], r: f32) -> bool {
         let y = c[1];
         let in_foot = if self.down { y >= self.foot_y - MARGIN_M } else { y <= self.foot_y + MARGIN_M };
-        rim(c, r).all(|(x, z)| {
+        rim(c, r, 16).all(|(x, z)| {
             let floor_ok = y > self.shape.floor_y(x, z) + MARGIN_M || in_foot && !self.down;
             let roof_ok = y < self.shape.roof_y(x, z) - MARGIN_M || in_foot && self.down;
             floor_ok && roof_ok
@@ -176,14 +176,6 @@ impl<'a> OpenAir<'a> {
         }
         lo
     }
-}
-
-/// The centre and sixteen points round a disc of radius `r` at `c`, (x, z).
-fn rim(c: [f32; 3], r: f32) -> impl Iterator<Item = (f32, f32)> {
-    std::iter::once((c[0], c[2])).chain((0..16).map(move |i| {
-        let (sin, cos) = (i as f32 * std::f32::consts::TAU / 16.0).sin_cos();
-        (c[0] + r * cos, c[2] + r * sin)
-    }))
 }
 
 /// The start of a tube: a point half a radius deeper into the rock than its anchor.
@@ -298,7 +290,7 @@ fn stalagmite(ctx: &Context, index: u32, site: &SiteGrowth) -> Profile {
     // never into the roof over the top's disc.
     let ([x, z], top_y) = (site.stalagmite_top_xz(), site.stalagmite_top_y());
     let r = sections.last().map_or(0.0, |s| s.radius + s.displacement);
-    let lowest = rim([x, top_y, z], r).map(|(x, z)| ctx.shape.roof_y(x, z)).fold(f32::INFINITY, f32::min);
+    let lowest = rim([x, top_y, z], r, 16).map(|(x, z)| ctx.shape.roof_y(x, z)).fold(f32::INFINITY, f32::min);
     let roof = lowest - top_y - MIN_STEP_M;
     let end = dome(&mut sections, (GAP_SHARE * gap_between(site)).min(roof));
     Profile { sections, down: false, start, end }
