@@ -199,19 +199,23 @@ pub struct DeformTerrainParams {
     #[schema(default = 0.0, minimum = 0.0, maximum = 1000000.0)]
     pub keep_weight: f64,
     /// How far a sample outside every constraint's footprint may move, as a share of the
-    /// input's relief (a hard limit the search keeps). A constraint's footprint is what it
-    /// needs to move (a road's cells, a mask's samples on the wrong side, a point, a region, a
-    /// seam band) and the room around it for transitions half as steep as `max_slope_ratio`
-    /// allows. Past a seam band, also at most the band's own largest wanted change. 1 (the
-    /// default for now): no limit on the change.
+    /// input's relief. A constraint's footprint is what it needs to move (a road's cells, a
+    /// mask's samples on the wrong side, a point, a region, a seam band), the earthwork around
+    /// it (faces at 0.8 × the slope limit from its targets down or up to the input ground, as
+    /// a road's cutting daylights), and room beyond for transitions half as steep. Past a seam
+    /// band, also at most the band's own largest wanted change. The search weighs the limits
+    /// as penalties a thousand times heavier than any constraint's error (a deformation may
+    /// cross them on the way, so a cutting is not stalled behind its own shoulder); the result
+    /// reports how it kept them (`limits`). 1 with `max_slope_ratio` 100 (the defaults for
+    /// now; 0.1 and 1.1 keep free terrain and slopes as the input has them): no limits.
     #[serde(default = "one")]
     #[schema(default = 1.0, minimum = 0.0, maximum = 1.0)]
     pub max_free_change: f64,
     /// The steepest step between neighbouring samples the result may have, as a multiple of
-    /// the input's steepest (a hard limit the search keeps; on a flat input, 5 %). 1: never
-    /// steeper than the input anywhere; raise it for sharp terraces or cliffs. 100 (the
-    /// default for now): no limit on the slope. With both limits at their defaults the
-    /// search runs without them.
+    /// the input's steepest (on a flat input, 5 %); the search penalises steps from 90 % of
+    /// it. 1: never steeper than the input anywhere; raise it for sharp terraces, cliffs or
+    /// a seam band narrower than its mismatch needs. 100 (the default for now): no limit on
+    /// the slope.
     #[serde(default = "default_max_slope_ratio")]
     #[schema(default = 100.0, minimum = 1.0, maximum = 100.0)]
     pub max_slope_ratio: f64,

@@ -31,7 +31,6 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::bounds::Bounds;
 use super::constraints::{Best, Field, Fitness};
 use super::kernel::{self, Kernel, Rect};
 use super::prediction;
@@ -54,8 +53,6 @@ pub struct Settings {
     pub cell_m: f64,
     pub tile_x: bool,
     pub tile_z: bool,
-    /// The limits every applied deformation keeps ([`Bounds`]); none in a replay.
-    pub bounds: Option<Bounds>,
 }
 
 /// Radii in cells: `count` geometric steps from `min` to `max`, rounded, without repeats.
@@ -243,7 +240,7 @@ pub fn search<W: Watch>(
             s.d_max[k],
             true,
             (!e.curvature.is_nan()).then_some(e.curvature),
-            allowed(fitness, s, h, e, stride(kernel.radius)),
+            super::constraints::ANY,
         )
     };
     // Per radius and row, the entries in column order: what a change can reach is found
@@ -294,7 +291,7 @@ pub fn search<W: Watch>(
             s.d_max[k],
             true,
             (!e.exact_curvature.is_nan()).then_some(e.exact_curvature),
-            allowed(fitness, s, h, e, 1),
+            super::constraints::ANY,
         )
     };
     let exact = |h: &[f64], residual: &[f64], e: &mut Entry, key: &mut f64| {
@@ -444,22 +441,12 @@ pub fn search<W: Watch>(
             }
         }
         changes.clear();
-        // What the applied deformations changed (a deformation the limits hold back changes
-        // nothing, and what it reaches stays as it is).
+        // What the applied deformations changed.
         let mut changed: Vec<Rect> = Vec::with_capacity(dirty.len());
-        for &(i, e) in &batch {
+        for &(_, e) in &batch {
             let kernel = &s.kernels[e.radius as usize];
             let (col, row) = (e.col as usize, e.row as usize);
-            let mut delta = e.delta;
-            if let Some(bounds) = &s.bounds {
-                let (lo, hi) = bounds.range(h, col, row, kernel);
-                let kept = delta.max(lo).min(hi);
-                if lo.is_nan() || hi.is_nan() || lo > hi || kept * delta <= 0.0 {
-                    keys[i] = 0.0;
-                    continue;
-                }
-                delta = kept;
-            }
+            let delta = e.delta;
             let amplitude = (h[row * cols + col] + delta) as f32;
             let op = Deformation {
                 x: col as f64 * s.cell_m,
@@ -521,7 +508,7 @@ pub fn search<W: Watch>(
         let summed = todo.len();
         todo.extend(update);
         let sum = |e: &Entry| eval(h, &residual, e);
-        let update = |e: &Entry| updated(fitness, &changes, e, s, h);
+        let update = |e: &Entry| updated(fitness, &changes, e, s);
         evaluations += refresh(&mut table, &mut keys, &todo, summed, &sum, &update);
         for &i in &todo[..summed] {
             missed[i] = false;
@@ -723,7 +710,7 @@ fn refresh(
 /// An entry's best change from its sum b brought up to date with the residual's `changes`
 /// (each a window and the change over it, row by row): exact, as a recomputation, when the
 /// fitness is residual-only.
-fn updated(fitness: &Fitness, changes: &[(Rect, Vec<f64>)], e: &Entry, s: &Settings, h: &[f64]) -> Best {
+fn updated(fitness: &Fitness, changes: &[(Rect, Vec<f64>)], e: &Entry, s: &Settings) -> Best {
     let k = e.radius as usize;
     let kernel = &s.kernels[k];
     let (col, row) = (e.col as usize, e.row as usize);
@@ -732,17 +719,7 @@ fn updated(fitness: &Fitness, changes: &[(Rect, Vec<f64>)], e: &Entry, s: &Setti
         .iter()
         .filter(|(rect, _)| rect.intersects(&window))
         .fold(e.b, |b, (rect, change)| b + fitness.lattice_sum(change, *rect, col, row, kernel, stride(kernel.radius)));
-    let range = allowed(fitness, s, h, e, stride(kernel.radius));
-    fitness.change_from_sums(e.curvature, b, &s.deltas[k], s.d_max[k], true, range)
-}
-
-/// The displacements the limits allow the entry now, on the lattice its change is summed on
-/// (every displacement without limits).
-fn allowed(fitness: &Fitness, s: &Settings, h: &[f64], e: &Entry, stride: usize) -> (f64, f64) {
-    let Some(bounds) = &s.bounds else { return super::constraints::ANY };
-    let kernel = &s.kernels[e.radius as usize];
-    let (col, row) = (e.col as usize, e.row as usize);
-    bounds.range_on(h, col, row, kernel, fitness.lattice_step(col, row, kernel.radius, stride))
+    fitness.change_from_sums(e.curvature, b, &s.deltas[k], s.d_max[k], true, super::constraints::ANY)
 }
 
 /// How much of the way back to 1 an estimate's scale goes at each recomputation, so an entry

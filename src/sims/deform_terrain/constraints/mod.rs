@@ -8,6 +8,10 @@
 //! under a deformation is evaluated over the kernel's window only.
 
 mod edge_match;
+mod hinges;
+
+use hinges::Hinges;
+pub use hinges::SoftLimits;
 
 pub use edge_match::seam_filter;
 mod match_heightmap;
@@ -339,6 +343,8 @@ pub struct Fitness {
     m: Vec<f64>,
     one_sided: Option<OneSided>,
     pairs: Option<Pairs>,
+    /// The limits, weighed as penalties ([`SoftLimits`]); none unless asked for.
+    limits: Option<SoftLimits>,
 }
 
 /// The closed-form displacement is over-relaxed, as in successive over-relaxation: the
@@ -373,7 +379,7 @@ impl Fitness {
             }
         }
         let m = (0..n).map(|i| if q[i] > 0.0 { qt[i] / q[i] } else { 0.0 }).collect();
-        Self { cols, rows, q, m, one_sided, pairs }
+        Self { cols, rows, q, m, one_sided, pairs, limits: None }
     }
 
     /// Add a quadratic term the search weighs but no constraint reports (the request's
@@ -388,6 +394,21 @@ impl Fitness {
             }
         }
         self
+    }
+
+    /// Weigh the limits too.
+    pub fn with_limits(mut self, limits: SoftLimits) -> Self {
+        self.limits = Some(limits);
+        self
+    }
+
+    /// The largest weight per metre² any one sample's penalty has (quadratic, the mask's, the
+    /// pairs'): what the limits' penalties are scaled against.
+    pub fn heaviest(&self) -> f64 {
+        let q = self.q.iter().fold(0.0f64, |m, &q| m.max(q));
+        let mask = self.one_sided.as_ref().map_or(0.0, |o| o.scale);
+        let pairs = self.pairs.as_ref().map_or(0.0, |p| p.scale.max(p.kink_scale));
+        q.max(mask).max(pairs)
     }
 
     /// The weighted residual `q (h − m)` of every cell: the quadratic part's slope, which
@@ -418,7 +439,7 @@ impl Fitness {
     /// can be brought up to date from the residual's changes ([`Fitness::lattice_sum`]) and
     /// turned into the best change by [`Fitness::change_from_sums`].
     pub fn residual_only(&self) -> bool {
-        self.one_sided.is_none() && self.pairs.is_none()
+        self.one_sided.is_none() && self.pairs.is_none() && self.limits.is_none()
     }
 
     /// The lattice step [`Fitness::best_change`] sums a window on: `stride`, or every cell of a
@@ -599,9 +620,44 @@ impl Fitness {
         let n = sampled.len();
         debug_assert!(sampled.windows(2).all(|w| w[0] <= w[1]), "displacements are sampled in order");
         let optimum = closed_form(a, b, d_max, with_optimum).and_then(|d| clamp_into(d, range));
-        let Some(m) = &self.one_sided else {
+        if self.one_sided.is_none() && self.limits.is_none() {
             return quadratic_best(a, b, sampled, optimum);
-        };
+        }
+        let mut hinges = Hinges::new(sampled, optimum);
+        let at = |c: usize, r: usize| kernel.at(c as i64 - col as i64, r as i64 - row as i64);
+        let mut dz = dz0;
+        while dz <= dz1 {
+            let (krow, i0, i1) = row_slices(dz);
+            let r = (row as i64 + dz) as usize;
+            for (t, &k) in krow.iter().enumerate().step_by(stride) {
+                let i = i0 + t;
+                debug_assert!(i <= i1);
+                if let Some(m) = &self.one_sided {
+                    // Land wants h ≥ lo: max(0, (lo − h) − k·d)²; sea h ≤ hi: max(0, (h − hi) + k·d)².
+                    match m.side[i] {
+                        1 if k > 0.0 => hinges.add(m.scale, m.lo - h[i], -k),
+                        -1 if k > 0.0 => hinges.add(m.scale, h[i] - m.hi, k),
+                        _ => {}
+                    }
+                }
+                if let Some(l) = &self.limits {
+                    if k > 0.0 {
+                        hinges.add(l.band_scale, h[i] - l.hi[i], k);
+                        hinges.add(l.band_scale, l.lo[i] - h[i], -k);
+                    }
+                    // The steps to the right and lower neighbours: |Δ + e·d| ≤ step_max.
+                    let c = i % cols;
+                    let right = (c + 1 < cols).then(|| (i + 1, at(c + 1, r)));
+                    let down = (r + 1 < self.rows).then(|| (i + cols, at(c, r + 1)));
+                    for (j, kj) in right.into_iter().chain(down) {
+                        let (e, step) = (k - kj, h[i] - h[j]);
+                        hinges.add(l.step_scale, step - l.step_max, e);
+                        hinges.add(l.step_scale, -step - l.step_max, -e);
+                    }
+                }
+            }
+            dz += s;
+        }
         let quadratic = |d: f64| a * d * d + 2.0 * b * d;
         let mut best = Best { change: f64::INFINITY, delta: 0.0, curvature: a, b };
         let mut consider = |d: f64, change: f64| {
@@ -609,73 +665,13 @@ impl Fitness {
                 (best.change, best.delta) = (change, d);
             }
         };
-        // One-sided: a sample's penalty after a displacement d is max(0, g − σkd)², zero past
-        // its breakpoint g/(σk) and a quadratic in d before it. The sampled displacements are
-        // sorted, so each sample adds its quadratic's coefficients to a run of them — those
-        // below the breakpoint for land, above it for sea — marked at the run's end and summed
-        // once, instead of evaluating every displacement at every sample. The closed-form
-        // optimum, out of that order, is evaluated directly.
-        let d_abs = sampled.iter().chain(&optimum).fold(0.0f64, |acc, d| acc.max(d.abs()));
-        let mut land = [[0.0f64; 3]; MAX_DELTAS];
-        let mut sea = [[0.0f64; 3]; MAX_DELTAS];
-        let (mut before_sum, mut at_optimum) = (0.0, 0.0);
-        let mut dz = dz0;
-        while dz <= dz1 {
-            let (krow, i0, i1) = row_slices(dz);
-            let (hs, sides) = (&h[i0..=i1], &m.side[i0..=i1]);
-            for ((&k, &hi), &side) in
-                krow.iter().step_by(stride).zip(hs.iter().step_by(stride)).zip(sides.iter().step_by(stride))
-            {
-                if k <= 0.0 || side == 0 {
-                    continue;
-                }
-                // Signed shortfall: penalty = max(0, g − σ·δ·k)² with σ = +1 land, −1 sea.
-                let (g, sign) = if side > 0 { (m.lo - hi, 1.0) } else { (hi - m.hi, -1.0) };
-                if g + d_abs * k <= 0.0 {
-                    continue;
-                }
-                let before = g.max(0.0);
-                before_sum += before * before;
-                if let Some(d) = optimum {
-                    let after = (g - sign * d * k).max(0.0);
-                    at_optimum += after * after;
-                }
-                // (g − σkd)² = g² − 2gσk·d + k²·d²
-                let coefficients = [g * g, -2.0 * g * sign * k, k * k];
-                let breakpoint = g / (sign * k);
-                let (runs, end) = if side > 0 {
-                    (&mut land, sampled.partition_point(|&d| d < breakpoint))
-                } else {
-                    (&mut sea, sampled.partition_point(|&d| d <= breakpoint))
-                };
-                for (run, c) in runs[end].iter_mut().zip(coefficients) {
-                    *run += c;
-                }
-            }
-            dz += s;
+        let mut changes = [0.0f64; MAX_DELTAS];
+        let at_optimum = hinges.changes(scale, &mut changes);
+        for (&d, &p) in sampled.iter().zip(&changes[..n]) {
+            consider(d, quadratic(d) + p);
         }
-        // Land's runs cover the displacements before their end, sea's those from it on.
-        let mut covering = [0.0f64; 3];
-        let mut penalty = [0.0f64; MAX_DELTAS];
-        for t in (0..n).rev() {
-            for (c, l) in covering.iter_mut().zip(land[t + 1]) {
-                *c += l;
-            }
-            penalty[t] = covering[0] + covering[1] * sampled[t] + covering[2] * sampled[t] * sampled[t];
-        }
-        covering = [0.0; 3];
-        for t in 0..n {
-            for (c, s) in covering.iter_mut().zip(sea[t]) {
-                *c += s;
-            }
-            penalty[t] += covering[0] + covering[1] * sampled[t] + covering[2] * sampled[t] * sampled[t];
-        }
-        let one_sided = |penalty: f64| m.scale * scale * (penalty - before_sum);
-        for (&d, &p) in sampled.iter().zip(&penalty[..n]) {
-            consider(d, quadratic(d) + one_sided(p));
-        }
-        if let Some(d) = optimum {
-            consider(d, quadratic(d) + one_sided(at_optimum));
+        if let (Some(d), Some(p)) = (optimum, at_optimum) {
+            consider(d, quadratic(d) + p);
         }
         best
     }

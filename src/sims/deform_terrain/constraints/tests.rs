@@ -262,3 +262,65 @@ fn the_interpolated_search_finds_what_bisection_finds() {
         }
     }
 }
+
+#[test]
+fn with_the_limits_each_displacements_change_is_the_full_recomputations() {
+    // The limits' penalties are summed over runs of the sorted displacements, with the mask's:
+    // each displacement's change must be what the constraints' total plus the limits' own
+    // reckoning over the whole grid ([`SoftLimits::value`], written out sample by sample and
+    // step by step) gives after applying the kernel. Bands a metre wide and a step limit under
+    // the terrain's steepest make many terms active, and the heights drift between trials.
+    let (cols, rows) = (40, 33);
+    let h0: Vec<f64> = terrain(cols, rows, 0.0).heights_m.iter().map(|&v| v as f64).collect();
+    let fields = fields_for(&h0, cols, rows);
+    let limits = SoftLimits {
+        lo: h0.iter().map(|v| v - 1.0).collect(),
+        hi: h0.iter().map(|v| v + 1.0).collect(),
+        band_scale: 0.03,
+        step_max: 2.0,
+        step_scale: 0.05,
+    };
+    let fitness = Fitness::new(&fields, cols, rows).with_limits(limits.clone());
+    assert!(!fitness.residual_only());
+    let reckon = |h: &[f64]| total(&fields, h, cols, rows) + limits.value(h, cols);
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let mut h = h0.clone();
+    let mut active = 0;
+    for trial in 0..150 {
+        let radius = rng.random_range(1..10usize);
+        let (col, row) = (rng.random_range(0..cols), rng.random_range(0..rows));
+        let mut deltas: Vec<f64> = (0..7).map(|_| rng.random_range(-6.0..6.0)).collect();
+        deltas.sort_by(f64::total_cmp);
+        let kernel = Kernel::new(radius);
+        let before = reckon(&h);
+        active += usize::from(limits.value(&h, cols) > 0.0);
+        for (k, &d) in deltas.iter().enumerate() {
+            let best = fitness.best_change(
+                &h,
+                &fitness.residual(&h),
+                col,
+                row,
+                &kernel,
+                1,
+                &deltas[k..=k],
+                8.0,
+                false,
+                None,
+                ANY,
+            );
+            assert_eq!(best.delta, d);
+            let mut after = h.clone();
+            let amplitude = h[row * cols + col] + d;
+            apply(&mut after, cols, rows, col, row, amplitude, &kernel);
+            let full = reckon(&after) - before;
+            let tol = 1e-9 * before.abs().max(full.abs()) + 1e-12;
+            assert!((best.change - full).abs() <= tol, "trial {trial}, d {d}: windowed {} vs full {full}", best.change);
+        }
+        if trial % 2 == 0 {
+            let d = deltas[rng.random_range(0..deltas.len())];
+            let amplitude = h[row * cols + col] + d;
+            apply(&mut h, cols, rows, col, row, amplitude, &kernel);
+        }
+    }
+    assert!(active > 100, "the limits were active in only {active} trials");
+}
