@@ -226,10 +226,10 @@ impl Bounds {
 
     /// The limits as the search's penalties, each metre of excess weighing `scale` per metre²,
     /// the steps' from `slope_share` of the steepest allowed.
-    pub fn soft(&self, scale: f64, slope_share: f64) -> SoftLimits {
+    pub fn soft(self, scale: f64, slope_share: f64) -> SoftLimits {
         SoftLimits {
-            lo: self.lo.clone(),
-            hi: self.hi.clone(),
+            lo: self.lo,
+            hi: self.hi,
             band_scale: scale,
             step_max: self.step_max * slope_share,
             step_scale: scale,

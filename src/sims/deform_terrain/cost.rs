@@ -16,6 +16,10 @@ const EVALUATIONS_PER_SECOND: f64 = 2e9;
 /// disjoint, so at most one value a cell), the interest and candidate marks, and transients
 /// while fields are built.
 const GRID_BYTES_PER_CELL: u64 = 76;
+/// Bytes per cell the limits add when on: each sample's band (two f64), the footprint and
+/// asked marks, the earthwork cones while they are built (four f64), and the final
+/// projection's envelopes (four f64).
+const LIMIT_BYTES_PER_CELL: u64 = 82;
 /// Bytes per cell a constraint's field keeps (weights, targets, interest), and the largest
 /// transient while one is built.
 const FIELD_BYTES_PER_CELL: u64 = 25;
@@ -84,7 +88,8 @@ pub fn estimate(params: &DeformTerrainParams, terrain: &dyn TerrainLookup) -> Re
     let operations = u64::from(params.max_iterations) * u64::from(params.batch);
     let per_operation = OPERATION_BYTES + OPERATION_BYTES_PER_CONSTRAINT * k;
 
-    let grid = GRID_BYTES_PER_CELL * cells;
+    let limited = params.limited();
+    let grid = (GRID_BYTES_PER_CELL + if limited { LIMIT_BYTES_PER_CELL } else { 0 }) * cells;
     let fields = field_cells * cells + BUILD_BYTES_PER_CELL * cells;
     let search_bytes = TABLE_ENTRY_BYTES * entries + 24 * lattice + kernel_bytes;
     let exports = heightfield_artifacts_peak_bytes(cols, rows, params.tiles.is_some());
@@ -100,10 +105,18 @@ pub fn estimate(params: &DeformTerrainParams, terrain: &dyn TerrainLookup) -> Re
     // Each iteration scans the table and applies up to `batch` deformations, each touching its
     // kernel window once per constraint (and its tileable partner).
     let r_max = radii.last().copied().unwrap_or(1) as u64;
-    let window = (2 * r_max + 1).pow(2);
-    let first_fill = entries * window.min(625);
+    // With the limits on, the penalties are not quadratic: a window is visited once per
+    // sampled displacement, and once more, rather than through one running sum.
+    let visits = if limited { u64::from(params.amplitudes) + 1 } else { 1 };
+    let window = (2 * r_max + 1).pow(2) * visits;
+    let first_fill = entries * window.min(625 * visits);
     let per_iteration = entries + u64::from(params.batch) * (2 * k + 2) * window;
     let search_work = u64::from(params.max_iterations).saturating_mul(per_iteration);
-    let work = build_work.saturating_add(first_fill).saturating_add(search_work).saturating_add(40 * cells);
+    let limit_work = if limited { 60 * cells } else { 0 };
+    let work = build_work
+        .saturating_add(first_fill)
+        .saturating_add(search_work)
+        .saturating_add(40 * cells)
+        .saturating_add(limit_work);
     Ok(cost.work("max_iterations", work).build("cell evaluations", EVALUATIONS_PER_SECOND))
 }

@@ -10,10 +10,9 @@ use crate::sims::test_support::{job_terrain, TestContext};
 use crate::terrain::{generate_fractal, FractalParams};
 use crate::validate::{Limits, Validate, Validator};
 
-/// Floors for the fit within the limits, under what the search reaches on this case (79 % of
-/// the mask's samples on their side, the road within 9.9 % of the relief at its worst cell).
+/// A floor for the mask's fit within the limits, under what the search reaches on this case
+/// (79 % of its samples on their side; 86 % without limits, with the free terrain drifting).
 const MASK_SHARE: f64 = 0.75;
-const ROAD_ERROR: f64 = 0.12;
 
 fn params(v: Value) -> DeformTerrainParams {
     let p: DeformTerrainParams = serde_json::from_value(v).expect("parses");
@@ -205,9 +204,13 @@ fn free_terrain_stays_near_its_input_and_nothing_grows_steeper_than_the_input() 
             .as_f64()
             .unwrap()
     };
-    assert!(fig("points", "max_error_of_relief") <= 0.02, "{}", out.result);
     assert!(fig("shape_mask", "correct_side_share") >= MASK_SHARE, "{}", out.result);
-    assert!(fig("road", "max_error_of_relief") <= ROAD_ERROR, "{}", out.result);
+    // The road's cells and the point sit on their targets (set there after the search, the
+    // ground beside them daylighting within the slope limit): measured on the f32 heights.
+    let road_worst =
+        (0..n * n).filter(|&i| to_path(&path, xz(i).0, xz(i).1) <= 2.9).fold(0.0f64, |m, i| m.max((h[i] - mid).abs()));
+    assert!(road_worst <= 1e-4, "road cells up to {road_worst} m off their height");
+    assert!((h[point] - mid).abs() <= 1e-4, "the point at {} m for {mid} m", h[point]);
     let (fitness, initial) = (out.result["fitness"].as_f64().unwrap(), out.result["fitness_initial"].as_f64().unwrap());
     assert!(fitness < initial / 6.0, "fitness {fitness} from {initial}");
 }
@@ -227,7 +230,7 @@ fn nothing_past_a_seam_band_moves_more_than_the_band() {
     other.seed = 77;
     let mut neighbour = generate_fractal(&other);
     neighbour.heights_m.iter_mut().for_each(|v| *v += 15.0);
-    let out = DeformTerrain::run(&p, 2, &TestContext::new(neighbour).ctx()).unwrap();
+    let out = DeformTerrain::run(&p, 2, &TestContext::new(neighbour.clone()).ctx()).unwrap();
     let h = result_heights(&out);
     let (mut band, mut past) = (0.0f64, 0.0f64);
     for i in 0..n * n {
@@ -242,31 +245,88 @@ fn nothing_past_a_seam_band_moves_more_than_the_band() {
     assert!(past <= band, "past the band {past} m, in it {band} m");
     let (after, before) = (steepest(&h, n), steepest(&o, n));
     eprintln!("steepest {after} m against the input's {before} m; band {band} m, past it {past} m");
-    // The limits are penalties, not bounds: a band asked to take a change its width cannot take
-    // at the slope asked gives way. Here the steepest step comes out 1.22 times the input's (the
-    // band's 14 m over 12 cells needs more than 1.0); at max_slope_ratio 1.5 the band moved 19 m
-    // and its steepest step was 1.55 times the input's. Only the change past the band is held.
-    assert!(after <= 1.3 * before, "steepest {after} m against the input's {before} m");
+    // The band asks for more than its width can take at the input's steepest (22.7 m over 12
+    // cells): the seam is still met exactly and no step is steeper than the input's, so the
+    // transition runs on past the band (9.2 m there), never by more than the band moved.
+    assert!(after <= before, "steepest {after} m against the input's {before} m");
+    // The shared edge is the neighbour's (its east column), in height and in its last step.
+    for r in 0..n {
+        let (e, inside) = (neighbour.heights_m[r * n + n - 1] as f64, neighbour.heights_m[r * n + n - 2] as f64);
+        assert!((h[r * n] - e).abs() <= 1e-4, "row {r}: {} against the neighbour's {e}", h[r * n]);
+        let step = h[r * n + 1] - h[r * n];
+        assert!((step - (e - inside)).abs() <= 1e-3, "row {r}: step {step} against the neighbour's {}", e - inside);
+    }
+}
+
+/// Bilinear height at (x, z) metres on an n × n grid of `cell` metre cells, reckoned here.
+fn height_at(h: &[f64], n: usize, cell: f64, x: f64, z: f64) -> f64 {
+    let (gx, gz) = ((x / cell).clamp(0.0, (n - 1) as f64), (z / cell).clamp(0.0, (n - 1) as f64));
+    let (c, r) = ((gx as usize).min(n - 2), (gz as usize).min(n - 2));
+    let (tx, tz) = (gx - c as f64, gz - r as f64);
+    let at = |c: usize, r: usize| h[r * n + c];
+    (at(c, r) * (1.0 - tx) + at(c + 1, r) * tx) * (1.0 - tz) + (at(c, r + 1) * (1.0 - tx) + at(c + 1, r + 1) * tx) * tz
 }
 
 #[test]
-fn a_graded_road_keeps_its_grade() {
+fn a_graded_road_keeps_its_grade_with_the_limits_off_and_on() {
+    // A road graded at 6 % winding over a 60 m fractal, run without limits and with them
+    // (where the slope limit keeps the search from digging the cuttings the grade needs).
     let n = 129usize;
+    let cell = 2.0;
     let terrain = fractal(n as u32, 7, 60.0);
-    let path: Vec<Value> = (0..=16)
+    let vertices: Vec<(f64, f64)> = (0..=16)
         .map(|k| {
             let t = k as f64 / 16.0;
-            json!({"x": 25.0 + 206.0 * t, "z": 128.0 + 70.0 * (2.0 * std::f64::consts::PI * t).sin()})
+            (25.0 + 206.0 * t, 128.0 + 70.0 * (2.0 * std::f64::consts::PI * t).sin())
         })
         .collect();
-    let p = params(json!({
-        "terrain": terrain,
-        "constraints": [{"road": {"path": path, "width_m": 6.0, "height": {"profile": {"max_gradient_percent": 6.0}}}}],
-        "max_iterations": 3000
-    }));
-    let out =
-        DeformTerrain::run(&p, 1, &TestContext::new(crate::terrain::Heightfield::flat(2, 2, 1.0, 0.0)).ctx()).unwrap();
-    let road = &out.result["constraints"][0];
-    let gradient = road["max_gradient_percent"].as_f64().unwrap();
-    assert!(gradient <= 6.1, "{road}");
+    let path: Vec<Value> = vertices.iter().map(|&(x, z)| json!({"x": x, "z": z})).collect();
+    // The centreline every half metre, by arc length, reckoned here.
+    let mut centre = vec![vertices[0]];
+    for w in vertices.windows(2) {
+        let len = (w[1].0 - w[0].0).hypot(w[1].1 - w[0].1);
+        let steps = (len / 0.5).ceil() as usize;
+        for k in 1..=steps {
+            let t = k as f64 / steps as f64;
+            centre.push((w[0].0 + t * (w[1].0 - w[0].0), w[0].1 + t * (w[1].1 - w[0].1)));
+        }
+    }
+    for limits in [
+        json!({"max_free_change": 1.0, "max_slope_ratio": 100.0, "keep_weight": 0.0}),
+        json!({"max_free_change": 0.1, "max_slope_ratio": 1.1, "keep_weight": 1.0}),
+    ] {
+        let mut body = json!({
+            "terrain": terrain,
+            "constraints": [{"road": {"path": path, "width_m": 6.0, "height": {"profile": {"max_gradient_percent": 6.0}}}}],
+            "max_iterations": 3000
+        });
+        body.as_object_mut().unwrap().extend(limits.as_object().unwrap().clone());
+        let p = params(body);
+        let out = DeformTerrain::run(&p, 1, &TestContext::new(crate::terrain::Heightfield::flat(2, 2, 1.0, 0.0)).ctx())
+            .unwrap();
+        let h = result_heights(&out);
+        let along: Vec<f64> = centre.iter().map(|&(x, z)| height_at(&h, n, cell, x, z)).collect();
+        let arc: Vec<f64> = std::iter::once(0.0)
+            .chain(centre.windows(2).scan(0.0, |s, w| {
+                *s += (w[1].0 - w[0].0).hypot(w[1].1 - w[0].1);
+                Some(*s)
+            }))
+            .collect();
+        // The grade over runs of four road widths (24 m), as a driver feels it.
+        let mut grade = 0.0f64;
+        for a in 0..along.len() {
+            if let Some(b) = (a..along.len()).find(|&b| arc[b] - arc[a] >= 24.0) {
+                grade = grade.max((along[b] - along[a]).abs() / (arc[b] - arc[a]) * 100.0);
+            }
+        }
+        eprintln!(
+            "{limits}: grade {grade} %, figures {}, limits {}",
+            out.result["constraints"][0], out.result["limits"]
+        );
+        assert!(grade <= 6.1, "{limits}: {grade} % along the road");
+        if p.limited() {
+            let o = heights(&p, &terrain).0;
+            assert!(steepest(&h, n) <= 1.1 * steepest(&o, n) + 1e-9, "{limits}");
+        }
+    }
 }

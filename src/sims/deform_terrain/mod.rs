@@ -11,6 +11,7 @@ mod kernel;
 pub mod packed;
 mod params;
 mod prediction;
+mod projection;
 mod search;
 mod sequence;
 
@@ -88,14 +89,17 @@ impl Simulation for DeformTerrain {
         let grid = problem.grid();
         let fields = problem.fields(&grid)?;
         let settings = problem.settings(params, &fields)?;
-        let bounds = bounds::Bounds::new(&fields, &grid, params.max_free_change);
         let mut fitness = Fitness::new(&fields, grid.cols, grid.rows);
-        if let Some(keep) = constraints::keep(&bounds.footprint, &grid, params.keep_weight) {
-            fitness = fitness.with(&keep);
-        }
-        if params.limited() {
-            let scale = LIMIT_WEIGHT * fitness.heaviest();
-            fitness = fitness.with_limits(bounds.soft(scale, LIMIT_SLOPE_SHARE));
+        // The footprints, only when the keep pull or the limits need them.
+        if params.limited() || params.keep_weight > 0.0 {
+            let bounds = bounds::Bounds::new(&fields, &grid, params.max_free_change);
+            if let Some(keep) = constraints::keep(&bounds.footprint, &grid, params.keep_weight) {
+                fitness = fitness.with(&keep);
+            }
+            if params.limited() {
+                let scale = LIMIT_WEIGHT * fitness.heaviest();
+                fitness = fitness.with_limits(bounds.soft(scale, LIMIT_SLOPE_SHARE));
+            }
         }
         let interest = constraints::interest(&fields, grid.cells());
         let vertices = vertices(params, &settings, &fields, &interest, &grid);
@@ -431,9 +435,13 @@ fn finish(
     if let Some(i) = h.iter().position(|v| !v.is_finite()) {
         return Err(SimError::Failed(format!("non-finite height at sample {i}")));
     }
-    // sequence.bin replays the search's heights; the seam filter follows in run and replay.
-    let filtered = filter_seams(problem, h);
+    // sequence.bin replays the search's heights; with the limits on, the slope limit and the
+    // pins are then held exactly, and the seam filter follows (a 3-tap mean keeps every step
+    // within the limit), in run and replay alike.
     let searched = h;
+    let held = problem.params.limited().then(|| hold_limits(fields, &grid, settings, h));
+    let h = held.as_deref().unwrap_or(h);
+    let filtered = filter_seams(problem, h);
     let h = filtered.as_deref().unwrap_or(h);
     let hf = to_heightfield(h, grid.cols, grid.rows, grid.cell_m);
     let log = FitnessLog {
@@ -471,7 +479,13 @@ fn finish(
         Value::Object(map) => map,
         other => [("export".to_string(), other)].into_iter().collect::<Map<_, _>>(),
     };
-    let (limits, asked) = limits_figures(fields, &grid, problem.params.max_free_change, h);
+    let (mut limits, asked) = limits_figures(fields, &grid, problem.params.max_free_change, h);
+    if let Some(held) = &held {
+        // How much the projection had to do after the search.
+        let moved = held.iter().zip(searched).filter(|(a, b)| a != b).count();
+        let most = held.iter().zip(searched).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        limits["held"] = json!({"samples_moved": moved, "max_change_m": most});
+    }
     // Far from every cell a constraint refines around or asks to move (a road's earthworks).
     let asked: Vec<bool> = asked.iter().zip(interest).map(|(&a, &i)| a || i).collect();
     let total: f64 = fields.iter().map(|f| f.weight * f.value(h, grid.cols, grid.rows)).sum();
@@ -548,6 +562,33 @@ fn limits_figures(fields: &[Field], grid: &Grid, max_free_change: f64, h: &[f64]
         "input_steepest_step_m": bounds::steepest_step(grid.original, grid.cols, grid.rows),
     });
     (figures, b.asked)
+}
+
+/// `h` within the slope limit everywhere, each road cell and point on its target
+/// ([`projection`]), a tiled terrain's opposite edges then set to their mean.
+fn hold_limits(fields: &[Field], grid: &Grid, settings: &Settings, h: &[f64]) -> Vec<f64> {
+    let (cols, rows) = (grid.cols, grid.rows);
+    // Held a few f32 steps of the highest height inside the limit, so the f32 heights the
+    // artifacts carry keep to it too.
+    let highest = h.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let step_max = grid.slope_limit * grid.cell_m - 4.0 * f64::from(f32::EPSILON) * highest;
+    let mut out = projection::hold(h, cols, rows, step_max.max(0.0), &constraints::pinned(fields));
+    let mut pair = |a: usize, b: usize| {
+        let m = 0.5 * (out[a] + out[b]);
+        out[a] = m;
+        out[b] = m;
+    };
+    if settings.tile_x {
+        for r in 0..rows {
+            pair(r * cols, r * cols + cols - 1);
+        }
+    }
+    if settings.tile_z {
+        for c in 0..cols {
+            pair(c, (rows - 1) * cols + c);
+        }
+    }
+    out
 }
 
 /// The heights with the 3 × 1 seam filter of every `edge_match` that asks for it, if any does.

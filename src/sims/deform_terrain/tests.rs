@@ -97,7 +97,9 @@ fn a_star_mask_ends_with_nearly_every_cell_on_the_correct_side() {
 
 #[test]
 fn an_s_road_ends_at_its_height_and_the_far_terrain_keeps_its_heights() {
-    let out = run_with(&params(s_road_request()), 1);
+    // The paper's search (equation 4's preservation alone); with the limits on the road's cells
+    // are set on their targets after it (limit_tests).
+    let out = run_with(&unlimited(params(s_road_request())), 1);
     let err = figure(&out, "road", "max_error_of_relief");
     assert!(err <= 0.005, "{err}");
     // Cells at least twice the largest radius from the road keep their heights within 0.1% of
@@ -179,6 +181,16 @@ fn small_star() -> DeformTerrainParams {
     ], "max_iterations": 120}))
 }
 
+/// `p` without the limits: the paper's search alone, whose result is its operations applied
+/// (with the limits on, the projection follows them).
+fn unlimited(mut p: DeformTerrainParams) -> DeformTerrainParams {
+    p.max_free_change = 1.0;
+    p.max_slope_ratio = 100.0;
+    p.keep_weight = 0.0;
+    assert!(!p.limited());
+    p
+}
+
 fn stored(sequence: &DeformSequence) -> DeformSequence {
     serde_json::from_slice(&serde_json::to_vec_pretty(sequence).unwrap()).unwrap()
 }
@@ -197,7 +209,7 @@ fn a_full_replay_gives_byte_identical_artifacts() {
 
 #[test]
 fn a_replay_until_k_is_the_terrain_after_the_first_k_operations() {
-    let p = small_star();
+    let p = unlimited(small_star());
     let tc = TestContext::new(neighbour());
     let run = DeformTerrain::run(&p, 5, &tc.ctx()).unwrap();
     let k = run.sequence.operations.len() / 2;
@@ -243,7 +255,7 @@ fn the_seed_changes_the_search_and_prediction_saves_evaluations() {
 
 #[test]
 fn fitness_json_has_a_record_per_iteration() {
-    let p = small_star();
+    let p = unlimited(small_star());
     let tc = TestContext::new(neighbour());
     let run = DeformTerrain::run(&p, 5, &tc.ctx()).unwrap();
     let log: Value =
@@ -340,7 +352,7 @@ fn fingerprint(ops: &[Deformation]) -> u64 {
 
 #[test]
 fn a_batch_of_one_is_the_papers_one_deformation_per_iteration() {
-    let mut p = small_star();
+    let mut p = unlimited(small_star());
     p.batch = 1;
     let tc = TestContext::new(neighbour());
     let one = DeformTerrain::run(&p, 5, &tc.ctx()).unwrap();
@@ -360,7 +372,7 @@ fn a_batch_of_one_is_the_papers_one_deformation_per_iteration() {
 
 #[test]
 fn a_batched_run_is_its_operations_applied_one_by_one() {
-    let mut p = small_star();
+    let mut p = unlimited(small_star());
     p.batch = 8;
     let tc = TestContext::new(neighbour());
     let run = DeformTerrain::run(&p, 5, &tc.ctx()).unwrap();
@@ -426,6 +438,15 @@ fn final_heights(out: &crate::jobs::Outcome<DeformSequence>) -> Vec<f64> {
 fn sequence_bin_replays_within_its_tolerance_and_exactly_without_one() {
     let mut req = s_road_request();
     req["max_iterations"] = json!(1500);
+    // Without the limits: sequence.bin replays the search, and with them the projection
+    // follows it.
+    for k in ["max_free_change", "max_slope_ratio", "keep_weight"] {
+        req[k] = json!(match k {
+            "max_free_change" => 1.0,
+            "max_slope_ratio" => 100.0,
+            _ => 0.0,
+        });
+    }
     let tc = TestContext::new(neighbour());
     let run = run_with(&params(req.clone()), 1);
     let bin = &run.artifacts.iter().find(|a| a.name == "sequence.bin").expect("sequence.bin").bytes;
@@ -548,7 +569,7 @@ fn terraces_hold_each_region_at_its_level() {
             {"polygon_m": square(30.0, 40.0), "level_m": 70.0}
         ]}},
         {"preserve": {"weight": 0.05}}
-    ], "max_iterations": 1500});
+    ], "max_iterations": 1500, "max_slope_ratio": 10.0});
     let out = run_with(&params(req), 3);
     let f = out.result["constraints"].as_array().unwrap().iter().find(|c| c["kind"] == "terraces").unwrap().clone();
     let regions = f["regions"].as_array().unwrap();

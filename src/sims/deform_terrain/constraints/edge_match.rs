@@ -77,6 +77,13 @@ pub fn build(e: &EdgeMatch, other: &Heightfield, grid: &Grid) -> Field {
     }
 }
 
+/// The heights that continue the neighbour across each shared edge: (edge sample, the
+/// neighbour's height there) and (the sample one step in, that height plus the neighbour's last
+/// step), so the seam matches in height and slope.
+pub fn seam(d: &EdgeDetail) -> impl Iterator<Item = (usize, f64)> + '_ {
+    d.seam.iter().flat_map(|&(i, j, e, slope)| [(i, e), (j, e + slope)])
+}
+
 /// The 3 × 1 mean filter across the seam of each edge (Figure 7): samples 1 and 2 in from the
 /// edge each become the mean of themselves and their neighbours towards and away from the
 /// edge, all read before the filter; the edge samples (shared with the neighbour) stay.

@@ -830,6 +830,23 @@ pub fn road_material(fields: &[Field], cells: usize) -> Option<Vec<u8>> {
     out
 }
 
+/// The samples the result must meet exactly when the limits are on ([`super::projection`]),
+/// with their targets: each road's cells, each point's sample, each terrace region's samples
+/// and each seam's shared edge samples and the samples one step in (continuing the neighbour).
+pub fn pinned(fields: &[Field]) -> Vec<(usize, f64)> {
+    let mut out = Vec::new();
+    for f in fields {
+        match &f.detail {
+            Detail::Road(d) => out.extend_from_slice(road::cells(d)),
+            Detail::Points(p) => out.extend_from_slice(p),
+            Detail::Terraces(d) => out.extend_from_slice(terraces::targets(d)),
+            Detail::EdgeMatch(d) => out.extend(edge_match::seam(d)),
+            _ => {}
+        }
+    }
+    out
+}
+
 /// `road.json`: every road constraint (its index among the constraints) as a game places it,
 /// when there is a road.
 pub fn roads_json(fields: &[Field], h: &[f64], grid: &Grid) -> Option<Value> {

@@ -135,6 +135,11 @@ pub fn build(road: &Road, grid: &Grid, combined: bool) -> Field {
     }
 }
 
+/// (cell, road height) of every road cell.
+pub fn cells(d: &RoadDetail) -> &[(usize, f64)] {
+    &d.cells
+}
+
 /// Mark the road's cells in a per-cell material weight.
 pub fn mark(d: &RoadDetail, material: &mut [u8]) {
     for &(i, _) in &d.cells {

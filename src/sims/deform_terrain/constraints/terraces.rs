@@ -69,6 +69,11 @@ pub fn build(t: &Terraces, grid: &Grid) -> Field {
     }
 }
 
+/// (sample, level) of every sample in a region.
+pub fn targets(d: &TerraceDetail) -> &[(usize, f64)] {
+    &d.targets
+}
+
 /// Per region: its level, its samples and their largest and RMS miss (metres); overall the
 /// largest miss as a share of the relief.
 pub fn figures(d: &TerraceDetail, h: &[f64], grid: &Grid) -> Value {
