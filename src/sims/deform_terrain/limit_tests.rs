@@ -84,7 +84,7 @@ fn inside(poly: &[(f64, f64)], x: f64, z: f64) -> bool {
 #[test]
 fn free_terrain_stays_near_its_input_and_nothing_grows_steeper_than_the_input() {
     // A fractal of our own (2 m cells, relief about 40 m) with a point, a road at a constant
-    // height and an island mask, with the limits the issue asks for on: its case. The footprint each
+    // height and an island mask, with the default limits: the issue's case. The footprint each
     // constraint may claim is worked out here from the request alone, by brute force over
     // Euclidean distances: the samples it must move (the road's cells, the point, the mask's
     // samples on the wrong side of the water level by more than its margin) are the sources of
@@ -102,8 +102,10 @@ fn free_terrain_stays_near_its_input_and_nothing_grows_steeper_than_the_input() 
                       "width_m": 6.0, "height": {"constant": 0.0}}},
             {"shape_mask": {"mask": {"polygons_m": [island.iter().map(|&(x, z)| json!({"x": x, "z": z})).collect::<Vec<_>>()]}}}
         ],
-        "max_iterations": 2000, "max_free_change": 0.1, "max_slope_ratio": 1.1, "keep_weight": 1.0
+        "max_iterations": 2000
     }));
+    // The defaults are the limits the issue asks for.
+    assert_eq!((p.max_free_change, p.max_slope_ratio, p.keep_weight), (0.1, 1.1, 1.0));
     let (o, cols) = heights(&p, &terrain);
     assert_eq!(cols, n);
     let (lo, hi) = o.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
