@@ -10,9 +10,11 @@ use crate::sims::test_support::{job_terrain, TestContext};
 use crate::terrain::{generate_fractal, FractalParams};
 use crate::validate::{Limits, Validate, Validator};
 
-/// A floor for the mask's fit within the limits, under what the search reaches on this case
-/// (79 % of its samples on their side; 86 % without limits, with the free terrain drifting).
-const MASK_SHARE: f64 = 0.75;
+/// A floor for the mask's fit within the limits, under what this case reaches (97.6 % of its
+/// samples on their side: the rest is where the road and the point, at the middle height, lie
+/// in the sea, and their targets win; the search alone reached 79 %, and 86 % without limits,
+/// with the free terrain drifting).
+const MASK_SHARE: f64 = 0.95;
 
 fn params(v: Value) -> DeformTerrainParams {
     let p: DeformTerrainParams = serde_json::from_value(v).expect("parses");

@@ -564,7 +564,7 @@ fn limits_figures(fields: &[Field], grid: &Grid, max_free_change: f64, h: &[f64]
     (figures, b.asked)
 }
 
-/// `h` within the slope limit everywhere, each road cell and point on its target
+/// `h` within the slope limit everywhere, each held sample within its bounds
 /// ([`projection`]), a tiled terrain's opposite edges then set to their mean.
 fn hold_limits(fields: &[Field], grid: &Grid, settings: &Settings, h: &[f64]) -> Vec<f64> {
     let (cols, rows) = (grid.cols, grid.rows);
@@ -572,7 +572,8 @@ fn hold_limits(fields: &[Field], grid: &Grid, settings: &Settings, h: &[f64]) ->
     // artifacts carry keep to it too.
     let highest = h.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let step_max = grid.slope_limit * grid.cell_m - 4.0 * f64::from(f32::EPSILON) * highest;
-    let mut out = projection::hold(h, cols, rows, step_max.max(0.0), &constraints::pinned(fields));
+    let (loose, firm) = constraints::held(fields);
+    let mut out = projection::hold(h, cols, rows, step_max.max(0.0), &loose, &firm);
     let mut pair = |a: usize, b: usize| {
         let m = 0.5 * (out[a] + out[b]);
         out[a] = m;

@@ -1,6 +1,7 @@
-//! The last step of a limited job, after the search (and the seam filter), in run and replay
-//! alike: hold the slope limit exactly and put the pinned samples (a road's cells, a point's
-//! sample) exactly on their targets.
+//! The last step of a limited job, after the search, in run and replay alike: hold the slope
+//! limit exactly and put the held samples within their bounds — a road's cells, a point's
+//! sample, a terrace's samples and a seam's edge on their targets, a mask's land above its
+//! water level and its sea below.
 //!
 //! The search weighs the limits as penalties ([`super::bounds`]), so it ends near them, not
 //! within them: on the S-road a step of 1.735 m against 1.722 m allowed, and a road graded at
@@ -12,40 +13,65 @@
 //!    row-and-column step count and L the steepest step allowed, are both L-Lipschitz and
 //!    U ≤ h ≤ D, equal to h wherever no step within reach exceeds L. Their mean is L-Lipschitz
 //!    too: spikes come down and pits come up by half their excess, symmetrically.
-//! 2. The pinned samples' cones, min over pins of (t + L·d) and max of (t − L·d), are
+//! 2. The bounds' cones, min over held samples of (hi + L·d) and max of (lo − L·d), are
 //!    L-Lipschitz; clamping step 1's heights between them keeps every step within L and puts
-//!    each pin on its target (a cutting or embankment at the limit where the search left the
-//!    ground too high or too low beside a road). Pins that themselves ask for a step steeper
-//!    than L (two points 10 m apart in height one cell apart) cannot all be held: where the
-//!    cones cross, the sample takes their mean and the figures report the steepest step left.
+//!    each held sample within its bounds (a cutting or embankment at the limit where the
+//!    search left the ground too high or too low beside a road; a shallows just under the
+//!    water where it left a rock standing in a mask's sea). Bounds that themselves ask for a
+//!    step steeper than L (two points 10 m apart in height one cell apart) cannot all be held:
+//!    where the cones cross, the sample takes their mean and the figures report the steepest
+//!    step left.
 //!
 //! Each envelope is two raster passes (left and up, then right and down): exact for the
 //! row-and-column step count, which is the metric the limit is stated in.
 
-/// `h` with every row and column step within `step_max` and each pin `(sample, target)` on its
-/// target (where the pins allow both).
-pub fn hold(h: &[f64], cols: usize, rows: usize, step_max: f64, pins: &[(usize, f64)]) -> Vec<f64> {
+/// A sample the result must hold between `lo` and `hi` (equal for a target; infinite on a
+/// side without a bound).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Held {
+    pub sample: usize,
+    pub lo: f64,
+    pub hi: f64,
+}
+
+impl Held {
+    pub fn at(sample: usize, target: f64) -> Self {
+        Self { sample, lo: target, hi: target }
+    }
+}
+
+/// `h` with every row and column step within `step_max` and each held sample within its
+/// bounds (where the bounds allow both): `loose` first, then `firm`, which win where the two
+/// conflict (a road asked for at a height the mask calls sea keeps its height).
+pub fn hold(h: &[f64], cols: usize, rows: usize, step_max: f64, loose: &[Held], firm: &[Held]) -> Vec<f64> {
     let mut upper = h.to_vec();
     envelope(&mut upper, cols, rows, step_max);
     let mut lower: Vec<f64> = h.iter().map(|v| -v).collect();
     envelope(&mut lower, cols, rows, step_max);
     let mut out: Vec<f64> = upper.iter().zip(&lower).map(|(u, d)| 0.5 * (u - d)).collect();
-    if pins.is_empty() {
-        return out;
+    for held in [loose, firm] {
+        clamp(&mut out, cols, rows, step_max, held);
+    }
+    out
+}
+
+/// Clamp `h` (already within the step limit) between the cones of the held samples' bounds.
+fn clamp(h: &mut [f64], cols: usize, rows: usize, step_max: f64, held: &[Held]) {
+    if held.is_empty() {
+        return;
     }
     let mut ceiling = vec![f64::INFINITY; h.len()];
     let mut floor = vec![f64::INFINITY; h.len()];
-    for &(i, t) in pins {
-        ceiling[i] = ceiling[i].min(t);
-        floor[i] = floor[i].min(-t);
+    for b in held {
+        ceiling[b.sample] = ceiling[b.sample].min(b.hi);
+        floor[b.sample] = floor[b.sample].min(-b.lo);
     }
     envelope(&mut ceiling, cols, rows, step_max);
     envelope(&mut floor, cols, rows, step_max);
-    for ((v, &c), &f) in out.iter_mut().zip(&ceiling).zip(&floor) {
+    for ((v, &c), &f) in h.iter_mut().zip(&ceiling).zip(&floor) {
         let lowest = -f;
         *v = if lowest <= c { v.clamp(lowest, c) } else { 0.5 * (lowest + c) };
     }
-    out
 }
 
 /// `a[x] = min over y of (a[y] + step × d(x, y))`, d the row-and-column step count.
@@ -108,7 +134,7 @@ mod tests {
         let mut h: Vec<f64> = (0..cols * rows).map(plane).collect();
         let spike = 7 * cols + 7;
         h[spike] += 4.0;
-        let out = hold(&h, cols, rows, 1.0, &[]);
+        let out = hold(&h, cols, rows, 1.0, &[], &[]);
         assert!(steepest(&out, cols) <= 1.0 + 1e-12);
         // By hand: U lowers the spike to its lowest neighbour + 1 (3.0 + 1 = 4.0 against 7.5);
         // D raises the spike's neighbours to 7.5 − 1 and so on while that is above the plane.
@@ -131,8 +157,8 @@ mod tests {
         // Flat ground at 10 m; one row pinned at 4 m (a road's cutting 6 m deep); 1.5 m steps.
         let (cols, rows) = (9, 21);
         let h = vec![10.0; cols * rows];
-        let pins: Vec<(usize, f64)> = (0..cols).map(|c| (10 * cols + c, 4.0)).collect();
-        let out = hold(&h, cols, rows, 1.5, &pins);
+        let pins: Vec<Held> = (0..cols).map(|c| Held::at(10 * cols + c, 4.0)).collect();
+        let out = hold(&h, cols, rows, 1.5, &[], &pins);
         assert!(steepest(&out, cols) <= 1.5 + 1e-12);
         for r in 0..rows {
             // The cutting's face by hand: 4 + 1.5 per row from the road, up to the ground.
@@ -146,12 +172,46 @@ mod tests {
     #[test]
     fn pins_that_ask_for_a_cliff_meet_halfway() {
         let (cols, rows) = (3, 1);
-        let out = hold(&[0.0, 0.0, 0.0], cols, rows, 1.0, &[(0, 0.0), (2, 10.0)]);
+        let out = hold(&[0.0, 0.0, 0.0], cols, rows, 1.0, &[], &[Held::at(0, 0.0), Held::at(2, 10.0)]);
         // The cones cross at the middle: 0 + 1 against 10 − 1 → their mean; the pins' own cones
         // cross at the pins too, so they take means there.
         assert!((out[1] - 5.0).abs() < 1e-12, "{out:?}");
         // A surface that already keeps to the limit is left exactly as it is.
         let gentle: Vec<f64> = (0..40).map(|i| (i as f64 * 0.37).sin()).collect();
-        assert_eq!(hold(&gentle, 40, 1, 0.4, &[]), gentle);
+        assert_eq!(hold(&gentle, 40, 1, 0.4, &[], &[]), gentle);
+    }
+
+    #[test]
+    fn a_rock_in_the_sea_goes_under_as_shallows_and_the_land_stays() {
+        // A 1-D coast: land (≥ 1 m) on samples 0–4 falling to a sea (≤ −1 m) at −2 m, with a
+        // rock rising to 2 m at sample 10; 2.5 m steps allowed, none steeper to begin with.
+        let mut h = vec![9.0, 7.0, 5.0, 3.0, 1.0, -1.4, -2.0, -2.0, -1.0, 0.5, 2.0, 0.5, -1.0, -2.0, -2.0];
+        let held: Vec<Held> = (0..h.len())
+            .map(|i| {
+                if i < 5 {
+                    Held { sample: i, lo: 1.0, hi: f64::INFINITY }
+                } else {
+                    Held { sample: i, lo: f64::NEG_INFINITY, hi: -1.0 }
+                }
+            })
+            .collect();
+        let out = hold(&h, h.len(), 1, 2.5, &held, &[]);
+        // By hand: the rock's three samples above the sea's bound come down to it, shallows at
+        // −1 m; nothing else moves (the land's cones from the sea, −1 + 2.5 per step, stay
+        // above it).
+        h[9] = -1.0;
+        h[10] = -1.0;
+        h[11] = -1.0;
+        assert_eq!(out, h);
+    }
+
+    #[test]
+    fn a_firm_target_wins_over_a_loose_bound() {
+        // Sea (≤ −1 m) everywhere on a flat at −2 m, and a causeway sample asked for at 1 m:
+        // it keeps its height, its neighbours rise to 1 − 1.5 = −0.5... then −2 again.
+        let h = vec![-2.0; 7];
+        let sea: Vec<Held> = (0..7).map(|i| Held { sample: i, lo: f64::NEG_INFINITY, hi: -1.0 }).collect();
+        let out = hold(&h, 7, 1, 1.5, &sea, &[Held::at(3, 1.0)]);
+        assert_eq!(out, vec![-2.0, -2.0, -0.5, 1.0, -0.5, -2.0, -2.0]);
     }
 }

@@ -10,6 +10,7 @@
 mod edge_match;
 mod hinges;
 
+use super::projection::Held;
 use hinges::Hinges;
 pub use hinges::SoftLimits;
 
@@ -830,21 +831,31 @@ pub fn road_material(fields: &[Field], cells: usize) -> Option<Vec<u8>> {
     out
 }
 
-/// The samples the result must meet exactly when the limits are on ([`super::projection`]),
-/// with their targets: each road's cells, each point's sample, each terrace region's samples
-/// and each seam's shared edge samples and the samples one step in (continuing the neighbour).
-pub fn pinned(fields: &[Field]) -> Vec<(usize, f64)> {
-    let mut out = Vec::new();
+/// The samples the result must hold when the limits are on ([`super::projection`]), loose and
+/// firm: a mask's land above its water level plus the margin and its sea below it less the
+/// margin; then, winning where they meet, each road's cells, each point's sample, each terrace
+/// region's samples, each seam's shared edge samples and the samples one step in (continuing
+/// the neighbour) on their targets.
+pub fn held(fields: &[Field]) -> (Vec<Held>, Vec<Held>) {
+    let (mut loose, mut firm) = (Vec::new(), Vec::new());
+    let targets = |list: &[(usize, f64)]| list.iter().map(|&(i, t)| Held::at(i, t)).collect::<Vec<_>>();
     for f in fields {
         match &f.detail {
-            Detail::Road(d) => out.extend_from_slice(road::cells(d)),
-            Detail::Points(p) => out.extend_from_slice(p),
-            Detail::Terraces(d) => out.extend_from_slice(terraces::targets(d)),
-            Detail::EdgeMatch(d) => out.extend(edge_match::seam(d)),
+            Detail::Road(d) => firm.extend(targets(road::cells(d))),
+            Detail::Points(p) => firm.extend(targets(p)),
+            Detail::Terraces(d) => firm.extend(targets(terraces::targets(d))),
+            Detail::EdgeMatch(d) => firm.extend(edge_match::seam(d).map(|(i, t)| Held::at(i, t))),
             _ => {}
         }
+        if let Some(m) = &f.one_sided {
+            loose.extend(m.side.iter().enumerate().filter_map(|(i, &s)| match s {
+                1 => Some(Held { sample: i, lo: m.lo, hi: f64::INFINITY }),
+                -1 => Some(Held { sample: i, lo: f64::NEG_INFINITY, hi: m.hi }),
+                _ => None,
+            }));
+        }
     }
-    out
+    (loose, firm)
 }
 
 /// `road.json`: every road constraint (its index among the constraints) as a game places it,
