@@ -214,9 +214,10 @@ pub struct DeformTerrainParams {
     pub max_free_change: f64,
     /// The steepest step between row or column neighbours the result may have, as a multiple
     /// of the input's steepest (on a flat input, 5 %). The search penalises steps from 90 % of
-    /// it; then, after the search, every step is held within it exactly and every road cell
-    /// and point is set on its target (the samples beside them moved as little as that takes:
-    /// a cutting or embankment at the limit where the search left one short). 1: never
+    /// it; then, after the search, every step is held within it exactly, every road cell,
+    /// point, terrace sample and seam edge is set on its target and a mask's land and sea on
+    /// their sides of the water (the samples beside them moved as little as that takes: a
+    /// cutting or embankment at the limit where the search left one short). 1: never
     /// steeper than the input anywhere; raise it for sharp terraces, cliffs or a seam band
     /// narrower than its mismatch needs. 100 with `max_free_change` 1: no limits.
     #[serde(default = "default_max_slope_ratio")]
