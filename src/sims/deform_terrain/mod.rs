@@ -54,7 +54,9 @@ impl Simulation for DeformTerrain {
     const KIND: &'static str = "deform-terrain";
     const SUMMARY: &'static str =
         "Deform a terrain by stochastic local search over Gaussian operations until it satisfies constraints";
-    const GENERATOR_VERSION: u32 = 1;
+    /// 2: the limits' projection after the search (a sequence recorded with the limits on
+    /// replays to other heights than version 1's).
+    const GENERATOR_VERSION: u32 = 2;
     type Params = DeformTerrainParams;
     type Sequence = DeformSequence;
 
