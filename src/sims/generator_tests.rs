@@ -89,7 +89,14 @@ const STORED_DEFORM: &str = r#"{
 #[test]
 fn a_stored_deform_sequence_replays_to_its_pinned_heights() {
     let sequence: super::deform_terrain::DeformSequence = serde_json::from_str(STORED_DEFORM).unwrap();
-    let params = serde_json::from_value(deform(fractal(None))).unwrap();
+    // Its request as stored then: without limits (they were off by default; stored requests
+    // keep every field, so one stored later carries them explicitly). The fractal's heights
+    // are what is pinned here; the service refuses the sequence itself as generator 1's.
+    let mut body = deform(fractal(None));
+    body["max_free_change"] = json!(1.0);
+    body["max_slope_ratio"] = json!(100.0);
+    body["keep_weight"] = json!(0.0);
+    let params = serde_json::from_value(body).unwrap();
     let t = TestContext::new(Heightfield::from_fn(2, 2, 1.0, |_, _| 0.0));
     let out = DeformTerrain::replay(&params, &sequence, None, &t.ctx()).unwrap();
     assert_eq!(

@@ -199,7 +199,9 @@ pub struct DeformTerrainParams {
     #[schema(default = 1.0, minimum = 0.0, maximum = 1000000.0)]
     pub keep_weight: f64,
     /// How far a sample outside every constraint's footprint may move, as a share of the
-    /// input's relief. A constraint's footprint is what it needs to move (a road's cells, a
+    /// input's relief: a penalty the search weighs, not a cap (the result's `limits` says how
+    /// many samples kept within a tenth; a seam band narrower than its mismatch needs at the
+    /// slope limit runs on past its footprint). A constraint's footprint is what it needs to move (a road's cells, a
     /// mask's samples on the wrong side, a point, a region, a seam band), the earthwork around
     /// it (faces at 0.8 × the slope limit from its targets down or up to the input ground, as
     /// a road's cutting daylights), and room beyond for transitions half as steep. Past a seam
@@ -217,7 +219,10 @@ pub struct DeformTerrainParams {
     /// it; then, after the search, every step is held within it exactly, every road cell,
     /// point, terrace sample and seam edge is set on its target and a mask's land and sea on
     /// their sides of the water (the samples beside them moved as little as that takes: a
-    /// cutting or embankment at the limit where the search left one short). 1: never
+    /// cutting or embankment at the limit where the search left one short). Targets that ask
+    /// for a step steeper than the limit between them (abutting terraces far apart in level, a
+    /// point high above a road beside it) meet halfway instead, and a target wins over a
+    /// mask's side. 1: never
     /// steeper than the input anywhere; raise it for sharp terraces, cliffs or a seam band
     /// narrower than its mismatch needs. 100 with `max_free_change` 1: no limits.
     #[serde(default = "default_max_slope_ratio")]

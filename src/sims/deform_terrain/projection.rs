@@ -23,7 +23,9 @@
 //!    step left.
 //!
 //! Each envelope is two raster passes (left and up, then right and down): exact for the
-//! row-and-column step count, which is the metric the limit is stated in.
+//! row-and-column step count, which is the metric the limit is stated in. The bounds' cones use
+//! a rounder path length (diagonal and knight's moves too), still within the limit a row or
+//! column step, so a cutting beside a road at an angle to the grid has a straight face.
 
 /// A sample the result must hold between `lo` and `hi` (equal for a target; infinite on a
 /// side without a bound).
@@ -66,8 +68,8 @@ fn clamp(h: &mut [f64], cols: usize, rows: usize, step_max: f64, held: &[Held]) 
         ceiling[b.sample] = ceiling[b.sample].min(b.hi);
         floor[b.sample] = floor[b.sample].min(-b.lo);
     }
-    envelope(&mut ceiling, cols, rows, step_max);
-    envelope(&mut floor, cols, rows, step_max);
+    round_envelope(&mut ceiling, cols, rows, step_max);
+    round_envelope(&mut floor, cols, rows, step_max);
     for ((v, &c), &f) in h.iter_mut().zip(&ceiling).zip(&floor) {
         let lowest = -f;
         *v = if lowest <= c { v.clamp(lowest, c) } else { 0.5 * (lowest + c) };
@@ -100,6 +102,44 @@ fn envelope(a: &mut [f64], cols: usize, rows: usize, step: f64) {
                 v = v.min(a[i + cols] + step);
             }
             a[i] = v;
+        }
+    }
+}
+
+/// The moves of [`round_envelope`]'s forward pass (column, row offsets; the backward pass
+/// takes their negatives), each weighing its Euclidean length.
+const ROUND_MOVES: [(i64, i64); 6] = [(-1, 0), (0, -1), (-1, -1), (1, -1), (-2, -1), (2, -1)];
+const ROUND_MOVES_2: [(i64, i64); 2] = [(-1, -2), (1, -2)];
+
+/// `a[x] = min over y of (a[y] + step × d(x, y))`, d the shortest path over moves of one
+/// cell along a row or column (length 1), diagonally (√2) and a knight's move (√5): within
+/// 3 % of the Euclidean distance and never under it. Still at most `step` a row or column
+/// step, so the limit holds; but a cone from a road's cells, a staircase of whole cells, no
+/// longer takes the staircase's teeth up its face as the row-and-column count did (a road at
+/// 20° to the rows had a comb along its cutting).
+fn round_envelope(a: &mut [f64], cols: usize, rows: usize, step: f64) {
+    let weight = |(dc, dr): (i64, i64)| step * ((dc * dc + dr * dr) as f64).sqrt();
+    let moves: Vec<((i64, i64), f64)> = ROUND_MOVES.iter().chain(&ROUND_MOVES_2).map(|&m| (m, weight(m))).collect();
+    let (c_max, r_max) = (cols as i64, rows as i64);
+    let pass = |a: &mut [f64], c: i64, r: i64, sign: i64| {
+        let i = (r * c_max + c) as usize;
+        let mut v = a[i];
+        for &((dc, dr), w) in &moves {
+            let (nc, nr) = (c + sign * dc, r + sign * dr);
+            if (0..c_max).contains(&nc) && (0..r_max).contains(&nr) {
+                v = v.min(a[(nr * c_max + nc) as usize] + w);
+            }
+        }
+        a[i] = v;
+    };
+    for r in 0..r_max {
+        for c in 0..c_max {
+            pass(a, c, r, 1);
+        }
+    }
+    for r in (0..r_max).rev() {
+        for c in (0..c_max).rev() {
+            pass(a, c, r, -1);
         }
     }
 }
@@ -213,5 +253,30 @@ mod tests {
         let sea: Vec<Held> = (0..7).map(|i| Held { sample: i, lo: f64::NEG_INFINITY, hi: -1.0 }).collect();
         let out = hold(&h, 7, 1, 1.5, &sea, &[Held::at(3, 1.0)]);
         assert_eq!(out, vec![-2.0, -2.0, -0.5, 1.0, -0.5, -2.0, -2.0]);
+    }
+
+    #[test]
+    fn a_cutting_beside_a_slanted_road_has_a_straight_face() {
+        // Flat ground at 20 m; a 3-cell-wide road at 0 m along a line 20° off the rows, as whole
+        // cells (a staircase). 1 m steps allowed. The cutting's face, sampled along lines
+        // parallel to the road, should be as even as the Euclidean distance to the road's
+        // cells allows; by hand: the height at each sample is 0 + 1 × (its distance to the
+        // nearest road cell, within 3 %), and never under it.
+        let (cols, rows) = (80, 60);
+        let slope = (20.0f64).to_radians().tan();
+        let on_road = |c: usize, r: usize| ((r as f64 - 10.0 - slope * c as f64).abs()) <= 1.5;
+        let road: Vec<Held> =
+            (0..cols * rows).filter(|&i| on_road(i % cols, i / cols)).map(|i| Held::at(i, 0.0)).collect();
+        let out = hold(&vec![20.0; cols * rows], cols, rows, 1.0, &[], &road);
+        assert!(steepest(&out, cols) <= 1.0 + 1e-12);
+        for i in 0..cols * rows {
+            let (c, r) = ((i % cols) as f64, (i / cols) as f64);
+            let d = road
+                .iter()
+                .map(|b| (c - (b.sample % cols) as f64).hypot(r - (b.sample / cols) as f64))
+                .fold(f64::INFINITY, f64::min);
+            let want = d.min(20.0);
+            assert!(out[i] >= want - 1e-9 && out[i] <= want * 1.03 + 1e-9, "({c}, {r}): {} for {want}", out[i]);
+        }
     }
 }
