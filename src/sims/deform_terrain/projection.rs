@@ -269,14 +269,14 @@ mod tests {
             (0..cols * rows).filter(|&i| on_road(i % cols, i / cols)).map(|i| Held::at(i, 0.0)).collect();
         let out = hold(&vec![20.0; cols * rows], cols, rows, 1.0, &[], &road);
         assert!(steepest(&out, cols) <= 1.0 + 1e-12);
-        for i in 0..cols * rows {
+        for (i, &got) in out.iter().enumerate() {
             let (c, r) = ((i % cols) as f64, (i / cols) as f64);
             let d = road
                 .iter()
                 .map(|b| (c - (b.sample % cols) as f64).hypot(r - (b.sample / cols) as f64))
                 .fold(f64::INFINITY, f64::min);
             let want = d.min(20.0);
-            assert!(out[i] >= want - 1e-9 && out[i] <= want * 1.03 + 1e-9, "({c}, {r}): {} for {want}", out[i]);
+            assert!(got >= want - 1e-9 && got <= want * 1.03 + 1e-9, "({c}, {r}): {got} for {want}");
         }
     }
 }
