@@ -148,22 +148,9 @@ fn round_envelope(a: &mut [f64], cols: usize, rows: usize, step: f64) {
 mod tests {
     use super::*;
 
-    /// The steepest row or column step, reckoned here.
+    /// The steepest row or column step (the limit's own measure, not the projection's code).
     fn steepest(h: &[f64], cols: usize) -> f64 {
-        let rows = h.len() / cols;
-        let mut m = 0.0f64;
-        for r in 0..rows {
-            for c in 0..cols {
-                let i = r * cols + c;
-                if c + 1 < cols {
-                    m = m.max((h[i + 1] - h[i]).abs());
-                }
-                if r + 1 < rows {
-                    m = m.max((h[i + cols] - h[i]).abs());
-                }
-            }
-        }
-        m
+        super::super::bounds::steepest_step(h, cols, h.len() / cols)
     }
 
     #[test]
