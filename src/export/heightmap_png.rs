@@ -52,6 +52,29 @@ pub fn heightmap_png16(hf: &Heightfield) -> Vec<u8> {
     grid_png(hf.cols, hf.rows, png::ColorType::Grayscale, png::BitDepth::Sixteen, &texts, &samples)
 }
 
+/// A map of one non-negative value per grid sample (row-major like the grid) as a 16-bit
+/// grayscale PNG laid out as `heightmap.png`: 0 is black, `max` (the largest value, in the
+/// `max` text chunk with its `unit`) white, linear between. An all-zero map is black.
+///
+/// # Panics
+/// On an empty grid or `values` of another length: bugs in the caller.
+pub fn scalar_png16(cols: usize, rows: usize, values: &[f32], unit: &str, description: &str) -> Vec<u8> {
+    assert!(cols > 0 && rows > 0 && values.len() == cols * rows, "a map of {} values for {cols}x{rows}", values.len());
+    let max = values.iter().copied().filter(|v| v.is_finite()).fold(0.0f32, f32::max);
+    let scale = if max > 0.0 { 65535.0 / f64::from(max) } else { 0.0 };
+    let samples: Vec<u8> = values
+        .iter()
+        .flat_map(|&v| ((f64::from(v.max(0.0)) * scale).round().min(65535.0) as u16).to_be_bytes())
+        .collect();
+    let texts = [
+        ("max", decimal(max)),
+        ("unit", unit.to_string()),
+        ("Description", description.to_string()),
+        ("Software", "Landform".to_string()),
+    ];
+    grid_png(cols, rows, png::ColorType::Grayscale, png::BitDepth::Sixteen, &texts, &samples)
+}
+
 /// A PNG of one pixel per grid sample: `data` row by row, the `texts` as tEXt chunks. The
 /// Paeth filter, since neighbouring samples of a terrain are alike, and fast deflate.
 pub(crate) fn grid_png(

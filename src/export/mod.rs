@@ -31,7 +31,7 @@ pub(crate) mod test_png {
 
 pub use artifact::Artifact;
 pub use glb::{write_glb, write_glb_in_frame, GlbForm, MAX_U16_INDEXED_VERTICES};
-pub use heightmap_png::heightmap_png16;
+pub use heightmap_png::{heightmap_png16, scalar_png16};
 pub use heightmap_r16::{heightmap_r16, r16_summary};
 pub use hypsometric::Tint;
 pub use interior::{render_inside_png, InsideView};
@@ -74,6 +74,9 @@ pub struct HeightfieldExport<'a> {
     /// The kind's own material weight per sample (0–255; `splatmap.png`'s alpha), where it
     /// knows one.
     pub material: Option<&'a [u8]>,
+    /// The kind's own rock weight per sample (0–255), combined with the slope's rock by the
+    /// larger in `splatmap.png`'s G, where it knows one.
+    pub rock: Option<&'a [u8]>,
     /// How `mesh.glb` stores its vertices, and its levels of detail.
     pub mesh: MeshSettings,
     /// Below it the preview and the vertex colours show water (0 m unless the kind knows one).
@@ -95,7 +98,7 @@ impl<'a> HeightfieldExport<'a> {
 /// depend only on the heightfield and `options`. Stopped on request while making levels of
 /// detail and tiles.
 pub fn heightfield_artifacts(hf: &Heightfield, options: &HeightfieldExport) -> Result<HeightfieldArtifacts, Stopped> {
-    let HeightfieldExport { material, ref mesh, sea_level_m, tiles, stop } = *options;
+    let HeightfieldExport { material, rock, ref mesh, sea_level_m, tiles, stop } = *options;
     let (z_min, z_max) = hf.min_max();
     let (((heightmap, preview), (r16, (normals, splat))), (((glbs, tiled), mesh_summary), npy)) = rayon::join(
         || {
@@ -104,7 +107,7 @@ pub fn heightfield_artifacts(hf: &Heightfield, options: &HeightfieldExport) -> R
                 || {
                     rayon::join(
                         || heightmap_r16(hf),
-                        || rayon::join(|| normalmap_png(hf), || splatmap_png(hf, material)),
+                        || rayon::join(|| normalmap_png(hf), || splatmap_png(hf, material, rock)),
                     )
                 },
             )

@@ -4,7 +4,9 @@
 //!
 //! - **A — the kind's material**: cells the job itself shaped as something other than ground,
 //!   where the kind knows them (deform-terrain: the cells of its road constraints); 0 elsewhere.
-//! - **G — rock**: by slope, from none at 30° to all at 45° (smoothstep), where no material is.
+//! - **G — rock**: by slope, from none at 30° to all at 45° (smoothstep), or the kind's own rock
+//!   weight where it knows one and it is larger (erode: bedrock the rivers laid bare), where no
+//!   material is.
 //! - **B — snow**: by height, from none at 75 % of the terrain's height range to all at 90 %,
 //!   on what is neither rock nor material.
 //! - **R — ground** (soil, grass): what is left.
@@ -27,10 +29,11 @@ fn smoothstep(edges: (f64, f64), x: f64) -> f64 {
     t * t * (3.0 - 2.0 * t)
 }
 
-/// The RGBA weights of one sample: `material` is the kind's weight (0–1) for channel A.
-fn weights(slope_deg: f64, height_fraction: f64, material: f64) -> [u8; 4] {
+/// The RGBA weights of one sample: `material` is the kind's weight (0–1) for channel A, `rock`
+/// its rock weight (0–1), combined with the slope's by the larger.
+fn weights(slope_deg: f64, height_fraction: f64, material: f64, rock: f64) -> [u8; 4] {
     let a = material.clamp(0.0, 1.0);
-    let g = (1.0 - a) * smoothstep(ROCK_DEG, slope_deg);
+    let g = (1.0 - a) * smoothstep(ROCK_DEG, slope_deg).max(rock.clamp(0.0, 1.0));
     let b = (1.0 - a - g) * smoothstep(SNOW_AT, height_fraction);
     let [a, g, b] = [a, g, b].map(|w| (w * 255.0).round() as u16);
     // Rounding can push the three past 255 by at most one each: take it off the largest.
@@ -44,14 +47,15 @@ fn weights(slope_deg: f64, height_fraction: f64, material: f64) -> [u8; 4] {
 }
 
 /// Encode the splat map; `material` holds the kind's weight per sample (0–255, row-major like
-/// the grid), when it has one.
+/// the grid), when it has one, and `rock` its rock weight.
 ///
 /// # Panics
-/// On an empty grid, or a `material` of another length than the grid: bugs in the caller.
-pub fn splatmap_png(hf: &Heightfield, material: Option<&[u8]>) -> Vec<u8> {
+/// On an empty grid, or a `material` or `rock` of another length than the grid: bugs in the
+/// caller.
+pub fn splatmap_png(hf: &Heightfield, material: Option<&[u8]>, rock: Option<&[u8]>) -> Vec<u8> {
     assert!(hf.cols > 0 && hf.rows > 0, "splat map of an empty {}x{} grid", hf.cols, hf.rows);
-    if let Some(m) = material {
-        assert_eq!(m.len(), hf.heights_m.len(), "one material weight per sample");
+    for m in material.iter().chain(rock.iter()) {
+        assert_eq!(m.len(), hf.heights_m.len(), "one weight per sample");
     }
     let (z_min, z_max) = hf.min_max();
     let span = f64::from(z_max - z_min);
@@ -64,7 +68,8 @@ pub fn splatmap_png(hf: &Heightfield, material: Option<&[u8]>) -> Vec<u8> {
             let slope_deg = (dx * dx + dz * dz).sqrt().atan().to_degrees();
             let fraction = if span > 0.0 { f64::from(hf.heights_m[i] - z_min) / span } else { 0.0 };
             let m = material.map_or(0.0, |m| f64::from(m[i]) / 255.0);
-            px.copy_from_slice(&weights(slope_deg, fraction, m));
+            let g = rock.map_or(0.0, |g| f64::from(g[i]) / 255.0);
+            px.copy_from_slice(&weights(slope_deg, fraction, m, g));
         }
     });
     let texts = [("Description", "weights: R ground, G rock, B snow, A the kind's material".to_string())];
@@ -88,18 +93,18 @@ mod tests {
     fn slopes_heights_and_materials_pick_their_channels_and_always_sum_to_255() {
         // 1 in 10 (5.7°): ground up to 75 % of the range (columns 0–3 of 0–5), snow at the top;
         // 2 in 1 (63.4°): rock, however high.
-        let ramp = pixels(&splatmap_png(&Heightfield::from_fn(6, 4, 1.0, |x, _| 0.1 * x), None));
+        let ramp = pixels(&splatmap_png(&Heightfield::from_fn(6, 4, 1.0, |x, _| 0.1 * x), None, None));
         assert!((0..4).all(|c| ramp[c] == [255, 0, 0, 0]), "{ramp:?}");
         // Column 4 is at 80 %: smoothstep((0.8 − 0.75) / 0.15) = 0.259 → 66 of snow.
         assert_eq!(ramp[4], [189, 0, 66, 0]);
         assert_eq!(ramp[5], [0, 0, 255, 0]);
-        assert!(pixels(&splatmap_png(&Heightfield::from_fn(6, 4, 1.0, |x, _| 2.0 * x), None))
+        assert!(pixels(&splatmap_png(&Heightfield::from_fn(6, 4, 1.0, |x, _| 2.0 * x), None, None))
             .iter()
             .all(|p| *p == [0, 255, 0, 0]));
         // A flat-topped plateau (tan⁻¹ of its gentle rise ≈ 0.6°) above 90 % of the range is
         // snow; the cliff below it rock; the flat floor ground.
         let hf = Heightfield::from_fn(12, 3, 1.0, |x, _| if x < 6.0 { 0.0 } else { 100.0 + 0.01 * x });
-        let px = pixels(&splatmap_png(&hf, None));
+        let px = pixels(&splatmap_png(&hf, None, None));
         assert_eq!(px[0], [255, 0, 0, 0]);
         assert_eq!(px[5], [0, 255, 0, 0], "the cliff's foot: 50 m over 2 m");
         assert_eq!(px[11], [0, 0, 255, 0]);
@@ -107,7 +112,7 @@ mod tests {
         let mut material = vec![0u8; 36];
         material[11] = 255;
         material[0] = 128;
-        let px = pixels(&splatmap_png(&hf, Some(&material)));
+        let px = pixels(&splatmap_png(&hf, Some(&material), None));
         assert_eq!(px[11], [0, 0, 0, 255]);
         assert_eq!(px[0], [127, 0, 0, 128]);
         assert!(px.iter().all(|p| p.iter().map(|&v| u32::from(v)).sum::<u32>() == 255));
@@ -118,8 +123,10 @@ mod tests {
         for slope in (0..=90).step_by(3) {
             for f in 0..=20 {
                 for m in [0.0, 0.3, 0.5, 1.0] {
-                    let w = weights(f64::from(slope), f64::from(f) / 20.0, m);
-                    assert_eq!(w.iter().map(|&v| u32::from(v)).sum::<u32>(), 255, "{slope}° {f} {m}: {w:?}");
+                    for rock in [0.0, 0.4, 1.0] {
+                        let w = weights(f64::from(slope), f64::from(f) / 20.0, m, rock);
+                        assert_eq!(w.iter().map(|&v| u32::from(v)).sum::<u32>(), 255, "{slope}° {f} {m} {rock}: {w:?}");
+                    }
                 }
             }
         }

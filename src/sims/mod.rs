@@ -3,6 +3,7 @@
 pub mod bulldoze;
 pub mod carve_coast;
 pub mod deform_terrain;
+pub mod erode;
 pub mod grow_cave;
 pub mod weather_column;
 
@@ -21,5 +22,6 @@ pub fn registry() -> Vec<Box<dyn JobKind>> {
         Box::new(crate::jobs::Kind::<weather_column::WeatherColumn>::default()),
         Box::new(crate::jobs::Kind::<grow_cave::GrowCave>::default()),
         Box::new(crate::jobs::Kind::<carve_coast::CarveCoast>::default()),
+        Box::new(crate::jobs::Kind::<erode::Erode>::default()),
     ]
 }

@@ -1,0 +1,161 @@
+//! The erosion's state and one iteration of it: uplift, drainage, the stream-power step,
+//! thermal sweeps, and the raise that keeps every land cell draining.
+
+use rayon::prelude::*;
+use sha2::{Digest, Sha256};
+
+use super::flood::{fill, EPSILON_M};
+use super::flow::Flow;
+use super::grid::{outlets, Grid};
+use super::params::ErodeParams;
+use super::stream_power::StreamPower;
+use super::thermal::Talus;
+use crate::terrain::Heightfield;
+
+/// The fluvial half of an iteration.
+struct Fluvial {
+    power: StreamPower,
+    /// Metres of uplift per iteration on land.
+    uplift_m: f64,
+    flow: Flow,
+    /// Each cell's net loss in the last iteration, m³ (negative where it gained).
+    eroded: Vec<f64>,
+    /// The heights the step solves into.
+    next: Vec<f64>,
+}
+
+/// The thermal half of an iteration.
+struct Relax {
+    talus: Talus,
+    sweeps: u32,
+}
+
+/// A terrain being eroded, iteration by iteration.
+pub struct Erosion {
+    pub grid: Grid,
+    /// Heights, m; f64 while eroding, f32 only at the end (and in each checksum).
+    pub heights: Vec<f64>,
+    outlets: Vec<bool>,
+    fluvial: Option<Fluvial>,
+    relax: Option<Relax>,
+    /// Ψ of the stream-power step, then the second buffer of the thermal sweeps.
+    scratch: Vec<f64>,
+    pub totals: Totals,
+}
+
+/// What the erosion moved, m³.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Totals {
+    /// Filling the input's depressions before the first iteration.
+    pub lake_fill_m3: f64,
+    /// Sediment carried into outlets (sea and the grid's border).
+    pub sediment_to_outlets_m3: f64,
+    /// Raised to keep land cells draining after each iteration.
+    pub drain_raise_m3: f64,
+    pub iterations: u32,
+}
+
+impl Erosion {
+    /// Start from `hf`: outlets fixed from its heights and `sea_level`, depressions filled
+    /// (when the fluvial step is on).
+    pub fn new(hf: &Heightfield, params: &ErodeParams) -> Self {
+        let grid = Grid::new(hf.cols, hf.rows, f64::from(hf.cell_size_m));
+        let mut heights: Vec<f64> = hf.heights_m.par_iter().map(|&h| f64::from(h)).collect();
+        let outlets = outlets(&grid, &heights, f64::from(params.sea_level));
+        let mut totals = Totals::default();
+        let dt = params.time_step_years;
+        let fluvial = params.hydraulic.on().map(|h| {
+            // Before the large arrays, so the flood's heap never overlaps them.
+            totals.lake_fill_m3 = fill(&grid, &mut heights, &outlets, EPSILON_M);
+            Fluvial {
+                power: StreamPower {
+                    k_dt: h.k * dt,
+                    m: h.m,
+                    n: h.n,
+                    deposition_g: h.deposition_g,
+                    flow_exponent: h.flow_exponent,
+                },
+                uplift_m: h.uplift_m_per_yr * dt,
+                flow: Flow::new(grid.cells()),
+                eroded: vec![0.0; grid.cells()],
+                next: vec![0.0; grid.cells()],
+            }
+        });
+        let relax = params
+            .thermal
+            .on()
+            .map(|t| Relax { talus: Talus::new(&grid, t.talus_angle_deg, t.rate), sweeps: t.sweeps });
+        let scratch = vec![0.0; grid.cells()];
+        Self { grid, heights, outlets, fluvial, relax, scratch, totals }
+    }
+
+    /// One iteration.
+    pub fn step(&mut self) {
+        let grid = &self.grid;
+        if let Some(f) = &mut self.fluvial {
+            if f.uplift_m > 0.0 {
+                let u = f.uplift_m;
+                self.heights.par_iter_mut().zip(&self.outlets).for_each(|(h, &o)| {
+                    if !o {
+                        *h += u;
+                    }
+                });
+            }
+            f.flow.route(grid, &self.heights, &self.outlets, &f.eroded, f.power.flow_exponent);
+            self.totals.sediment_to_outlets_m3 +=
+                self.outlets.iter().zip(&f.flow.sediment).filter(|(&o, _)| o).map(|(_, &v)| v.max(0.0)).sum::<f64>();
+            f.power.psi(&f.flow.area, &mut self.scratch);
+            f.power.solve(grid, &self.heights, &self.outlets, &f.flow, &self.scratch, &mut f.next);
+            let area = grid.cell * grid.cell;
+            f.eroded.par_iter_mut().zip(&self.heights).zip(&f.next).for_each(|((e, &h), &n)| *e = area * (h - n));
+            std::mem::swap(&mut self.heights, &mut f.next);
+        }
+        if let Some(r) = &self.relax {
+            for _ in 0..r.sweeps {
+                r.talus.sweep(grid, &self.heights, &mut self.scratch);
+                std::mem::swap(&mut self.heights, &mut self.scratch);
+            }
+        }
+        if let Some(f) = &self.fluvial {
+            self.totals.drain_raise_m3 += f.flow.raise_to_drain(grid, &mut self.heights, EPSILON_M);
+        }
+        self.totals.iterations += 1;
+    }
+
+    /// The heights as a heightfield of `cell_size_m`.
+    pub fn heightfield(&self) -> Heightfield {
+        let mut hf = Heightfield::flat(self.grid.cols, self.grid.rows, self.grid.cell as f32, 0.0);
+        hf.heights_m.par_iter_mut().zip(&self.heights).for_each(|(o, &h)| *o = h as f32);
+        hf
+    }
+
+    /// The largest drop beyond the talus slope between neighbours, m (None without the thermal
+    /// step).
+    pub fn talus_excess(&self) -> Option<f64> {
+        self.relax.as_ref().map(|r| r.talus.max_excess(&self.grid, &self.heights))
+    }
+
+    /// The first 16 hex digits of the sha256 of the heights as little-endian f32s: what the
+    /// sequence records after each iteration.
+    pub fn checksum(&self) -> String {
+        let mut hasher = Sha256::new();
+        let mut buf = Vec::with_capacity(4 * 4096);
+        for chunk in self.heights.chunks(4096) {
+            buf.clear();
+            buf.extend(chunk.iter().flat_map(|&h| (h as f32).to_le_bytes()));
+            hasher.update(&buf);
+        }
+        hex::encode(&hasher.finalize()[..8])
+    }
+}
+
+/// The sha256 of a heightfield's heights (little-endian f32s), hex: the input a sequence
+/// names.
+pub fn input_sha256(hf: &Heightfield) -> String {
+    let mut hasher = Sha256::new();
+    for chunk in hf.heights_m.chunks(4096) {
+        let bytes: Vec<u8> = chunk.iter().flat_map(|h| h.to_le_bytes()).collect();
+        hasher.update(&bytes);
+    }
+    hex::encode(hasher.finalize())
+}

@@ -1,0 +1,71 @@
+//! The erosion's own maps — where water runs, where material went and where it settled — and
+//! the splat map weights made from them.
+
+use rayon::prelude::*;
+
+use super::flow::Flow;
+use super::grid::{outlets, Grid};
+use crate::export::{scalar_png16, Artifact};
+use crate::terrain::Heightfield;
+
+/// Metres of deposit where sediment starts to show in the splat map's material channel, and
+/// where it is all sediment.
+const SEDIMENT_M: (f64, f64) = (0.05, 0.5);
+/// Metres worn away where bare rock starts to show, and where it is all rock.
+const WEAR_M: (f64, f64) = (1.0, 5.0);
+
+/// The maps of an eroded terrain against its input (same grid).
+pub struct Maps {
+    /// Material removed, m.
+    pub wear: Vec<f32>,
+    /// Material deposited, m (filled lakes included).
+    pub deposition: Vec<f32>,
+    /// log10 of the drainage area in cells, multiple flow directions on the final surface.
+    pub flow: Vec<f32>,
+}
+
+impl Maps {
+    pub fn new(input: &Heightfield, output: &Heightfield, sea_level: f32, flow_exponent: f64) -> Self {
+        let (wear, deposition) = input
+            .heights_m
+            .par_iter()
+            .zip(&output.heights_m)
+            .map(|(&a, &b)| ((a - b).max(0.0), (b - a).max(0.0)))
+            .unzip();
+        let grid = Grid::new(output.cols, output.rows, f64::from(output.cell_size_m));
+        let heights: Vec<f64> = output.heights_m.par_iter().map(|&h| f64::from(h)).collect();
+        let outlets = outlets(&grid, &heights, f64::from(sea_level));
+        let mut route = Flow::new(grid.cells());
+        let none = vec![0.0; grid.cells()];
+        route.route(&grid, &heights, &outlets, &none, flow_exponent);
+        let cell_area = grid.cell * grid.cell;
+        let flow = route.area.par_iter().map(|&a| (a / cell_area).log10() as f32).collect();
+        Self { wear, deposition, flow }
+    }
+
+    /// `flow.png`, `wear.png`, `deposition.png`.
+    pub fn artifacts(&self, cols: usize, rows: usize) -> Vec<Artifact> {
+        let png = |values: &[f32], unit: &str, what: &str| scalar_png16(cols, rows, values, unit, what);
+        vec![
+            Artifact::new(
+                "flow.png",
+                "image/png",
+                png(&self.flow, "log10 cells", "drainage area, log10 of the cells draining through each"),
+            ),
+            Artifact::new("wear.png", "image/png", png(&self.wear, "m", "material removed, metres")),
+            Artifact::new("deposition.png", "image/png", png(&self.deposition, "m", "material deposited, metres")),
+        ]
+    }
+
+    /// The splat map's material (sediment) and rock (worn bedrock) weights, 0–255.
+    pub fn splat(&self) -> (Vec<u8>, Vec<u8>) {
+        let weight = |edges: (f64, f64), x: f32| {
+            let t = ((f64::from(x) - edges.0) / (edges.1 - edges.0)).clamp(0.0, 1.0);
+            (t * t * (3.0 - 2.0 * t) * 255.0).round() as u8
+        };
+        (
+            self.deposition.par_iter().map(|&d| weight(SEDIMENT_M, d)).collect(),
+            self.wear.par_iter().map(|&w| weight(WEAR_M, w)).collect(),
+        )
+    }
+}

@@ -1,0 +1,251 @@
+//! The `erode` request: a terrain, the sea level, how many iterations of how many years, and
+//! the two processes (`hydraulic`, `thermal`), each on by default and off with `null`.
+
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+use utoipa::ToSchema;
+
+use crate::export::TileGrid;
+use crate::terrain::TerrainSource;
+use crate::validate::{Limits, Validate, Validator};
+
+/// Most iterations one job may run.
+pub const MAX_ITERATIONS: u32 = 10_000;
+/// Most thermal sweeps per iteration.
+pub const MAX_SWEEPS: u32 = 16;
+
+fn default_iterations() -> u32 {
+    100
+}
+fn default_time_step() -> f64 {
+    500.0
+}
+fn default_k() -> f64 {
+    3e-4
+}
+fn default_m() -> f64 {
+    0.45
+}
+fn default_n() -> f64 {
+    1.0
+}
+fn default_g() -> f64 {
+    1.0
+}
+fn default_flow_exponent() -> f64 {
+    1.0
+}
+fn default_talus() -> f64 {
+    35.0
+}
+fn default_rate() -> f64 {
+    0.125
+}
+fn default_sweeps() -> u32 {
+    2
+}
+
+/// Erode a heightfield: stream-power fluvial erosion with sediment deposition on a surface
+/// kept free of pits, and talus-angle slope relaxation.
+///
+/// Each iteration is `time_step_years` long: uplift, drainage area by multiple flow directions
+/// (Quinn et al. 1991), an implicit stream-power step (Braun & Willett 2013) with Yuan et al.
+/// 2019's deposition term, then `thermal.sweeps` thermal sweeps (Musgrave et al. 1989). Sea
+/// cells (at or below `sea_level`) and the grid's border are outlets: the fluvial step leaves
+/// them as they are. The terrain is filled once before the first iteration (Priority-Flood+ε,
+/// Barnes et al. 2014), and every land cell keeps a lower neighbour after every iteration.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = ErodeParams)]
+pub struct ErodeParams {
+    /// The starting terrain.
+    pub terrain: TerrainSource,
+    /// Metres: cells at or below it are sea, where rivers end and sediment leaves the land.
+    /// Within ±100 000 m.
+    #[serde(default)]
+    #[schema(default = 0.0, minimum = -1e5, maximum = 1e5)]
+    pub sea_level: f32,
+    /// Iterations (1 to 10 000); `until_step` replays the first k. Cells × iterations is
+    /// bounded by the work cap (the cost estimate names it).
+    #[serde(default = "default_iterations")]
+    // 10000 = MAX_ITERATIONS
+    #[schema(default = 100, minimum = 1, maximum = 10000)]
+    pub iterations: u32,
+    /// Years each iteration stands for (greater than 0, at most 1 000 000).
+    #[serde(default = "default_time_step")]
+    #[schema(default = 500.0, exclusive_minimum = 0.0, maximum = 1e6)]
+    pub time_step_years: f64,
+    /// Fluvial erosion and deposition; `null` (or `false`) turns it off.
+    #[serde(default)]
+    #[schema(value_type = Option<Hydraulic>, nullable = true)]
+    pub hydraulic: Switch<Hydraulic>,
+    /// Slope relaxation to the talus angle; `null` (or `false`) turns it off.
+    #[serde(default)]
+    #[schema(value_type = Option<Thermal>, nullable = true)]
+    pub thermal: Switch<Thermal>,
+    /// Cut the terrain's mesh into tiles as well, at every level of detail (`tiles/…`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tiles: Option<TileGrid>,
+}
+
+/// Stream-power erosion E = k·A^m·S^n (A drainage area in m², S slope) with deposition.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = ErodeHydraulic)]
+pub struct Hydraulic {
+    /// Erodibility k, in m^(1−2m)/yr for n = 1 (from 0 to 0.1).
+    #[serde(default = "default_k")]
+    #[schema(default = 3e-4, minimum = 0.0, maximum = 0.1)]
+    pub k: f64,
+    /// Area exponent m (0 to 2). Channels graded by erosion have a concavity θ near m / n.
+    #[serde(default = "default_m")]
+    #[schema(default = 0.45, minimum = 0.0, maximum = 2.0)]
+    pub m: f64,
+    /// Slope exponent n (0.5 to 2).
+    #[serde(default = "default_n")]
+    #[schema(default = 1.0, minimum = 0.5, maximum = 2.0)]
+    pub n: f64,
+    /// Rock uplift on land, metres a year (0 to 0.1): mountains that rise while they wear.
+    #[serde(default)]
+    #[schema(default = 0.0, minimum = 0.0, maximum = 0.1)]
+    pub uplift_m_per_yr: f64,
+    /// Deposition coefficient G (Yuan et al. 2019), 0 to 5: the share of the sediment carried
+    /// from upstream that settles, per unit of area over flux. 0: all of it reaches the sea.
+    #[serde(default = "default_g")]
+    #[schema(default = 1.0, minimum = 0.0, maximum = 5.0)]
+    pub deposition_g: f64,
+    /// How water splits between lower neighbours: by slope to this power (0 to 10). 1 is
+    /// Quinn et al. 1991; larger values approach steepest descent.
+    #[serde(default = "default_flow_exponent")]
+    #[schema(default = 1.0, minimum = 0.0, maximum = 10.0)]
+    pub flow_exponent: f64,
+}
+
+/// Talus-angle relaxation: wherever the drop to a neighbour is steeper than the talus angle,
+/// a share of the excess moves down to it; the material is conserved.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = ErodeThermal)]
+pub struct Thermal {
+    /// Steepest stable slope, degrees (1 to 89).
+    #[serde(default = "default_talus")]
+    #[schema(default = 35.0, minimum = 1.0, maximum = 89.0)]
+    pub talus_angle_deg: f64,
+    /// Share of each neighbour's excess moved per sweep (greater than 0, at most 1/8, which
+    /// keeps every sweep from overshooting).
+    #[serde(default = "default_rate")]
+    #[schema(default = 0.125, exclusive_minimum = 0.0, maximum = 0.125)]
+    pub rate: f64,
+    /// Sweeps per iteration (1 to 16).
+    #[serde(default = "default_sweeps")]
+    // 16 = MAX_SWEEPS
+    #[schema(default = 2, minimum = 1, maximum = 16)]
+    pub sweeps: u32,
+}
+
+impl Default for Hydraulic {
+    fn default() -> Self {
+        serde_json::from_str("{}").expect("defaults")
+    }
+}
+
+impl Default for Thermal {
+    fn default() -> Self {
+        serde_json::from_str("{}").expect("defaults")
+    }
+}
+
+/// A process that is on with its settings, or off. Absent means on with the defaults; `null`
+/// and `false` mean off, and off is written as `false` (a stored request drops `null`s, and
+/// absent would read back as on).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Switch<T> {
+    On(T),
+    Off,
+}
+
+impl<T> Switch<T> {
+    pub fn on(&self) -> Option<&T> {
+        match self {
+            Switch::On(t) => Some(t),
+            Switch::Off => None,
+        }
+    }
+}
+
+impl<T: Default> Default for Switch<T> {
+    fn default() -> Self {
+        Switch::On(T::default())
+    }
+}
+
+impl<T: Serialize> Serialize for Switch<T> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Switch::On(t) => t.serialize(s),
+            Switch::Off => s.serialize_bool(false),
+        }
+    }
+}
+
+impl<'de, T: Deserialize<'de> + Default> Deserialize<'de> for Switch<T> {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Form<T> {
+            Flag(Option<bool>),
+            Settings(T),
+        }
+        Ok(match Form::<T>::deserialize(d)? {
+            Form::Flag(None | Some(false)) => Switch::Off,
+            Form::Flag(Some(true)) => Switch::On(T::default()),
+            Form::Settings(t) => Switch::On(t),
+        })
+    }
+}
+
+impl Validate for ErodeParams {
+    fn validate(&self, v: &mut Validator, limits: &Limits) {
+        v.field("terrain", |v| self.terrain.validate(v, limits));
+        v.in_range("sea_level", self.sea_level as f64, -1e5, 1e5);
+        if self.iterations == 0 {
+            v.error("iterations", "must be at least 1");
+        } else if self.iterations > MAX_ITERATIONS {
+            v.too_large("iterations", format!("must be at most {MAX_ITERATIONS} (got {})", self.iterations));
+        }
+        if v.finite("time_step_years", self.time_step_years)
+            && !(self.time_step_years > 0.0 && self.time_step_years <= 1e6)
+        {
+            v.error(
+                "time_step_years",
+                format!("must be greater than 0 and at most 1000000 (got {})", self.time_step_years),
+            );
+        }
+        if let Some(tiles) = &self.tiles {
+            v.field("tiles", |v| tiles.validate(v, limits));
+        }
+        if self.hydraulic.on().is_none() && self.thermal.on().is_none() {
+            v.error("hydraulic", "hydraulic and thermal are both off: turn on at least one");
+        }
+        if let Switch::On(h) = &self.hydraulic {
+            v.field("hydraulic", |v| {
+                v.in_range("k", h.k, 0.0, 0.1);
+                v.in_range("m", h.m, 0.0, 2.0);
+                v.in_range("n", h.n, 0.5, 2.0);
+                v.in_range("uplift_m_per_yr", h.uplift_m_per_yr, 0.0, 0.1);
+                v.in_range("deposition_g", h.deposition_g, 0.0, 5.0);
+                v.in_range("flow_exponent", h.flow_exponent, 0.0, 10.0);
+            });
+        }
+        if let Switch::On(t) = &self.thermal {
+            v.field("thermal", |v| {
+                v.in_range("talus_angle_deg", t.talus_angle_deg, 1.0, 89.0);
+                if v.finite("rate", t.rate) && !(t.rate > 0.0 && t.rate <= 0.125) {
+                    v.error("rate", format!("must be greater than 0 and at most 0.125 (got {})", t.rate));
+                }
+                if !(1..=MAX_SWEEPS).contains(&t.sweeps) {
+                    v.error("sweeps", format!("must be from 1 to {MAX_SWEEPS} (got {})", t.sweeps));
+                }
+            });
+        }
+    }
+}

@@ -1,0 +1,47 @@
+//! The recorded sequence: the input (by source and hash), every setting the erosion used, and
+//! a checksum of the heights after each iteration. The erosion has no search and draws no
+//! random numbers, so replaying is re-running, checked iteration by iteration.
+
+use serde::{Deserialize, Serialize};
+
+use super::params::{ErodeParams, Hydraulic, Switch, Thermal};
+use crate::jobs::Sequence;
+use crate::terrain::TerrainSource;
+
+/// `sequence.json` of an erode job.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ErodeSequence {
+    /// The starting terrain, as requested.
+    pub terrain: TerrainSource,
+    /// sha256 of the starting heights (little-endian f32s): a replay refuses another terrain.
+    pub input_sha256: String,
+    pub sea_level: f32,
+    pub time_step_years: f64,
+    pub hydraulic: Switch<Hydraulic>,
+    pub thermal: Switch<Thermal>,
+    /// After each iteration, the first 16 hex digits of the sha256 of the heights as
+    /// little-endian f32s.
+    pub checksums: Vec<String>,
+}
+
+impl Sequence for ErodeSequence {
+    fn steps(&self) -> u64 {
+        self.checksums.len() as u64
+    }
+}
+
+impl ErodeSequence {
+    /// The request this sequence replays, for `iterations` iterations.
+    pub fn params(&self, iterations: u32, tiles: Option<crate::export::TileGrid>) -> ErodeParams {
+        ErodeParams {
+            terrain: self.terrain.clone(),
+            sea_level: self.sea_level,
+            iterations,
+            time_step_years: self.time_step_years,
+            hydraulic: self.hydraulic.clone(),
+            thermal: self.thermal.clone(),
+            tiles,
+        }
+    }
+}

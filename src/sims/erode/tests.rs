@@ -1,0 +1,305 @@
+//! The erosion measured against expectations from outside it: closed forms on small grids,
+//! an independent fill, conservation laws, and geomorphology's own measures on an island.
+
+use serde_json::{json, Value};
+
+use super::flood::{fill, EPSILON_M};
+use super::flow::Flow;
+use super::grid::{outlets, Grid};
+use super::metrics::{self, D8};
+use super::*;
+use crate::jobs::{Outcome, Simulation};
+use crate::sims::test_support::TestContext;
+use crate::terrain::resolve;
+
+fn params(v: Value) -> ErodeParams {
+    serde_json::from_value(v).expect("valid erode params")
+}
+
+fn terrain(p: &ErodeParams) -> Heightfield {
+    let t = TestContext::new(Heightfield::flat(2, 2, 1.0, 0.0));
+    resolve(&p.terrain, t.ctx().terrain, &t.limits).unwrap()
+}
+
+/// A small pseudo-random surface (an LCG, so the test owns its numbers).
+fn bumpy(cols: usize, rows: usize, seed: u64) -> Vec<f64> {
+    let mut s = seed;
+    (0..cols * rows)
+        .map(|_| {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (s >> 40) as f64 / (1u64 << 24) as f64 * 10.0
+        })
+        .collect()
+}
+
+/// Planchon & Darboux 2001: start every inner cell at +∞ and lower it to max(its height, its
+/// lowest neighbour's water level) until nothing changes — a fill by another method.
+fn planchon_darboux(grid: &Grid, h: &[f64], out: &[bool]) -> Vec<f64> {
+    let mut w: Vec<f64> = h.iter().zip(out).map(|(&h, &o)| if o { h } else { f64::INFINITY }).collect();
+    loop {
+        let mut changed = false;
+        for i in 0..grid.cells() {
+            if out[i] {
+                continue;
+            }
+            let lowest = (0..8).filter_map(|k| grid.neighbour(i, k)).map(|n| w[n]).fold(f64::INFINITY, f64::min);
+            let level = h[i].max(lowest);
+            if level < w[i] {
+                w[i] = level;
+                changed = true;
+            }
+        }
+        if !changed {
+            return w;
+        }
+    }
+}
+
+#[test]
+fn the_fill_matches_planchon_darboux_and_the_epsilon_fill_leaves_no_flat() {
+    let grid = Grid::new(40, 30, 1.0);
+    let h = bumpy(40, 30, 3);
+    let out = outlets(&grid, &h, -1.0);
+    let mut filled = h.clone();
+    let volume = fill(&grid, &mut filled, &out, 0.0);
+    let reference = planchon_darboux(&grid, &h, &out);
+    assert_eq!(filled, reference);
+    let expected: f64 = filled.iter().zip(&h).map(|(a, b)| a - b).sum();
+    assert!((volume - expected).abs() < 1e-9 && volume > 10.0, "{volume} vs {expected}");
+    let mut eps = h.clone();
+    fill(&grid, &mut eps, &out, EPSILON_M);
+    for i in (0..grid.cells()).filter(|&i| !out[i]) {
+        let lowest = (0..8).map(|k| eps[grid.inner(i, k)]).fold(f64::INFINITY, f64::min);
+        assert!(lowest < eps[i], "cell {i} has no lower neighbour");
+        assert!(eps[i] >= h[i] && eps[i] - reference[i] < 1e-2, "cell {i}: the ε-fill strays from the fill");
+    }
+}
+
+/// A one-cell-wide valley: the middle row of a 3-row grid rising by `slope` per column from
+/// the outlet at column 0, between border rows far above it, so each cell's one lower
+/// neighbour is the next cell down the row (or up it, past a divide).
+fn channel(cols: usize, slope: f64, cell: f64) -> (Grid, Vec<f64>) {
+    let grid = Grid::new(cols, 3, cell);
+    let h = (0..3 * cols).map(|i| if i / cols == 1 { slope * (i % cols) as f64 * cell } else { 1e4 }).collect();
+    (grid, h)
+}
+
+#[test]
+fn drainage_area_in_a_channel_and_on_a_tilted_plane() {
+    let (grid, h) = channel(20, 0.1, 2.0);
+    let out = outlets(&grid, &h, -1.0);
+    let mut flow = Flow::new(grid.cells());
+    flow.route(&grid, &h, &out, &vec![0.0; grid.cells()], 1.0);
+    // Column c of the middle row drains itself and columns c+1 … 18 (19 is the border): 19 − c cells.
+    // (It rises all the way, so the divide is at the last land column.)
+    for c in 1..19 {
+        assert_eq!(flow.area[20 + c], (19 - c) as f64 * 4.0, "column {c}");
+    }
+    // Every land cell's area ends in an outlet, whatever the split.
+    let grid = Grid::new(50, 40, 1.0);
+    let h: Vec<f64> = (0..grid.cells()).map(|i| (i % 50) as f64 * 0.3 + (i / 50) as f64 * 0.1).collect();
+    let out = outlets(&grid, &h, -1.0);
+    let mut flow = Flow::new(grid.cells());
+    flow.route(&grid, &h, &out, &vec![0.0; grid.cells()], 1.0);
+    let land = out.iter().filter(|&&o| !o).count() as f64;
+    let arrived: f64 = (0..grid.cells()).filter(|&i| out[i]).map(|i| flow.area[i] - 1.0).sum();
+    assert!((arrived - land).abs() < 1e-9, "{arrived} vs {land}");
+    // On the plane's far side from the borders, water runs down the steeper x: the three
+    // lower neighbours west take shares by slope (0.3, (0.3+0.1)/√2, (0.3−0.1)/√2, and 0.1
+    // north), so a cell's area exceeds its own.
+    assert!(flow.area[20 * 50 + 10] > 1.0);
+}
+
+#[test]
+fn a_channel_under_uplift_reaches_the_stream_power_steady_state() {
+    // At steady state uplift balances erosion at every cell: S = U / (k A^m), so
+    // h(c) = Σ_{j ≤ c} dx · U / (k A_j^m). Both end columns are outlets, so the divide is in
+    // the middle: column j of the west half drains half + 1 − j cells (hand-derived).
+    let (cols, cell) = (30, 10.0);
+    let (k, m, u) = (2e-4, 0.5, 1e-3);
+    let (grid, h) = channel(cols, 0.0, cell);
+    let hf = Heightfield { cols, rows: 3, cell_size_m: cell as f32, heights_m: h.iter().map(|&x| x as f32).collect() };
+    let p = params(json!({
+        "terrain": {"fractal": {}}, "sea_level": -1.0, "time_step_years": 2000.0, "thermal": null,
+        "hydraulic": {"k": k, "m": m, "n": 1.0, "uplift_m_per_yr": u, "deposition_g": 0.0},
+    }));
+    let mut e = Erosion::new(&hf, &p);
+    for _ in 0..3000 {
+        e.step();
+    }
+    let (mut expected, half) = (0.0, (cols - 2) / 2);
+    for c in 1..=half {
+        let area = (half + 1 - c) as f64 * cell * cell;
+        expected += cell * u / (k * libm::pow(area, m));
+        let got = e.heights[grid.cols + c];
+        assert!((got - expected).abs() <= 1e-6 * expected, "column {c}: {got} vs {expected}");
+    }
+}
+
+#[test]
+fn a_channel_with_n_two_reaches_its_steady_state_too() {
+    // n = 2: S = (U / (k A^m))^(1/2).
+    let (cols, cell) = (20, 10.0);
+    let (k, m, u) = (1e-4, 0.4, 2e-3);
+    let (grid, h) = channel(cols, 0.0, cell);
+    let hf = Heightfield { cols, rows: 3, cell_size_m: cell as f32, heights_m: h.iter().map(|&x| x as f32).collect() };
+    let p = params(json!({
+        "terrain": {"fractal": {}}, "sea_level": -1.0, "time_step_years": 1000.0, "thermal": null,
+        "hydraulic": {"k": k, "m": m, "n": 2.0, "uplift_m_per_yr": u, "deposition_g": 0.0},
+    }));
+    let mut e = Erosion::new(&hf, &p);
+    // Erosion grows with S², so a flat start grades slowly: many iterations.
+    for _ in 0..40_000 {
+        e.step();
+    }
+    let (mut expected, half) = (0.0, (cols - 2) / 2);
+    for c in 1..=half {
+        let area = (half + 1 - c) as f64 * cell * cell;
+        expected += cell * (u / (k * libm::pow(area, m))).sqrt();
+        let got = e.heights[grid.cols + c];
+        assert!((got - expected).abs() <= 1e-5 * expected, "column {c}: {got} vs {expected}");
+    }
+}
+
+fn rough(size: u32, relief: f32, seed: u64) -> Value {
+    json!({"fractal": {"size": size, "cell_size": 2.0, "relief": relief, "seed": seed}})
+}
+
+#[test]
+fn thermal_sweeps_conserve_material_never_overshoot_and_settle_at_the_talus_angle() {
+    let p = params(json!({"terrain": rough(97, 300.0, 5), "hydraulic": null, "thermal": {"talus_angle_deg": 35.0}}));
+    let hf = terrain(&p);
+    let (lo, hi) = hf.min_max();
+    let volume = |h: &[f64]| h.iter().map(|&x| x - f64::from(lo)).sum::<f64>();
+    let mut e = Erosion::new(&hf, &p);
+    let before = volume(&e.heights);
+    let talus = thermal::Talus::new(&e.grid, 35.0, 0.125);
+    let mut its = 0;
+    while talus.max_excess(&e.grid, &e.heights) > 1e-3 && its < 20_000 {
+        e.step();
+        its += 1;
+        assert!(e.heights.iter().all(|&h| h >= f64::from(lo) && h <= f64::from(hi)), "overshoot at {its}");
+    }
+    let after = volume(&e.heights);
+    assert!((after - before).abs() <= 1e-12 * before, "volume {before} → {after}");
+    let out = e.heightfield();
+    let share = metrics::within_angle_share(&out, 37.0);
+    assert!(share >= 0.995, "{share} within 37° after {its} iterations");
+    assert!(metrics::within_angle_share(&hf, 37.0) < 0.9, "the input was not steep enough to test");
+}
+
+#[test]
+fn the_measures_read_a_tilted_plane_and_a_pit_as_they_should() {
+    // A plane tilted along x: every D8 path runs straight down a row, so the longest path to a
+    // cell is (A − 1) cells long (Hack's h = 1 once A ≫ 1) and the slope does not fall with
+    // area (θ = 0).
+    let hf = Heightfield::from_fn(200, 40, 1.0, |x, _| 0.5 * x + 1.0);
+    let d8 = D8::new(&hf, 0.0);
+    let (theta, _) = d8.concavity().unwrap();
+    assert!(theta.abs() < 1e-9, "θ {theta}");
+    let (h, _) = d8.hack().unwrap();
+    assert!((h - 1.0).abs() < 0.02, "Hack {h}");
+    assert_eq!(metrics::drained_share(&hf, 0.0), 1.0);
+    let mut pit = hf.clone();
+    let i = pit.index(100, 20);
+    pit.heights_m[i] -= 5.0;
+    let share = metrics::drained_share(&pit, 0.0);
+    assert!((share - (1.0 - 1.0 / (198.0 * 38.0))).abs() < 1e-12, "{share}");
+    // Hypsometry of a plane: its mean is halfway up.
+    let mask = vec![true; hf.heights_m.len()];
+    let hi = metrics::hypsometric_integral(&Heightfield::from_fn(101, 3, 1.0, |x, _| x), &mask, 0.0).unwrap();
+    assert!((hi - 0.5).abs() < 1e-9, "{hi}");
+}
+
+/// The island: our own fractal, not an example.
+fn island() -> ErodeParams {
+    params(json!({"terrain": {"fractal": {"size": 257, "cell_size": 2.0, "island": true, "seed": 11}}}))
+}
+
+#[test]
+fn an_eroded_island_drains_has_concave_channels_and_follows_hacks_law() {
+    let p = island();
+    let hf = terrain(&p);
+    let t = TestContext::new(hf.clone());
+    let out = Erode::run(&p, 1, &t.ctx()).unwrap();
+    let npy = &out.artifacts.iter().find(|a| a.name == "heightfield.npy").unwrap().bytes;
+    let eroded = crate::export::read_heightfield_npy(npy, hf.cell_size_m).unwrap();
+    let drained = metrics::drained_share(&eroded, 0.0);
+    assert!(drained >= 0.999, "drained share {drained}");
+    let d8 = D8::new(&eroded, 0.0);
+    let (theta, r2) = d8.concavity().unwrap();
+    assert!((0.3..=0.7).contains(&theta), "θ {theta} (R² {r2})");
+    let (hack, r2h) = d8.hack().unwrap();
+    assert!((0.5..=0.7).contains(&hack), "Hack {hack} (R² {r2h})");
+    let land: Vec<bool> = hf.heights_m.iter().map(|&h| h > 0.0).collect();
+    let (hi_in, hi_out) = (
+        metrics::hypsometric_integral(&hf, &land, 0.0).unwrap(),
+        metrics::hypsometric_integral(&eroded, &land, 0.0).unwrap(),
+    );
+    assert!(hi_out < hi_in, "hypsometric integral {hi_in} → {hi_out}");
+    assert!(eroded.min_max().1 <= hf.min_max().1, "{:?} above {:?}", eroded.min_max(), hf.min_max());
+    // The input's own measures, for contrast (the "θ ≈ 0, 1.4 % in pits").
+    let drained_in = metrics::drained_share(&hf, 0.0);
+    assert!(drained_in < drained, "the input drained {drained_in}");
+    eprintln!(
+        "island: drained {drained_in} → {drained}, θ {theta} (R² {r2}), Hack {hack} (R² {r2h}), HI {hi_in} → {hi_out}"
+    );
+    eprintln!("{}", out.result["landform"]);
+}
+
+fn hashes(o: &Outcome<ErodeSequence>) -> Vec<(String, String)> {
+    o.artifacts
+        .iter()
+        .map(|a| (a.name.clone(), hex::encode(<sha2::Sha256 as sha2::Digest>::digest(&a.bytes))))
+        .collect()
+}
+
+#[test]
+fn one_and_two_threads_and_a_replay_give_the_same_bytes() {
+    let p = params(json!({
+        "terrain": {"fractal": {"size": 65, "cell_size": 2.0, "island": true, "seed": 4}},
+        "iterations": 12,
+        "hydraulic": {"n": 1.5, "flow_exponent": 1.3, "uplift_m_per_yr": 1e-3},
+    }));
+    let t = TestContext::new(Heightfield::flat(2, 2, 1.0, 0.0));
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| Erode::run(&p, 1, &t.ctx()).unwrap())
+    };
+    let (one, two) = (run(1), run(2));
+    assert_eq!(hashes(&one), hashes(&two));
+    assert_eq!(one.sequence, two.sequence);
+    assert_eq!(one.result, two.result);
+    let again = Erode::replay(&p, &one.sequence, None, &t.ctx()).unwrap();
+    assert_eq!(hashes(&again), hashes(&one));
+    // Until step k: the terrain after k iterations, its checksum the k-th recorded.
+    let part = Erode::replay(&p, &one.sequence, Some(5), &t.ctx()).unwrap();
+    assert_eq!(part.sequence.checksums, one.sequence.checksums[..5]);
+    let mut short = p.clone();
+    short.iterations = 5;
+    let five = Erode::run(&short, 1, &t.ctx()).unwrap();
+    assert_eq!(hashes(&part), hashes(&five));
+    assert_ne!(hashes(&part), hashes(&one));
+    // A tampered checksum is caught where it diverges.
+    let mut bad = one.sequence.clone();
+    bad.checksums[7] = "0000000000000000".into();
+    let err = Erode::replay(&p, &bad, None, &t.ctx()).unwrap_err().to_string();
+    assert!(err.contains("iteration 8"), "{err}");
+}
+
+#[test]
+fn a_process_is_on_when_absent_and_off_with_null_or_false_and_stays_off_when_stored() {
+    let on = params(json!({"terrain": {"fractal": {}}}));
+    assert!(on.hydraulic.on().is_some() && on.thermal.on().is_some());
+    for off in [json!(null), json!(false)] {
+        let p = params(json!({"terrain": {"fractal": {}}, "thermal": off}));
+        assert_eq!(p.thermal, Switch::Off, "{off}");
+        // Stored as `false`, so a stored request (nulls dropped) reads back off.
+        let stored = serde_json::to_value(&p).unwrap();
+        assert_eq!(stored["thermal"], json!(false));
+        assert_eq!(params(stored).thermal, Switch::Off);
+    }
+    let tuned = params(json!({"terrain": {"fractal": {}}, "thermal": {"talus_angle_deg": 30.0}, "hydraulic": true}));
+    assert_eq!(tuned.thermal.on().unwrap().talus_angle_deg, 30.0);
+    assert_eq!(tuned.hydraulic, Switch::On(Hydraulic::default()));
+}
