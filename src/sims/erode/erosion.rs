@@ -36,6 +36,8 @@ pub struct Erosion {
     /// Heights, m; f64 while eroding, f32 only at the end (and in each checksum).
     pub heights: Vec<f64>,
     outlets: Vec<bool>,
+    /// Rivers cut down to it, not to the sea floor.
+    sea_level: f64,
     fluvial: Option<Fluvial>,
     relax: Option<Relax>,
     /// Ψ of the stream-power step, then the second buffer of the thermal sweeps.
@@ -86,7 +88,7 @@ impl Erosion {
             .on()
             .map(|t| Relax { talus: Talus::new(&grid, t.talus_angle_deg, t.rate), sweeps: t.sweeps });
         let scratch = vec![0.0; grid.cells()];
-        Self { grid, heights, outlets, fluvial, relax, scratch, totals }
+        Self { grid, heights, outlets, sea_level: f64::from(params.sea_level), fluvial, relax, scratch, totals }
     }
 
     /// One iteration.
@@ -101,13 +103,37 @@ impl Erosion {
                     }
                 });
             }
+            // Outlets stand at least at the sea level while the step runs: the base level rivers
+            // cut down to, not the sea floor below it. They never erode, so their entries of
+            // `eroded` keep their real heights meanwhile.
+            let sea = self.sea_level;
+            self.heights.par_iter_mut().zip(&mut f.eroded).zip(&self.outlets).for_each(|((h, e), &o)| {
+                if o {
+                    *e = *h;
+                    *h = h.max(sea);
+                }
+            });
             f.flow.route(grid, &self.heights, &self.outlets, &f.eroded, f.power.flow_exponent);
-            self.totals.sediment_to_outlets_m3 +=
-                self.outlets.iter().zip(&f.flow.sediment).filter(|(&o, _)| o).map(|(_, &v)| v.max(0.0)).sum::<f64>();
+            self.totals.sediment_to_outlets_m3 += self
+                .outlets
+                .iter()
+                .zip(&f.flow.sediment)
+                .filter(|(&o, _)| o)
+                .map(|(_, &v)| v.max(0.0))
+                .sum::<f64>();
             f.power.psi(&f.flow.area, &mut self.scratch);
             f.power.solve(grid, &self.heights, &self.outlets, &f.flow, &self.scratch, &mut f.next);
             let area = grid.cell * grid.cell;
-            f.eroded.par_iter_mut().zip(&self.heights).zip(&f.next).for_each(|((e, &h), &n)| *e = area * (h - n));
+            f.eroded.par_iter_mut().zip(&mut f.next).zip(&self.heights).zip(&self.outlets).for_each(
+                |(((e, n), &h), &o)| {
+                    if o {
+                        *n = *e;
+                        *e = 0.0;
+                    } else {
+                        *e = area * (h - *n);
+                    }
+                },
+            );
             std::mem::swap(&mut self.heights, &mut f.next);
         }
         if let Some(r) = &self.relax {

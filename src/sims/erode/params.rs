@@ -20,7 +20,7 @@ fn default_time_step() -> f64 {
     500.0
 }
 fn default_k() -> f64 {
-    3e-4
+    2e-4
 }
 fn default_m() -> f64 {
     0.45
@@ -94,7 +94,7 @@ pub struct ErodeParams {
 pub struct Hydraulic {
     /// Erodibility k, in m^(1−2m)/yr for n = 1 (from 0 to 0.1).
     #[serde(default = "default_k")]
-    #[schema(default = 3e-4, minimum = 0.0, maximum = 0.1)]
+    #[schema(default = 2e-4, minimum = 0.0, maximum = 0.1)]
     pub k: f64,
     /// Area exponent m (0 to 2). Channels graded by erosion have a concavity θ near m / n.
     #[serde(default = "default_m")]
