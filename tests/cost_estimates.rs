@@ -258,3 +258,23 @@ fn carve_coast_estimates_bound_the_real_peak() {
     cases.push(("small-island-one-pass on 385²".into(), big));
     check("carve-coast", cases);
 }
+
+#[test]
+fn erode_estimates_bound_the_real_peak() {
+    let _one = one_at_a_time();
+    let mut cases = examples("erode");
+    // Larger grids, each process alone, and the landform measures' cap crossed.
+    let mut big = example("erode", "eroded-island");
+    set(&mut big, "/terrain/fractal/size", json!(1025));
+    set(&mut big, "/iterations", json!(3));
+    cases.push(("eroded-island on 1025², 3 iterations".into(), big.clone()));
+    set(&mut big, "/terrain/fractal/size", json!(1100));
+    cases.push(("eroded-island on 1100² (no landform measures)".into(), big.clone()));
+    set(&mut big, "/terrain/fractal/size", json!(513));
+    set(&mut big, "/thermal", json!(null));
+    cases.push(("hydraulic alone on 513²".into(), big.clone()));
+    set(&mut big, "/thermal", json!({}));
+    set(&mut big, "/hydraulic", json!(null));
+    cases.push(("thermal alone on 513²".into(), big));
+    check("erode", cases);
+}

@@ -114,13 +114,8 @@ impl Erosion {
                 }
             });
             f.flow.route(grid, &self.heights, &self.outlets, &f.eroded, f.power.flow_exponent);
-            self.totals.sediment_to_outlets_m3 += self
-                .outlets
-                .iter()
-                .zip(&f.flow.sediment)
-                .filter(|(&o, _)| o)
-                .map(|(_, &v)| v.max(0.0))
-                .sum::<f64>();
+            self.totals.sediment_to_outlets_m3 +=
+                self.outlets.iter().zip(&f.flow.sediment).filter(|(&o, _)| o).map(|(_, &v)| v.max(0.0)).sum::<f64>();
             f.power.psi(&f.flow.area, &mut self.scratch);
             f.power.solve(grid, &self.heights, &self.outlets, &f.flow, &self.scratch, &mut f.next);
             let area = grid.cell * grid.cell;
@@ -138,7 +133,8 @@ impl Erosion {
         }
         if let Some(r) = &self.relax {
             for _ in 0..r.sweeps {
-                r.talus.sweep(grid, &self.heights, &mut self.scratch);
+                let sinks = self.fluvial.as_ref().map(|_| self.outlets.as_slice());
+                r.talus.sweep(grid, &self.heights, &mut self.scratch, sinks);
                 std::mem::swap(&mut self.heights, &mut self.scratch);
             }
         }

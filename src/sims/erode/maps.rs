@@ -25,14 +25,20 @@ pub struct Maps {
 }
 
 impl Maps {
-    pub fn new(input: &Heightfield, output: &Heightfield, sea_level: f32, flow_exponent: f64) -> Self {
-        let (wear, deposition) = input
-            .heights_m
-            .par_iter()
-            .zip(&output.heights_m)
-            .map(|(&a, &b)| ((a - b).max(0.0), (b - a).max(0.0)))
-            .unzip();
+    /// Wear and deposition are measured from the input raised by `uplift_m` on land (the rock
+    /// the rivers had to cut), so a rising range shows its valleys, not its rise.
+    pub fn new(input: &Heightfield, output: &Heightfield, sea_level: f32, flow_exponent: f64, uplift_m: f64) -> Self {
         let grid = Grid::new(output.cols, output.rows, f64::from(output.cell_size_m));
+        let (wear, deposition) = (0..grid.cells())
+            .into_par_iter()
+            .map(|i| {
+                let a = f64::from(input.heights_m[i]);
+                let land = a > f64::from(sea_level) && !grid.on_border(i);
+                let reference = if land { a + uplift_m } else { a };
+                let b = f64::from(output.heights_m[i]);
+                ((reference - b).max(0.0) as f32, (b - reference).max(0.0) as f32)
+            })
+            .unzip();
         let heights: Vec<f64> = output.heights_m.par_iter().map(|&h| f64::from(h)).collect();
         let outlets = outlets(&grid, &heights, f64::from(sea_level));
         let mut route = Flow::new(grid.cells());

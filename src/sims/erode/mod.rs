@@ -146,7 +146,11 @@ fn finish(
     drop(erosion);
     check_heights(&output)?;
     let exponent = params.hydraulic.on().map_or(1.0, |h| h.flow_exponent);
-    let maps = Maps::new(input, &output, params.sea_level, exponent);
+    let uplift_m = params
+        .hydraulic
+        .on()
+        .map_or(0.0, |h| h.uplift_m_per_yr * params.time_step_years * f64::from(totals.iterations));
+    let maps = Maps::new(input, &output, params.sea_level, exponent, uplift_m);
     let mut figures = figures(input, &output, params, &maps, totals);
     if let Some(excess) = talus_excess {
         figures.insert("max_talus_excess_m".into(), json!(round6(excess)));

@@ -6,7 +6,8 @@
 //! side is the same number negated (IEEE subtraction is antisymmetric), so each edge's flux
 //! leaves one cell exactly as it enters the other: the material is conserved to rounding.
 //! With rate ≤ 1/8 no cell gives away more than its excess over all eight neighbours, so a
-//! sweep never overshoots.
+//! sweep never overshoots. With the fluvial step on, its outlets are sinks: they keep their
+//! height (the rivers' base level) and take what slides into them.
 
 use rayon::prelude::*;
 
@@ -25,19 +26,28 @@ impl Talus {
         Self { drop: grid.length.map(|l| tan * l), rate }
     }
 
-    /// One sweep from `from` into `to`.
-    pub fn sweep(&self, grid: &Grid, from: &[f64], to: &mut [f64]) {
+    /// One sweep from `from` into `to`. Cells `sinks` marks (the fluvial step's outlets, when it
+    /// runs) keep their height: material that slides into one leaves the grid, as sediment
+    /// does, and none slides out of one.
+    pub fn sweep(&self, grid: &Grid, from: &[f64], to: &mut [f64], sinks: Option<&[bool]>) {
         let cols = grid.cols;
         to.par_chunks_mut(cols).enumerate().for_each(|(r, out)| {
             for (c, h) in out.iter_mut().enumerate() {
                 let i = r * cols + c;
                 let hi = from[i];
+                if sinks.is_some_and(|s| s[i]) {
+                    *h = hi;
+                    continue;
+                }
                 let mut flux = 0.0;
                 for k in 0..8 {
                     let Some(n) = grid.neighbour(i, k) else { continue };
                     let d = from[n] - hi;
                     let t = self.drop[k];
                     if d > t {
+                        if sinks.is_some_and(|s| s[n]) {
+                            continue;
+                        }
                         flux += d - t;
                     } else if d < -t {
                         flux += d + t;

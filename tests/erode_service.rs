@@ -1,0 +1,193 @@
+//! The erode job through the real server: composition both ways (a deform-terrain result
+//! eroded, a road bulldozed on an eroded mountainside) from `api/erode/chains/`, progress with
+//! live snapshots, replay to the same bytes and up to a step, the single-body examples, and
+//! bad input naming the field.
+
+mod common;
+
+use common::server::{artifact_hashes, example, TestServer};
+use serde_json::{json, Value};
+
+/// A chain from api/erode/chains/<name>.json: `{"steps": [{"kind", "body"}, …]}`, where a
+/// string "$k" in a body stands for the id of step k's job.
+fn chain(name: &str) -> Vec<(String, Value)> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("api/erode/chains/{name}.json"));
+    let chain: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    chain["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| (s["kind"].as_str().unwrap().to_string(), s["body"].clone()))
+        .collect()
+}
+
+fn substitute(body: &mut Value, ids: &[String]) {
+    match body {
+        Value::String(s) if s.starts_with('$') => {
+            let k: usize = s[1..].parse().unwrap();
+            *s = ids[k].clone();
+        }
+        Value::Array(items) => items.iter_mut().for_each(|v| substitute(v, ids)),
+        Value::Object(map) => map.values_mut().for_each(|v| substitute(v, ids)),
+        _ => {}
+    }
+}
+
+async fn run_chain(server: &TestServer, name: &str) -> Vec<Value> {
+    let mut ids = Vec::new();
+    let mut jobs = Vec::new();
+    for (kind, mut body) in chain(name) {
+        substitute(&mut body, &ids);
+        let job = server.run(&kind, &body).await;
+        ids.push(job["id"].as_str().unwrap().to_string());
+        jobs.push(job);
+    }
+    jobs
+}
+
+/// The heights of a job's `heightfield.npy` (little-endian f32 after the header).
+async fn heights(server: &TestServer, id: &str) -> Vec<f32> {
+    let npy = server.artifact(id, "heightfield.npy").await;
+    let header = u16::from_le_bytes([npy[8], npy[9]]) as usize + 10;
+    npy[header..].chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
+}
+
+#[tokio::test]
+async fn a_deform_terrain_result_is_eroded_and_replayed() {
+    let server = TestServer::start().await;
+    let jobs = run_chain(&server, "deform-then-erode").await;
+    let (deformed, eroded) = (&jobs[0], &jobs[1]);
+    let result = &eroded["result"];
+    let landform = &result["landform"];
+    assert_eq!(landform["output"]["drained_share"], 1.0, "{landform}");
+    assert!(
+        landform["output"]["hypsometric_integral"].as_f64() < landform["input"]["hypsometric_integral"].as_f64(),
+        "{landform}"
+    );
+    let (before, after) = (
+        heights(&server, deformed["id"].as_str().unwrap()).await,
+        heights(&server, eroded["id"].as_str().unwrap()).await,
+    );
+    assert_eq!(before.len(), after.len());
+    let top = before.iter().copied().fold(f32::MIN, f32::max);
+    assert!(after.iter().all(|&h| h <= top), "no cell rises above the input's highest point");
+    // Every map is a 16-bit grayscale image of the grid.
+    let id = eroded["id"].as_str().unwrap();
+    for name in ["flow.png", "wear.png", "deposition.png", "heightmap.png"] {
+        let png = server.artifact(id, name).await;
+        let reader = png::Decoder::new(png.as_slice()).read_info().unwrap();
+        let info = reader.info();
+        assert_eq!((info.width, info.height, info.bit_depth), (129, 129, png::BitDepth::Sixteen), "{name}");
+    }
+
+    let (_, replay) = server.post(&format!("/v1/jobs/{id}/replay"), &json!({})).await;
+    let replay = server.wait_done(replay["id"].as_str().unwrap()).await;
+    assert_eq!(replay["status"], "succeeded", "{replay}");
+    assert_eq!(artifact_hashes(&replay), artifact_hashes(eroded));
+    let (_, part) = server.post(&format!("/v1/jobs/{id}/replay"), &json!({"until_step": 10})).await;
+    let part = server.wait_done(part["id"].as_str().unwrap()).await;
+    assert_eq!(part["result"]["iterations"], 10, "{}", part["result"]);
+    let sequence: Value = serde_json::from_slice(&server.artifact(id, "sequence.json").await).unwrap();
+    let recorded: Value =
+        serde_json::from_slice(&server.artifact(part["id"].as_str().unwrap(), "sequence.json").await).unwrap();
+    assert_eq!(recorded["checksums"].as_array().unwrap()[..], sequence["checksums"].as_array().unwrap()[..10]);
+}
+
+#[tokio::test]
+async fn a_road_is_bulldozed_on_an_eroded_mountainside() {
+    let server = TestServer::start().await;
+    // Progress of the erosion comes as "eroding" events, with live snapshots.
+    let (kind, body) = chain("road-on-eroded-mountainside").remove(0);
+    let job = server.submit(&kind, &body).await;
+    let id = job["id"].as_str().unwrap().to_string();
+    let events =
+        common::sse::read_events(&server.client, &server.url(&format!("/v1/jobs/{id}/events")), None, 10_000).await;
+    assert_eq!(events.last().unwrap().event, "done");
+    assert!(events.iter().any(|e| e.event == "progress" && e.data["stage"] == "eroding"), "erosion progress");
+
+    let jobs = run_chain(&server, "road-on-eroded-mountainside").await;
+    let (eroded, road) = (&jobs[0], &jobs[1]);
+    assert!(road["result"]["changed_samples"].as_u64().unwrap() > 500, "{}", road["result"]);
+    let (before, after) =
+        (heights(&server, eroded["id"].as_str().unwrap()).await, heights(&server, road["id"].as_str().unwrap()).await);
+    // The road's bed is flat across (a level blade whose base follows the ground along the
+    // path): at the middle of a segment, the two sides 3 m either side of the centre line agree
+    // to within what the nearest samples (2 m apart) shift along a graded road.
+    let path = chain("road-on-eroded-mountainside")[1].1["operations"][0]["pass"]["path"].clone();
+    let vertex = |k: usize| (path[k]["x"].as_f64().unwrap() as f32, path[k]["z"].as_f64().unwrap() as f32);
+    let ((x0, z0), (x1, z1)) = (vertex(5), vertex(6));
+    let (mx, mz, len) = ((x0 + x1) / 2.0, (z0 + z1) / 2.0, ((x1 - x0).powi(2) + (z1 - z0).powi(2)).sqrt());
+    let (nx, nz) = (-(z1 - z0) / len, (x1 - x0) / len);
+    let cols = 129;
+    let at = |h: &[f32], x: f32, z: f32| h[(z / 2.0).round() as usize * cols + (x / 2.0).round() as usize];
+    let (l, r) = (at(&after, mx - 3.0 * nx, mz - 3.0 * nz), at(&after, mx + 3.0 * nx, mz + 3.0 * nz));
+    let (l0, r0) = (at(&before, mx - 3.0 * nx, mz - 3.0 * nz), at(&before, mx + 3.0 * nx, mz + 3.0 * nz));
+    assert!((l - r).abs() < 0.75, "the road's bed tilts across: {l} vs {r} (the slope before: {l0} vs {r0})");
+    // Far from the road the eroded terrain is left as it was.
+    assert_eq!(at(&after, 240.0, 20.0), at(&before, 240.0, 20.0));
+}
+
+#[tokio::test]
+async fn the_examples_run() {
+    let server = TestServer::start().await;
+    for name in ["eroded-island", "scree-slopes", "uplift-range"] {
+        let job = server.run("erode", &example("erode", name)).await;
+        let names: Vec<&str> =
+            job["artifacts"].as_array().unwrap().iter().map(|a| a["name"].as_str().unwrap()).collect();
+        for want in
+            ["mesh.glb", "flow.png", "wear.png", "deposition.png", "splatmap.png", "heightmap.r16", "sequence.json"]
+        {
+            assert!(names.contains(&want), "{name}: {want} in {names:?}");
+        }
+        let output = &job["result"]["landform"]["output"];
+        if name == "scree-slopes" {
+            assert!(output["within_talus_2deg_share"].as_f64().unwrap() > 0.98, "{name}: {output}");
+        } else {
+            assert_eq!(output["drained_share"], 1.0, "{name}: {output}");
+        }
+    }
+}
+
+#[tokio::test]
+async fn bad_erode_requests_name_their_field() {
+    let server = TestServer::start().await;
+    let base = json!({"terrain": {"fractal": {"size": 33}}});
+    let with = |patch: Value| {
+        let mut body = base.clone();
+        for (k, v) in patch.as_object().unwrap() {
+            body[k] = v.clone();
+        }
+        body
+    };
+    let cases = [
+        (with(json!({"iterations": 0})), 422, "iterations"),
+        (with(json!({"iterations": 10001})), 413, "iterations"),
+        (with(json!({"time_step_years": 0.0})), 422, "time_step_years"),
+        (with(json!({"sea_level": 1e9})), 422, "sea_level"),
+        (with(json!({"hydraulic": {"n": 3.0}})), 422, "hydraulic.n"),
+        (with(json!({"hydraulic": {"k": -1.0}})), 422, "hydraulic.k"),
+        (with(json!({"hydraulic": {"uplift_m_per_yr": 1.0}})), 422, "hydraulic.uplift_m_per_yr"),
+        (with(json!({"thermal": {"rate": 0.2}})), 422, "thermal.rate"),
+        (with(json!({"thermal": {"talus_angle_deg": 90.0}})), 422, "thermal.talus_angle_deg"),
+        (with(json!({"thermal": {"sweeps": 0}})), 422, "thermal.sweeps"),
+        (with(json!({"hydraulic": null, "thermal": false})), 422, "hydraulic"),
+        (with(json!({"hydraulic": {"kay": 1.0}})), 422, "hydraulic"),
+    ];
+    for (body, status, field) in cases {
+        let (got, problem) = server.post("/v1/jobs/erode", &body).await;
+        assert_eq!(got, status, "{field}: {problem}");
+        let fields: Vec<&str> =
+            problem["errors"].as_array().into_iter().flatten().filter_map(|e| e["field"].as_str()).collect();
+        assert!(fields.iter().any(|f| f.starts_with(field)), "wanted {field:?}: {problem}");
+    }
+    // A grid × iterations past the time limit (the test server's 120 s) is refused before it
+    // runs: 1025² cells × 10 000 iterations × 1.5 updates at 1e8 a second is 158 s.
+    let (got, problem) = server
+        .post(
+            "/v1/jobs/erode",
+            &json!({"terrain": {"fractal": {"size": 1025}}, "iterations": 10000}),
+        )
+        .await;
+    assert_eq!(got, 422, "{problem}");
+    assert!(problem.to_string().contains("iterations"), "{problem}");
+}
