@@ -2,7 +2,10 @@
 # own choosing, lit by a lamp beside the eye: what a player standing there would see, drawn
 # by an importer and renderer that are not ours.
 #
-#   blender -b -P scripts/render_glb.py -- mesh.glb out.png EYE_X EYE_Y EYE_Z AT_X AT_Y AT_Z
+#   blender -b -P scripts/render_glb.py -- mesh.glb out.png EYE_X EYE_Y EYE_Z AT_X AT_Y AT_Z [sun]
+#
+# With `sun` the scene is lit as outdoors instead: a sun 35° above the horizon from behind the
+# eye's left shoulder and a grey sky (terrain seen from a player's height).
 #
 # Points are glTF coordinates (metres, y up). Cycles on the CPU, 24 samples, no denoiser
 # (Debian builds Blender without OpenImageDenoise). Needs python3-numpy: Blender 3.4's glTF
@@ -19,6 +22,7 @@ argv = sys.argv[sys.argv.index("--") + 1:]
 glb, out = argv[0], argv[1]
 eye = [float(v) for v in argv[2:5]]
 target = [float(v) for v in argv[5:8]]
+outdoors = len(argv) > 8 and argv[8] == "sun"
 bpy.ops.wm.read_factory_settings(use_empty=True)
 bpy.ops.import_scene.gltf(filepath=glb)
 
@@ -35,15 +39,27 @@ bpy.context.scene.collection.objects.link(camera)
 camera.location = to_blender(eye)
 camera.rotation_euler = (to_blender(target) - to_blender(eye)).to_track_quat("-Z", "Y").to_euler()
 bpy.context.scene.camera = camera
-lamp_data = bpy.data.lights.new("lamp", "POINT")
-lamp_data.energy = 400
-lamp_data.shadow_soft_size = 0.3
-lamp = bpy.data.objects.new("lamp", lamp_data)
+if outdoors:
+    lamp_data = bpy.data.lights.new("sun", "SUN")
+    lamp_data.energy = 4.0
+    lamp = bpy.data.objects.new("sun", lamp_data)
+    view = to_blender(target) - to_blender(eye)
+    view.z = 0
+    # Light travels along -Z of the lamp: from behind-left of the eye, 35° up.
+    left = mathutils.Vector((-view.y, view.x, 0)).normalized()
+    towards = (view.normalized() + 0.6 * -left).normalized()
+    towards.z = -0.7
+    lamp.rotation_euler = towards.to_track_quat("-Z", "Y").to_euler()
+else:
+    lamp_data = bpy.data.lights.new("lamp", "POINT")
+    lamp_data.energy = 400
+    lamp_data.shadow_soft_size = 0.3
+    lamp = bpy.data.objects.new("lamp", lamp_data)
+    lamp.location = to_blender(eye) + mathutils.Vector((0.1, 0.1, 0.4))
 bpy.context.scene.collection.objects.link(lamp)
-lamp.location = to_blender(eye) + mathutils.Vector((0.1, 0.1, 0.4))
 world = bpy.data.worlds.new("world")
 world.use_nodes = True
-world.node_tree.nodes["Background"].inputs[1].default_value = 0.02
+world.node_tree.nodes["Background"].inputs[1].default_value = 0.6 if outdoors else 0.02
 bpy.context.scene.world = world
 scene = bpy.context.scene
 scene.render.engine = "CYCLES"

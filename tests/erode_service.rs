@@ -182,12 +182,8 @@ async fn bad_erode_requests_name_their_field() {
     }
     // A grid × iterations past the time limit (the test server's 120 s) is refused before it
     // runs: 1025² cells × 10 000 iterations × 1.5 updates at 1e8 a second is 158 s.
-    let (got, problem) = server
-        .post(
-            "/v1/jobs/erode",
-            &json!({"terrain": {"fractal": {"size": 1025}}, "iterations": 10000}),
-        )
-        .await;
+    let (got, problem) =
+        server.post("/v1/jobs/erode", &json!({"terrain": {"fractal": {"size": 1025}}, "iterations": 10000})).await;
     assert_eq!(got, 422, "{problem}");
     assert!(problem.to_string().contains("iterations"), "{problem}");
 }

@@ -153,7 +153,7 @@ test('bad fields: the schema bound is checked before sending, the server 422 is 
 
 test('every kind: a finished job on its page', async () => {
   const page = await newPage(browser, server.url);
-  const presets = { 'weather-column': 'goblin-cap', 'grow-cave': 'columns', 'deform-terrain': 'tileable', 'carve-coast': 'small-island-one-pass', bulldoze: 'hillside-road' };
+  const presets = { 'weather-column': 'goblin-cap', 'grow-cave': 'columns', 'deform-terrain': 'tileable', 'carve-coast': 'small-island-one-pass', bulldoze: 'hillside-road', erode: 'eroded-island' };
   for (const [kind, preset] of Object.entries(presets)) {
     await runPreset(page, kind, preset);
     await waitForResult(page);

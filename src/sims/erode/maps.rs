@@ -11,8 +11,10 @@ use crate::terrain::Heightfield;
 /// Metres of deposit where sediment starts to show in the splat map's material channel, and
 /// where it is all sediment.
 const SEDIMENT_M: (f64, f64) = (0.05, 0.5);
-/// Metres worn away where bare rock starts to show, and where it is all rock.
-const WEAR_M: (f64, f64) = (1.0, 5.0);
+/// Shares of the deepest wear where bare rock starts to show, and where it is all rock: the
+/// most deeply cut valleys and gorges, whatever the terrain's scale (a rule in metres would
+/// paint a whole island lowered by a few metres as rock).
+const WEAR_SHARE: (f64, f64) = (0.5, 0.9);
 
 /// The maps of an eroded terrain against its input (same grid).
 pub struct Maps {
@@ -69,9 +71,13 @@ impl Maps {
             let t = ((f64::from(x) - edges.0) / (edges.1 - edges.0)).clamp(0.0, 1.0);
             (t * t * (3.0 - 2.0 * t) * 255.0).round() as u8
         };
-        (
-            self.deposition.par_iter().map(|&d| weight(SEDIMENT_M, d)).collect(),
-            self.wear.par_iter().map(|&w| weight(WEAR_M, w)).collect(),
-        )
+        let deepest = f64::from(self.wear.iter().copied().fold(0.0f32, f32::max));
+        let rock = if deepest > 0.0 {
+            let edges = (WEAR_SHARE.0 * deepest, WEAR_SHARE.1 * deepest);
+            self.wear.par_iter().map(|&w| weight(edges, w)).collect()
+        } else {
+            vec![0; self.wear.len()]
+        };
+        (self.deposition.par_iter().map(|&d| weight(SEDIMENT_M, d)).collect(), rock)
     }
 }

@@ -40,8 +40,17 @@ impl Talus {
                     continue;
                 }
                 let mut flux = 0.0;
+                let inner = r > 0 && r + 1 < grid.rows && c > 0 && c + 1 < cols;
                 for k in 0..8 {
-                    let Some(n) = grid.neighbour(i, k) else { continue };
+                    // Inner cells (nearly all) skip the bounds checks.
+                    let n = if inner {
+                        grid.inner(i, k)
+                    } else {
+                        match grid.neighbour(i, k) {
+                            Some(n) => n,
+                            None => continue,
+                        }
+                    };
                     let d = from[n] - hi;
                     let t = self.drop[k];
                     if d > t {

@@ -204,7 +204,7 @@ async function result(host: HTMLElement, job: Job, kindNames: string[], signal: 
 
   // Start another job from this result.
   if (hasHeightfield(job)) {
-    const targets = kindNames.filter((k) => ['bulldoze', 'deform-terrain', 'carve-coast'].includes(k));
+    const targets = kindNames.filter((k) => ['bulldoze', 'deform-terrain', 'carve-coast', 'erode'].includes(k));
     host.append(
       el('section', { 'aria-labelledby': 'compose-h' }, [
         el('h2', { id: 'compose-h' }, ['Use this terrain']),
