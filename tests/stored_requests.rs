@@ -21,7 +21,12 @@ fn examples() -> Vec<(String, String, Value)> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("api");
     let mut out = Vec::new();
     for kind in std::fs::read_dir(&root).unwrap().flatten().filter(|e| e.path().is_dir()) {
-        for file in std::fs::read_dir(kind.path()).unwrap().flatten() {
+        // Request bodies only (erode's `chains/` folder holds sequences of them).
+        for file in std::fs::read_dir(kind.path())
+            .unwrap()
+            .flatten()
+            .filter(|f| f.path().extension().is_some_and(|e| e == "json"))
+        {
             let body: Value = serde_json::from_slice(&std::fs::read(file.path()).unwrap()).unwrap();
             out.push((kind.file_name().to_string_lossy().into(), file.file_name().to_string_lossy().into(), body));
         }

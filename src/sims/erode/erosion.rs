@@ -133,8 +133,7 @@ impl Erosion {
         }
         if let Some(r) = &self.relax {
             for _ in 0..r.sweeps {
-                let sinks = self.fluvial.as_ref().map(|_| self.outlets.as_slice());
-                r.talus.sweep(grid, &self.heights, &mut self.scratch, sinks);
+                r.talus.sweep(grid, &self.heights, &mut self.scratch, self.fluvial.is_some());
                 std::mem::swap(&mut self.heights, &mut self.scratch);
             }
         }

@@ -69,8 +69,9 @@ impl StreamPower {
         }
     }
 
-    /// h̃: the height after uplift plus the sediment that settles, G·V/A, but never above the
-    /// highest of the cell and its donors (sediment does not pile above where it came from).
+    /// h̃: the height after uplift plus the sediment that settles, G·V/A (at most the volume
+    /// that arrives, spread on the cell), but never above the highest of the cell and its donors
+    /// (sediment does not pile above where it came from).
     fn settled(&self, grid: &Grid, heights: &[f64], outlets: &[bool], flow: &Flow, i: usize) -> f64 {
         let v = flow.sediment[i];
         if self.deposition_g == 0.0 || v <= 0.0 {
@@ -83,7 +84,9 @@ impl StreamPower {
                 cap = heights[n];
             }
         }
-        (heights[i] + self.deposition_g * v / flow.area[i]).min(cap)
+        // Never more than the sediment that arrives (G·V/A can exceed V/dx² where A is small).
+        let settled = (self.deposition_g * v / flow.area[i]).min(v / (grid.cell * grid.cell));
+        (heights[i] + settled).min(cap)
     }
 
     /// The root of x − h̃ + Ψ·(Σ_k f_k·max(0, x − h_k))^n on [lowest receiver, h̃]: monotone,

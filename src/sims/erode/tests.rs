@@ -303,3 +303,25 @@ fn a_process_is_on_when_absent_and_off_with_null_or_false_and_stays_off_when_sto
     assert_eq!(tuned.thermal.on().unwrap().talus_angle_deg, 30.0);
     assert_eq!(tuned.hydraulic, Switch::On(Hydraulic::default()));
 }
+
+#[test]
+fn with_both_processes_talus_that_reaches_the_sea_stays_on_the_grid() {
+    // No fluvial erosion (k = 0), so only the thermal sweeps and the drain raise move material:
+    // what slides off a steep island's coast must pile up in the sea, not vanish (the border,
+    // the only sink, lies on a flat sea floor far from the coast).
+    // A cone steeper than the talus (63°) standing in a flat sea floor.
+    let p = params(json!({
+        "terrain": {"fractal": {}}, "iterations": 60, "hydraulic": {"k": 0.0}, "thermal": {"talus_angle_deg": 30.0},
+    }));
+    let hf = Heightfield::from_fn(129, 129, 2.0, |x, z| (60.0 - 2.0 * ((x - 128.0).hypot(z - 128.0))).max(-10.0));
+    let mut e = Erosion::new(&hf, &p);
+    let volume = |h: &[f64]| h.iter().sum::<f64>() * 4.0;
+    let before = volume(&e.heights);
+    for _ in 0..60 {
+        e.step();
+    }
+    let moved = hf.heights_m.iter().zip(&e.heights).map(|(&a, &b)| (f64::from(a) - b).abs()).sum::<f64>() * 4.0;
+    let change = volume(&e.heights) - before - e.totals.drain_raise_m3;
+    assert!(moved > 1e4, "the test moved too little: {moved} m³");
+    assert!(change.abs() <= 1e-9 * moved.max(1.0) + 1e-6, "{change} m³ of {moved} m³ moved went missing");
+}

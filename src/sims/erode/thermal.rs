@@ -6,8 +6,8 @@
 //! side is the same number negated (IEEE subtraction is antisymmetric), so each edge's flux
 //! leaves one cell exactly as it enters the other: the material is conserved to rounding.
 //! With rate ≤ 1/8 no cell gives away more than its excess over all eight neighbours, so a
-//! sweep never overshoots. With the fluvial step on, its outlets are sinks: they keep their
-//! height (the rivers' base level) and take what slides into them.
+//! sweep never overshoots. With the fluvial step on, the grid's border is a sink: it keeps its
+//! height (the rivers' base level) and what slides into it leaves the grid.
 
 use rayon::prelude::*;
 
@@ -26,21 +26,22 @@ impl Talus {
         Self { drop: grid.length.map(|l| tan * l), rate }
     }
 
-    /// One sweep from `from` into `to`. Cells `sinks` marks (the fluvial step's outlets, when it
-    /// runs) keep their height: material that slides into one leaves the grid, as sediment
-    /// does, and none slides out of one.
-    pub fn sweep(&self, grid: &Grid, from: &[f64], to: &mut [f64], sinks: Option<&[bool]>) {
+    /// One sweep from `from` into `to`. With `open_border` (the fluvial step on, whose base level
+    /// the border is) the grid's border cells keep their height: material that slides into one
+    /// leaves the grid, as sediment does, and none slides out of one. Sea cells take what slides
+    /// into them either way, so a collapsing coast builds its own slope under the water.
+    pub fn sweep(&self, grid: &Grid, from: &[f64], to: &mut [f64], open_border: bool) {
         let cols = grid.cols;
         to.par_chunks_mut(cols).enumerate().for_each(|(r, out)| {
             for (c, h) in out.iter_mut().enumerate() {
                 let i = r * cols + c;
                 let hi = from[i];
-                if sinks.is_some_and(|s| s[i]) {
+                let inner = r > 0 && r + 1 < grid.rows && c > 0 && c + 1 < cols;
+                if open_border && !inner {
                     *h = hi;
                     continue;
                 }
                 let mut flux = 0.0;
-                let inner = r > 0 && r + 1 < grid.rows && c > 0 && c + 1 < cols;
                 for k in 0..8 {
                     // Inner cells (nearly all) skip the bounds checks.
                     let n = if inner {
@@ -54,7 +55,7 @@ impl Talus {
                     let d = from[n] - hi;
                     let t = self.drop[k];
                     if d > t {
-                        if sinks.is_some_and(|s| s[n]) {
+                        if open_border && grid.on_border(n) {
                             continue;
                         }
                         flux += d - t;
