@@ -1,6 +1,9 @@
 //! The `erode` request: a terrain, the sea level, how many iterations of how many years, and
 //! the two processes (`hydraulic`, `thermal`), each on by default and off with `null`.
 
+use std::fmt;
+
+use serde::de::{self, MapAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use utoipa::ToSchema;
 
@@ -74,11 +77,13 @@ pub struct ErodeParams {
     #[serde(default = "default_time_step")]
     #[schema(default = 500.0, exclusive_minimum = 0.0, maximum = 1e6)]
     pub time_step_years: f64,
-    /// Fluvial erosion and deposition; `null` (or `false`) turns it off.
+    /// Fluvial erosion and deposition; `null` (or `false`) turns it off, `true` or `{}` is the
+    /// defaults.
     #[serde(default)]
     #[schema(value_type = Option<Hydraulic>, nullable = true)]
     pub hydraulic: Switch<Hydraulic>,
-    /// Slope relaxation to the talus angle; `null` (or `false`) turns it off.
+    /// Slope relaxation to the talus angle; `null` (or `false`) turns it off, `true` or `{}` is
+    /// the defaults.
     #[serde(default)]
     #[schema(value_type = Option<Thermal>, nullable = true)]
     pub thermal: Switch<Thermal>,
@@ -188,18 +193,33 @@ impl<T: Serialize> Serialize for Switch<T> {
 }
 
 impl<'de, T: Deserialize<'de> + Default> Deserialize<'de> for Switch<T> {
+    /// A visitor rather than an untagged enum: the settings object is read through the same
+    /// map access, so an unknown or bad member is reported at its own path
+    /// (`hydraulic.kk`), not as "did not match any variant".
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        #[derive(Deserialize)]
-        #[serde(untagged)]
-        enum Form<T> {
-            Flag(Option<bool>),
-            Settings(T),
+        struct Visit<T>(std::marker::PhantomData<T>);
+        impl<'de, T: Deserialize<'de> + Default> Visitor<'de> for Visit<T> {
+            type Value = Switch<T>;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("an object of settings, true (the defaults), or false or null (off)")
+            }
+            fn visit_bool<E: de::Error>(self, on: bool) -> Result<Self::Value, E> {
+                Ok(if on { Switch::On(T::default()) } else { Switch::Off })
+            }
+            fn visit_unit<E: de::Error>(self) -> Result<Self::Value, E> {
+                Ok(Switch::Off)
+            }
+            fn visit_none<E: de::Error>(self) -> Result<Self::Value, E> {
+                Ok(Switch::Off)
+            }
+            fn visit_some<D2: Deserializer<'de>>(self, d: D2) -> Result<Self::Value, D2::Error> {
+                d.deserialize_any(self)
+            }
+            fn visit_map<M: MapAccess<'de>>(self, map: M) -> Result<Self::Value, M::Error> {
+                T::deserialize(de::value::MapAccessDeserializer::new(map)).map(Switch::On)
+            }
         }
-        Ok(match Form::<T>::deserialize(d)? {
-            Form::Flag(None | Some(false)) => Switch::Off,
-            Form::Flag(Some(true)) => Switch::On(T::default()),
-            Form::Settings(t) => Switch::On(t),
-        })
+        d.deserialize_any(Visit(std::marker::PhantomData))
     }
 }
 

@@ -69,24 +69,37 @@ impl StreamPower {
         }
     }
 
-    /// h̃: the height after uplift plus the sediment that settles, G·V/A (at most the volume
-    /// that arrives, spread on the cell), but never above the highest of the cell and its donors
-    /// (sediment does not pile above where it came from).
-    fn settled(&self, grid: &Grid, heights: &[f64], outlets: &[bool], flow: &Flow, i: usize) -> f64 {
+    /// The thickness of sediment that settles on cell `i` in one step: G·V/A, but never more
+    /// than the volume that arrives spread on the cell (G·V/A exceeds V/dx² where A is small).
+    #[inline]
+    fn deposit(&self, grid: &Grid, flow: &Flow, i: usize) -> f64 {
         let v = flow.sediment[i];
-        if self.deposition_g == 0.0 || v <= 0.0 {
+        if v <= 0.0 {
+            return 0.0;
+        }
+        (self.deposition_g * v / flow.area[i]).min(v / (grid.cell * grid.cell))
+    }
+
+    /// h̃: the height after uplift plus the sediment that settles ([`StreamPower::deposit`]),
+    /// but never above the highest neighbour's height with its own deposit: sediment does not
+    /// pile above where it came from, yet a plain that aggrades as a whole (every cell a little
+    /// above the next) may rise by more than the small drops between its cells.
+    fn settled(&self, grid: &Grid, heights: &[f64], outlets: &[bool], flow: &Flow, i: usize) -> f64 {
+        if self.deposition_g == 0.0 {
+            return heights[i];
+        }
+        let d = self.deposit(grid, flow, i);
+        if d <= 0.0 {
             return heights[i];
         }
         let mut cap = heights[i];
         for k in 0..8 {
             let n = grid.inner(i, k);
-            if !outlets[n] && heights[n] > cap {
-                cap = heights[n];
+            if !outlets[n] {
+                cap = cap.max(heights[n] + self.deposit(grid, flow, n));
             }
         }
-        // Never more than the sediment that arrives (G·V/A can exceed V/dx² where A is small).
-        let settled = (self.deposition_g * v / flow.area[i]).min(v / (grid.cell * grid.cell));
-        (heights[i] + settled).min(cap)
+        (heights[i] + d).min(cap)
     }
 
     /// The root of x − h̃ + Ψ·(Σ_k f_k·max(0, x − h_k))^n on [lowest receiver, h̃]: monotone,
