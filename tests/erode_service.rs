@@ -128,6 +128,34 @@ async fn a_road_is_bulldozed_on_an_eroded_mountainside() {
 }
 
 #[tokio::test]
+async fn rivers_leaving_a_mountain_range_bury_the_plain_s_foot_in_fans() {
+    let server = TestServer::start().await;
+    let jobs = run_chain(&server, "mountain-front-fans").await;
+    let (cut, eroded) = (&jobs[0], &jobs[1]);
+    let (before, after) =
+        (heights(&server, cut["id"].as_str().unwrap()).await, heights(&server, eroded["id"].as_str().unwrap()).await);
+    let cols = 257;
+    // The plain is what the blade left at −40 m to −41 m. Per column, rows counted from the
+    // first plain row (the foot of the ramp): mean change at 0–10, 10–40 and 40–90 rows out.
+    let mut bands = [(0.0f64, 0usize); 3];
+    for c in 1..cols - 1 {
+        let Some(foot) = (0..cols).find(|&r| before[r * cols + c] <= -39.9) else { continue };
+        for (b, (lo, hi)) in [(0, 10), (10, 40), (40, 90)].into_iter().enumerate() {
+            for r in (foot + lo..foot + hi).filter(|&r| r < cols - 1) {
+                bands[b].0 += f64::from(after[r * cols + c] - before[r * cols + c]);
+                bands[b].1 += 1;
+            }
+        }
+    }
+    let bands = bands.map(|(sum, n)| sum / n as f64);
+    assert!(bands[0] > 1.0 && bands[0] > bands[1] && bands[1] > bands[2], "the plain's bands changed by {bands:?}");
+    let result = &eroded["result"];
+    let (deposited, eroded_m3) = (result["deposited_m3"].as_f64().unwrap(), result["eroded_m3"].as_f64().unwrap());
+    assert!(deposited > 0.03 * eroded_m3 && deposited < eroded_m3, "{result}");
+    eprintln!("fans: bands {bands:?}, deposited {deposited} of {eroded_m3} m³");
+}
+
+#[tokio::test]
 async fn the_examples_run() {
     let server = TestServer::start().await;
     for name in ["eroded-island", "scree-slopes", "uplift-range"] {
@@ -171,7 +199,7 @@ async fn bad_erode_requests_name_their_field() {
         (with(json!({"thermal": {"talus_angle_deg": 90.0}})), 422, "thermal.talus_angle_deg"),
         (with(json!({"thermal": {"sweeps": 0}})), 422, "thermal.sweeps"),
         (with(json!({"hydraulic": null, "thermal": false})), 422, "hydraulic"),
-        (with(json!({"hydraulic": {"kay": 1.0}})), 422, "hydraulic"),
+        (with(json!({"hydraulic": {"kay": 1.0}})), 422, "hydraulic.kay"),
     ];
     for (body, status, field) in cases {
         let (got, problem) = server.post("/v1/jobs/erode", &body).await;
