@@ -159,24 +159,25 @@ impl Erosion {
     /// The first 16 hex digits of the sha256 of the heights as little-endian f32s: what the
     /// sequence records after each iteration.
     pub fn checksum(&self) -> String {
-        let mut hasher = Sha256::new();
-        let mut buf = Vec::with_capacity(4 * 4096);
-        for chunk in self.heights.chunks(4096) {
-            buf.clear();
-            buf.extend(chunk.iter().flat_map(|&h| (h as f32).to_le_bytes()));
-            hasher.update(&buf);
-        }
-        hex::encode(&hasher.finalize()[..8])
+        hex::encode(&sha256_f32(self.heights.iter().map(|&h| h as f32))[..8])
     }
 }
 
 /// The sha256 of a heightfield's heights (little-endian f32s), hex: the input a sequence
 /// names.
 pub fn input_sha256(hf: &Heightfield) -> String {
+    hex::encode(sha256_f32(hf.heights_m.iter().copied()))
+}
+
+/// The sha256 of f32s as little-endian bytes, hashed 4096 at a time.
+fn sha256_f32(values: impl Iterator<Item = f32>) -> [u8; 32] {
     let mut hasher = Sha256::new();
-    for chunk in hf.heights_m.chunks(4096) {
-        let bytes: Vec<u8> = chunk.iter().flat_map(|h| h.to_le_bytes()).collect();
-        hasher.update(&bytes);
+    let mut buf = Vec::with_capacity(4 * 4096);
+    let mut values = values.peekable();
+    while values.peek().is_some() {
+        buf.clear();
+        buf.extend(values.by_ref().take(4096).flat_map(f32::to_le_bytes));
+        hasher.update(&buf);
     }
-    hex::encode(hasher.finalize())
+    hasher.finalize().into()
 }

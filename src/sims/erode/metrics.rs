@@ -64,8 +64,8 @@ impl D8 {
         for &i in &order {
             if let Some(j) = receiver[i] {
                 area[j] += area[i];
-                let step = (((i % grid.cols) != (j % grid.cols)) && ((i / grid.cols) != (j / grid.cols))) as u8;
-                let l = length[i] + if step == 1 { grid.length[0] } else { grid.length[1] };
+                let diagonal = i % grid.cols != j % grid.cols && i / grid.cols != j / grid.cols;
+                let l = length[i] + if diagonal { grid.cell * std::f64::consts::SQRT_2 } else { grid.cell };
                 length[j] = length[j].max(l);
             }
         }
