@@ -44,7 +44,7 @@ impl StreamPower {
                 continue;
             }
             let w = weights(grid, heights, i, mask, self.flow_exponent);
-            let target = self.settled(grid, heights, outlets, flow, i);
+            let target = self.settled(grid, heights, flow, i);
             let mut f = [0.0; 8];
             let mut lowest = f64::INFINITY;
             for k in 0..8 {
@@ -81,10 +81,11 @@ impl StreamPower {
     }
 
     /// h̃: the height after uplift plus the sediment that settles ([`StreamPower::deposit`]),
-    /// but never above the highest neighbour's height with its own deposit: sediment does not
-    /// pile above where it came from, yet a plain that aggrades as a whole (every cell a little
-    /// above the next) may rise by more than the small drops between its cells.
-    fn settled(&self, grid: &Grid, heights: &[f64], outlets: &[bool], flow: &Flow, i: usize) -> f64 {
+    /// but never above the highest of its donors (the neighbours that drain into it) with their
+    /// own deposits: sediment does not pile above where it came from, yet a plain that aggrades
+    /// as a whole (every cell a little above the next) may rise by more than the small drops
+    /// between its cells. A cell with no donors gets nothing (no sediment reaches it).
+    fn settled(&self, grid: &Grid, heights: &[f64], flow: &Flow, i: usize) -> f64 {
         if self.deposition_g == 0.0 {
             return heights[i];
         }
@@ -95,7 +96,8 @@ impl StreamPower {
         let mut cap = heights[i];
         for k in 0..8 {
             let n = grid.inner(i, k);
-            if !outlets[n] {
+            // N8 is symmetric: neighbour k's neighbour 7 − k is this cell.
+            if flow.receivers[n] & (1 << (7 - k)) != 0 {
                 cap = cap.max(heights[n] + self.deposit(grid, flow, n));
             }
         }
