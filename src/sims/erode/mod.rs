@@ -49,7 +49,8 @@ impl Simulation for Erode {
     const KIND: &'static str = "erode";
     const SUMMARY: &'static str =
         "Erode a heightfield: stream-power rivers with deposition on a pit-free surface, and talus-angle scree";
-    // 2: deposition capped by the neighbours' heights plus their own deposits (1: their heights).
+    // 2: deposition capped by the donors' heights plus their own deposits (1: every non-outlet
+    // neighbour's height).
     const GENERATOR_VERSION: u32 = 2;
     type Params = ErodeParams;
     type Sequence = ErodeSequence;
