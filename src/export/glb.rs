@@ -30,7 +30,7 @@ use json::validation::{Checked::Valid, USize64};
 use rayon::prelude::*;
 
 use super::srgb::{srgb_to_linear, srgb_to_linear_u8};
-use crate::mesh::{GpuOrder, MaterialKind, Mesh, Scene};
+use crate::mesh::{GpuOrder, MaterialKind, Mesh, Scene, SceneNode};
 
 /// Most vertices a mesh may have and still use u16 indices (65535 itself means "restart").
 pub const MAX_U16_INDEXED_VERTICES: usize = 65_535;
@@ -135,6 +135,46 @@ fn scene_bounds(scene: &Scene) -> Option<([f32; 3], [f32; 3])> {
 /// which must hold every vertex (`None`: each node in its own box). Meshes written in one
 /// frame decode a position they share to the same floats: the tiles of a terrain meet exactly.
 pub fn write_glb_in_frame(scene: &Scene, form: GlbForm, frame: Option<([f32; 3], [f32; 3])>) -> Vec<u8> {
+    encode(scene, &[], form, frame)
+}
+
+/// [`write_glb`] carrying levels of detail (`MSFT_lod`): each of `levels` is the scene
+/// simplified, node for node, with its error bound in metres (increasing). Every node of the
+/// scene names its levels' nodes (out of the scene, same transform, quantised in the same
+/// frame) in `extensions.MSFT_lod.ids`, with `extras.MSFT_screencoverage` the screen shares
+/// below which each next level is shown ([`screen_coverage`]). Loaders without the extension
+/// show the full nodes; the extension is used, not required.
+pub fn write_glb_with_levels(scene: &Scene, levels: &[(&Scene, f64)], form: GlbForm) -> Vec<u8> {
+    for (level, _) in levels {
+        assert_eq!(level.nodes.len(), scene.nodes.len(), "a level has every node of the scene");
+    }
+    encode(scene, levels, form, scene_bounds(scene))
+}
+
+/// A node of the scene for `MSFT_lod`: its index, its bounding diameter (metres), and its
+/// levels' node indices with their error bounds (metres).
+type NodeLevels = (u32, f64, Vec<(u32, f64)>);
+
+/// The MSFT_lod extension's name.
+const LOD: &str = "MSFT_lod";
+/// Rows of the view the screen-coverage hints assume (a 1080p screen).
+const SCREEN_ROWS: f64 = 1080.0;
+
+/// `MSFT_screencoverage` for a node of bounding diameter `diameter_m` whose levels have error
+/// bounds `bounds_m`: level k + 1 takes over when the node covers less than
+/// (diameter ÷ (bound × 1080))² of the screen, where its error is a pixel of a 1080-row view
+/// at most, and the last value (0) keeps the coarsest level however small the node.
+pub fn screen_coverage(diameter_m: f64, bounds_m: &[f64]) -> Vec<f64> {
+    let mut values: Vec<f64> = bounds_m
+        .iter()
+        .map(|&b| if b > 0.0 { (diameter_m / (b * SCREEN_ROWS)).powi(2).min(1.0) } else { 1.0 })
+        .map(|c| (c * 1e6).round() / 1e6)
+        .collect();
+    values.push(0.0);
+    values
+}
+
+fn encode(scene: &Scene, levels: &[(&Scene, f64)], form: GlbForm, frame: Option<([f32; 3], [f32; 3])>) -> Vec<u8> {
     let mut root = json::Root {
         asset: json::Asset { generator: Some("Landform".into()), ..Default::default() },
         ..Default::default()
@@ -142,8 +182,15 @@ pub fn write_glb_in_frame(scene: &Scene, form: GlbForm, frame: Option<([f32; 3],
     let mut materials: Vec<(MaterialKind, bool)> = Vec::new();
     // First every mesh's place in the shared views, then the views, then the JSON per node.
     let mut groups: Vec<Group> = Vec::new();
-    let mut layouts: Vec<Option<Layout>> = Vec::with_capacity(scene.nodes.len());
-    for node in &scene.nodes {
+    // Each node of the scene, then its levels' nodes.
+    let entries: Vec<(usize, &SceneNode)> = (0..scene.nodes.len())
+        .flat_map(|i| {
+            std::iter::once((0, &scene.nodes[i]))
+                .chain(levels.iter().enumerate().map(move |(k, (l, _))| (k + 1, &l.nodes[i])))
+        })
+        .collect();
+    let mut layouts: Vec<Option<Layout>> = Vec::with_capacity(entries.len());
+    for (_, node) in &entries {
         let mesh = &node.mesh;
         if let Err(e) = mesh.check() {
             panic!("mesh of node {:?} is malformed: {e}", node.name);
@@ -170,9 +217,11 @@ pub fn write_glb_in_frame(scene: &Scene, form: GlbForm, frame: Option<([f32; 3],
         .collect();
 
     let mut node_indices = Vec::with_capacity(scene.nodes.len());
-    for (node, layout) in scene.nodes.iter().zip(&layouts) {
+    let mut lods: Vec<NodeLevels> = Vec::new();
+    for ((level, node), layout) in entries.iter().zip(&layouts) {
         let mesh = &node.mesh;
-        let mut gltf_node = json::Node { name: Some(node.name.clone()), ..Default::default() };
+        let name = if *level == 0 { node.name.clone() } else { format!("{} lod{level}", node.name) };
+        let mut gltf_node = json::Node { name: Some(name), ..Default::default() };
         if let Some(layout) = layout {
             if let Some(q) = &layout.quantized {
                 gltf_node.translation = Some(q.origin);
@@ -194,12 +243,24 @@ pub fn write_glb_in_frame(scene: &Scene, form: GlbForm, frame: Option<([f32; 3],
             gltf_node.mesh = Some(root.push(json::Mesh {
                 extensions: None,
                 extras: Default::default(),
-                name: Some(node.name.clone()),
+                name: gltf_node.name.clone(),
                 primitives: vec![primitive],
                 weights: None,
             }));
         }
-        node_indices.push(root.push(gltf_node));
+        let has_mesh = gltf_node.mesh.is_some();
+        let index = root.push(gltf_node);
+        if *level == 0 {
+            node_indices.push(index);
+            let diameter = mesh.bounds().map_or(0.0, |(lo, hi)| {
+                (0..3).map(|k| (f64::from(hi[k]) - f64::from(lo[k])).powi(2)).sum::<f64>().sqrt()
+            });
+            lods.push((index.value() as u32, diameter, Vec::new()));
+        } else if has_mesh {
+            // A level that kept no triangle is left out: loaders want a mesh on every level.
+            let (_, _, ids) = lods.last_mut().expect("a level follows its node");
+            ids.push((index.value() as u32, levels[level - 1].1));
+        }
     }
 
     let scene_index =
@@ -207,7 +268,7 @@ pub fn write_glb_in_frame(scene: &Scene, form: GlbForm, frame: Option<([f32; 3],
     root.scene = Some(scene_index);
 
     let meshes: Vec<(&Layout, &Mesh)> =
-        layouts.iter().zip(&scene.nodes).filter_map(|(l, n)| l.as_ref().map(|l| (l, &n.mesh))).collect();
+        layouts.iter().zip(&entries).filter_map(|(l, (_, n))| l.as_ref().map(|l| (l, &n.mesh))).collect();
     let mut bin = fill_buffer(len, &groups, &meshes);
     if !bin.is_empty() {
         let buffer = root.push(json::Buffer {
@@ -220,10 +281,17 @@ pub fn write_glb_in_frame(scene: &Scene, form: GlbForm, frame: Option<([f32; 3],
         debug_assert_eq!(buffer.value(), 0, "views refer to buffer 0");
     }
 
-    let json_text = if form == GlbForm::Meshopt && !bin.is_empty() {
-        let (compressed, json_text) = meshopt_compressed(&root, &views, &bin);
-        bin = compressed;
-        json_text
+    let lods: Vec<_> = lods.into_iter().filter(|(_, _, ids)| !ids.is_empty()).collect();
+    let json_text = if (form == GlbForm::Meshopt && !bin.is_empty()) || !lods.is_empty() {
+        // gltf-json models neither extension: they are added to the JSON as values.
+        // Through the text, so numbers keep the short form the glTF serialiser gives f32s.
+        let text = json::serialize::to_vec(&root).expect("glTF JSON serialises");
+        let mut value: serde_json::Value = serde_json::from_slice(&text).expect("glTF JSON parses");
+        if form == GlbForm::Meshopt && !bin.is_empty() {
+            bin = meshopt_compressed(&mut value, &views, &bin);
+        }
+        add_lods(&mut value, &lods);
+        serde_json::to_vec(&value).expect("glTF JSON serialises")
     } else {
         json::serialize::to_vec(&root).expect("glTF JSON serialises")
     };
@@ -481,11 +549,8 @@ fn encode_vertices(data: &[u8], count: usize, stride: usize) -> Vec<u8> {
 /// buffer is `bin` (views in `views`' order): the compressed BIN chunk (buffer 0, each view's
 /// data from a 4-byte boundary) and the JSON text, in which buffer 1 is the fallback buffer
 /// with no data and every view names it, its data in buffer 0 through the extension.
-fn meshopt_compressed(root: &json::Root, views: &[ViewData], bin: &[u8]) -> (Vec<u8>, Vec<u8>) {
+fn meshopt_compressed(value: &mut serde_json::Value, views: &[ViewData], bin: &[u8]) -> Vec<u8> {
     let parts: Vec<Vec<u8>> = views.par_iter().map(|v| v.compress(bin)).collect();
-    // Through the text, so numbers keep the short form the glTF serialiser gives f32s.
-    let text = json::serialize::to_vec(root).expect("glTF JSON serialises");
-    let mut value: serde_json::Value = serde_json::from_slice(&text).expect("glTF JSON parses");
     let mut compressed = Vec::with_capacity(parts.iter().map(|p| p.len() + 3).sum());
     let json_views = value["bufferViews"].as_array_mut().expect("the views");
     assert_eq!(json_views.len(), views.len(), "one view per array");
@@ -514,7 +579,25 @@ fn meshopt_compressed(root: &json::Root, views: &[ViewData], bin: &[u8]) -> (Vec
     for list in ["extensionsUsed", "extensionsRequired"] {
         value[list].as_array_mut().expect("quantisation is declared").push(MESHOPT.into());
     }
-    (compressed, serde_json::to_vec(&value).expect("glTF JSON serialises"))
+    compressed
+}
+
+/// `MSFT_lod` on each node of `lods` (its index, diameter and its levels' node indices and
+/// bounds), with its screen-coverage hints, and the extension declared used.
+fn add_lods(value: &mut serde_json::Value, lods: &[NodeLevels]) {
+    if lods.is_empty() {
+        return;
+    }
+    for (node, diameter, levels) in lods {
+        let bounds: Vec<f64> = levels.iter().map(|l| l.1).collect();
+        let json_node = &mut value["nodes"][*node as usize];
+        json_node["extensions"] = serde_json::json!({ LOD: { "ids": levels.iter().map(|l| l.0).collect::<Vec<_>>() } });
+        json_node["extras"] = serde_json::json!({ "MSFT_screencoverage": screen_coverage(*diameter, &bounds) });
+    }
+    match value.get_mut("extensionsUsed").and_then(serde_json::Value::as_array_mut) {
+        Some(used) => used.push(LOD.into()),
+        None => value["extensionsUsed"] = serde_json::json!([LOD]),
+    }
 }
 
 /// A group's view: vertex views state their stride (several accessors share them).
@@ -994,6 +1077,90 @@ mod tests {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         for form in [GlbForm::None, GlbForm::Quantize, GlbForm::Meshopt] {
             assert_eq!(write_glb(&scene, form), pool.install(|| write_glb(&scene, form)));
+        }
+    }
+
+    #[test]
+    fn screen_coverage_by_hand() {
+        // A 100 m node: level 1 (0.1 m) once it covers under (100 / 108)² of the screen, level
+        // 2 (1 m) under (100 / 1080)², and the coarsest however small.
+        assert_eq!(screen_coverage(100.0, &[0.1, 1.0]), [0.857339, 0.008573, 0.0]);
+        assert_eq!(screen_coverage(1e4, &[0.1]), [1.0, 0.0], "at most the whole screen");
+    }
+
+    #[test]
+    fn every_node_names_its_levels_with_msft_lod() {
+        let terrain = terrain_mesh(65, 65, false);
+        let mut small = terrain_mesh(9, 9, false);
+        small.positions.iter_mut().for_each(|p| p[1] += 40.0);
+        let scene = Scene {
+            nodes: vec![
+                SceneNode::new("terrain", terrain.clone(), MaterialKind::VertexColors),
+                SceneNode::new("rock", small.clone(), MaterialKind::VertexColors),
+            ],
+        };
+        let bounds = [0.05f32, 0.4];
+        let levels: Vec<Vec<crate::mesh::Lod>> = [&terrain, &small]
+            .iter()
+            .map(|m| crate::mesh::simplify_levels(m, &bounds, crate::stop::Stop::NEVER).unwrap())
+            .collect();
+        let level_scenes: Vec<Scene> = (0..bounds.len())
+            .map(|k| Scene {
+                nodes: scene
+                    .nodes
+                    .iter()
+                    .zip(&levels)
+                    .map(|(n, l)| SceneNode::new(n.name.clone(), l[k].mesh.clone(), n.material))
+                    .collect(),
+            })
+            .collect();
+        let with: Vec<(&Scene, f64)> = level_scenes.iter().zip(bounds).map(|(s, b)| (s, f64::from(b))).collect();
+        for form in [GlbForm::None, GlbForm::Quantize, GlbForm::Meshopt] {
+            let glb = write_glb_with_levels(&scene, &with, form);
+            let json: serde_json::Value = serde_json::from_slice(&gltf::Glb::from_slice(&glb).unwrap().json).unwrap();
+            assert!(json["extensionsUsed"].as_array().unwrap().contains(&"MSFT_lod".into()), "{form:?}");
+            let required = json["extensionsRequired"].as_array().cloned().unwrap_or_default();
+            assert!(!required.contains(&"MSFT_lod".into()), "a loader without it shows level 0");
+            let in_scene: Vec<u64> =
+                json["scenes"][0]["nodes"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap()).collect();
+            assert_eq!(in_scene.len(), 2);
+            let nodes = json["nodes"].as_array().unwrap();
+            assert_eq!(nodes.len(), 2 * (1 + bounds.len()));
+            for (i, &n) in in_scene.iter().enumerate() {
+                let node = &nodes[n as usize];
+                let ids: Vec<u64> = node["extensions"]["MSFT_lod"]["ids"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|v| v.as_u64().unwrap())
+                    .collect();
+                assert_eq!(ids.len(), bounds.len());
+                let coverage: Vec<f64> = node["extras"]["MSFT_screencoverage"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|v| v.as_f64().unwrap())
+                    .collect();
+                assert_eq!(coverage.len(), ids.len() + 1);
+                assert!(coverage.windows(2).all(|w| w[0] >= w[1]) && coverage.iter().all(|c| (0.0..=1.0).contains(c)));
+                assert_eq!(coverage.last(), Some(&0.0));
+                for (k, &id) in ids.iter().enumerate() {
+                    assert!(!in_scene.contains(&id), "level nodes stay out of the scene");
+                    let level = &nodes[id as usize];
+                    assert_eq!(level["translation"], node["translation"], "{form:?}: same transform");
+                    assert_eq!(level["scale"], node["scale"]);
+                    let mesh = &json["meshes"][level["mesh"].as_u64().unwrap() as usize];
+                    let indices = &json["accessors"][mesh["primitives"][0]["indices"].as_u64().unwrap() as usize];
+                    assert_eq!(
+                        indices["count"].as_u64().unwrap() as usize,
+                        3 * levels[i][k].mesh.triangle_count(),
+                        "{form:?}: node {i} level {}",
+                        k + 1
+                    );
+                }
+            }
+            // Without levels, the bytes are write_glb's.
+            assert_eq!(write_glb_with_levels(&scene, &[], form), write_glb(&scene, form));
         }
     }
 }

@@ -5,8 +5,8 @@
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
-use super::{write_glb, Artifact, GlbForm};
-use crate::mesh::{simplify_within, Scene, SceneNode};
+use super::{write_glb, write_glb_with_levels, Artifact, GlbForm};
+use crate::mesh::{simplify_levels, Lod, Scene, SceneNode};
 use crate::stop::{Stop, Stopped};
 
 /// The levels a request gets when it names none: none yet. Measuring each level's deviation
@@ -77,24 +77,25 @@ impl MeshSettings {
     }
 }
 
-/// `mesh.glb` and one glb per level of detail, and `{"form", "levels": [{"file", "vertices",
+/// `mesh.glb` (with its levels of detail as `MSFT_lod`) and one glb per level of detail, and `{"form", "levels": [{"file", "vertices",
 /// "triangles", "error_bound_m", "max_deviation_m", "sample_spacing_m"}, …]}` (level 0, the
 /// full mesh, first) for the result. Stopped on request between and within levels.
 pub fn mesh_glbs(scene: &Scene, settings: &MeshSettings, stop: Stop) -> Result<(Vec<Artifact>, Value), Stopped> {
     let longest = longest_side(scene);
-    // `mesh.glb` first, at the same moment as without levels (a kind renders its preview
-    // meanwhile), so levels only ever add to a job's peak memory, as its estimate has them.
-    let full = write_glb(scene, settings.form);
     // The full scene is borrowed, not copied: a copy would raise every job's peak memory.
-    let simplified: Vec<(Scene, LevelFigures)> =
-        settings.lods.iter().map(|&fraction| simplified(scene, fraction * longest, stop)).collect::<Result<_, _>>()?;
+    let bounds: Vec<f64> = settings.lods.iter().map(|&fraction| fraction * longest).collect();
+    let simplified = simplified(scene, &bounds, stop)?;
     stop.check()?;
     let levels: Vec<(&Scene, LevelFigures)> = std::iter::once((scene, LevelFigures::default()))
-        .chain(simplified.iter().map(|(scene, figures)| (scene, *figures)))
+        .chain(simplified.iter().map(|(scene, figures)| (scene, figures.clone())))
         .collect();
-    let files: Vec<Vec<u8>> = std::iter::once(full)
-        .chain(simplified.par_iter().map(|(scene, _)| write_glb(scene, settings.form)).collect::<Vec<_>>())
-        .collect();
+    // `mesh.glb` carries its levels (MSFT_lod); each level is also a glb of its own.
+    let with_levels: Vec<(&Scene, f64)> = simplified.iter().zip(&bounds).map(|((s, _), &b)| (s, b)).collect();
+    let (full, lone) = rayon::join(
+        || write_glb_with_levels(scene, &with_levels, settings.form),
+        || simplified.par_iter().map(|(scene, _)| write_glb(scene, settings.form)).collect::<Vec<_>>(),
+    );
+    let files: Vec<Vec<u8>> = std::iter::once(full).chain(lone).collect();
     let mut artifacts = Vec::with_capacity(files.len());
     let mut figures = Vec::with_capacity(files.len());
     for (level, ((scene, level_figures), bytes)) in levels.iter().zip(files).enumerate() {
@@ -108,46 +109,62 @@ pub fn mesh_glbs(scene: &Scene, settings: &MeshSettings, stop: Stop) -> Result<(
             "error_bound_m": level_figures.bound_m,
             "max_deviation_m": level_figures.deviation_m,
             "sample_spacing_m": level_figures.spacing_m,
+            "unreduced": level_figures.unreduced,
         }));
         artifacts.push(Artifact::new(&name, "model/gltf-binary", bytes));
     }
     Ok((artifacts, json!({ "form": settings.form.name(), "levels": figures })))
 }
 
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Debug, Default)]
 struct LevelFigures {
     bound_m: f64,
     deviation_m: f64,
     spacing_m: f64,
+    /// `[{"node", "reason"}]`: nodes this level keeps as the level before, and why.
+    unreduced: Vec<Value>,
 }
 
-/// Every node of `scene` simplified within `bound_m`, and the level's worst measured deviation.
-fn simplified(scene: &Scene, bound_m: f64, stop: Stop) -> Result<(Scene, LevelFigures), Stopped> {
-    let bound = bound_m as f32;
-    let lods: Vec<_> =
-        scene.nodes.par_iter().map(|node| simplify_within(&node.mesh, bound, stop)).collect::<Result<_, _>>()?;
-    let deviation_m = lods.iter().map(|l| f64::from(l.deviation_m)).fold(0.0, f64::max);
-    // The spacing of the nodes that were simplified (a two-triangle sea stays as it is).
-    let spacing_m = lods
-        .iter()
-        .zip(&scene.nodes)
-        .filter(|(lod, node)| lod.mesh.triangle_count() < node.mesh.triangle_count())
-        .map(|(lod, _)| f64::from(lod.sample_spacing_m))
-        .fold(0.0, f64::max);
-    let nodes = scene
-        .nodes
-        .iter()
-        .zip(lods)
-        .map(|(node, lod)| SceneNode { name: node.name.clone(), mesh: lod.mesh, material: node.material })
-        .collect();
-    Ok((
-        Scene { nodes },
-        LevelFigures {
-            bound_m: round_mm(bound_m),
-            deviation_m: round_up_mm(deviation_m),
-            spacing_m: round_mm(spacing_m),
-        },
-    ))
+/// Every node of `scene` simplified within each of `bounds_m` (a cascade per node, see
+/// [`simplify_levels`]), and each level's worst measured deviation.
+fn simplified(scene: &Scene, bounds_m: &[f64], stop: Stop) -> Result<Vec<(Scene, LevelFigures)>, Stopped> {
+    let bounds: Vec<f32> = bounds_m.iter().map(|&b| b as f32).collect();
+    let per_node: Vec<Vec<Lod>> =
+        scene.nodes.par_iter().map(|node| simplify_levels(&node.mesh, &bounds, stop)).collect::<Result<_, _>>()?;
+    let mut per_node: Vec<std::vec::IntoIter<Lod>> = per_node.into_iter().map(Vec::into_iter).collect();
+    let mut levels = Vec::with_capacity(bounds.len());
+    for &bound_m in bounds_m {
+        let lods: Vec<Lod> = per_node.iter_mut().map(|l| l.next().expect("one level per bound")).collect();
+        let deviation_m = lods.iter().map(|l| f64::from(l.deviation_m)).fold(0.0, f64::max);
+        // The spacing of the nodes that were simplified (a two-triangle sea stays as it is).
+        let spacing_m = lods
+            .iter()
+            .zip(&scene.nodes)
+            .filter(|(lod, node)| lod.mesh.triangle_count() < node.mesh.triangle_count())
+            .map(|(lod, _)| f64::from(lod.sample_spacing_m))
+            .fold(0.0, f64::max);
+        let unreduced = lods
+            .iter()
+            .zip(&scene.nodes)
+            .filter_map(|(lod, node)| Some(json!({"node": node.name, "reason": lod.unreduced.as_ref()?})))
+            .collect();
+        let nodes = scene
+            .nodes
+            .iter()
+            .zip(lods)
+            .map(|(node, lod)| SceneNode { name: node.name.clone(), mesh: lod.mesh, material: node.material })
+            .collect();
+        levels.push((
+            Scene { nodes },
+            LevelFigures {
+                bound_m: round_mm(bound_m),
+                deviation_m: round_up_mm(deviation_m),
+                spacing_m: round_mm(spacing_m),
+                unreduced,
+            },
+        ));
+    }
+    Ok(levels)
 }
 
 /// The longest side of the box around every node's vertices (1 m for an empty scene).

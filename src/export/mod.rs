@@ -30,7 +30,9 @@ pub(crate) mod test_png {
 }
 
 pub use artifact::Artifact;
-pub use glb::{write_glb, write_glb_in_frame, GlbForm, MAX_U16_INDEXED_VERTICES};
+pub use glb::{
+    screen_coverage, write_glb, write_glb_in_frame, write_glb_with_levels, GlbForm, MAX_U16_INDEXED_VERTICES,
+};
 pub use heightmap_png::{heightmap_png16, scalar_png16};
 pub use heightmap_r16::{heightmap_r16, r16_summary};
 pub use hypsometric::Tint;

@@ -6,7 +6,7 @@
 //! vertices, as engines' terrain tiles do (no skirts). At level 0 they hold the grid's own
 //! vertices and triangles, so together they are `mesh.glb`'s mesh exactly. Each level
 //! simplifies each tile on its own within the level's error bound with the tile's border held
-//! in place (see [`simplify_within`]), so every border vertex of every level is the grid's own
+//! in place (see [`simplify_levels`]), so every border vertex of every level is the grid's own
 //! and the same in both tiles that share it. Every tile is quantised in the whole terrain's
 //! frame (its box), so a shared vertex also decodes to the same floats in both files.
 
@@ -19,7 +19,7 @@ use serde_json::{json, Value};
 use super::glb::write_glb_in_frame;
 use super::mesh_glbs::{round_mm, round_up_mm};
 use super::{short_decimal, Artifact, MeshSettings};
-use crate::mesh::{grid_patch, simplify_within, tile_edges, Mesh, Scene};
+use crate::mesh::{grid_patch, simplify_levels, tile_edges, Mesh, Scene};
 use crate::stop::{Stop, Stopped};
 use crate::validate::{Limits, Validate, Validator};
 
@@ -111,10 +111,8 @@ pub fn tile_artifacts(
             let (first, last) = ([xs[x], zs[z]], [xs[x + 1], zs[z + 1]]);
             let full = grid_patch(grid, vertices[0], first[0]..=last[0], first[1]..=last[1]);
             let bounds = full.bounds().unwrap_or_default();
-            let levels: Vec<(Mesh, f32)> = bounds_m
-                .iter()
-                .map(|&bound| simplify_within(&full, bound, stop).map(|lod| (lod.mesh, lod.deviation_m)))
-                .collect::<Result<_, _>>()?;
+            let levels: Vec<(Mesh, f32)> =
+                simplify_levels(&full, &bounds_m, stop)?.into_iter().map(|lod| (lod.mesh, lod.deviation_m)).collect();
             let mut figures = vec![(full.vertex_count(), full.triangle_count(), 0.0)];
             figures.extend(levels.iter().map(|(m, d)| (m.vertex_count(), m.triangle_count(), *d)));
             let mut files = vec![write(full)];

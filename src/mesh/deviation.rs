@@ -2,8 +2,9 @@
 //! other (two-sided, a sampled Hausdorff distance). Points are taken on every triangle at most
 //! `spacing` apart (its corners, its edges and a barycentric grid inside), and each is measured
 //! to the nearest triangle of the other mesh exactly (closest point on a triangle, in f64),
-//! found through a grid of cells that lists the triangles passing through each. The largest
-//! distance wins, so the figure is the same whatever the thread count.
+//! found through a bounding-volume hierarchy of the other mesh's triangles ([`SurfaceIndex`]). The largest distance wins, so the figure is the same whatever the thread count. A
+//! mesh measured against many others (a full mesh against its levels of detail) is indexed
+//! once.
 
 use rayon::prelude::*;
 
@@ -17,44 +18,103 @@ const MAX_SPLITS: usize = 256;
 /// apart (or `MAX_SPLITS` per triangle side). 0 for two empty meshes, infinite when only one
 /// is empty. `stop` is looked at between chunks of samples (a large mesh takes seconds).
 pub fn max_deviation(a: &Mesh, b: &Mesh, spacing_m: f32, stop: Stop) -> Result<f32, Stopped> {
-    match (a.indices.is_empty(), b.indices.is_empty()) {
-        (true, true) => return Ok(0.0),
-        (true, false) | (false, true) => return Ok(f32::INFINITY),
-        _ => {}
-    }
-    let (ab, ba) = rayon::join(|| one_sided(a, b, spacing_m, stop), || one_sided(b, a, spacing_m, stop));
-    stop.check()?;
-    Ok(ab.max(ba) as f32)
+    max_deviation_from(a, &SurfaceIndex::new(a), b, spacing_m, stop)
 }
 
-/// The largest distance from a sample of `from` to the surface of `to`. A sample within the
-/// largest distance found so far (by any thread) cannot raise it, so it is only checked against
-/// that distance, stopping at the first triangle close enough; the others are measured exactly.
-/// The maximum is the same whichever samples were only checked.
+/// [`max_deviation`] with `a` already indexed (`a_index` is `SurfaceIndex::new(a)`), for a
+/// mesh measured against several others.
+pub fn max_deviation_from(
+    a: &Mesh,
+    a_index: &SurfaceIndex,
+    b: &Mesh,
+    spacing_m: f32,
+    stop: Stop,
+) -> Result<f32, Stopped> {
+    Ok(deviation_and_misses(a, a_index, b, spacing_m, f32::INFINITY, stop)?.0)
+}
+
+/// [`max_deviation_from`], and the samples (of either mesh) farther than `bound_m` from the
+/// other, in no particular order: where a level of detail misses its bound. Collecting them
+/// costs an exact distance for each, so a level within its bound costs no more than measuring.
+pub fn deviation_and_misses(
+    a: &Mesh,
+    a_index: &SurfaceIndex,
+    b: &Mesh,
+    spacing_m: f32,
+    bound_m: f32,
+    stop: Stop,
+) -> Result<(f32, Vec<[f32; 3]>), Stopped> {
+    match (a.indices.is_empty(), b.indices.is_empty()) {
+        (true, true) => return Ok((0.0, Vec::new())),
+        (true, false) | (false, true) => return Ok((f32::INFINITY, Vec::new())),
+        _ => {}
+    }
+    let misses = std::sync::Mutex::new(Vec::new());
+    let bound = f64::from(bound_m);
+    let (ab, ba) = rayon::join(
+        || one_sided(a, &SurfaceIndex::new(b), spacing_m, bound, &misses, stop),
+        || one_sided(b, a_index, spacing_m, bound, &misses, stop),
+    );
+    stop.check()?;
+    let misses = misses.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
+    Ok((ab.max(ba) as f32, misses))
+}
+
+/// The largest distance from a sample of `from` to the surface `to` indexes. A sample within
+/// the largest distance found so far (by any thread) cannot raise it, so it is only checked
+/// against that distance (or `bound`, if less), stopping at the first triangle close enough;
+/// the others are measured exactly, and those farther than `bound` added to `misses`. The
+/// maximum, and the set of misses, are the same whichever samples were only checked.
 /// A stopped search returns early with what it found (the caller looks at `stop` again).
-fn one_sided(from: &Mesh, to: &Mesh, spacing_m: f32, stop: Stop) -> f64 {
+fn one_sided(
+    from: &Mesh,
+    to: &SurfaceIndex,
+    spacing_m: f32,
+    bound: f64,
+    misses: &std::sync::Mutex<Vec<[f32; 3]>>,
+    stop: Stop,
+) -> f64 {
     use std::sync::atomic::{AtomicU64, Ordering};
-    let Some(index) = TriangleIndex::new(to, stop) else { return 0.0 };
-    let spacing = f64::from(spacing_m.max(1e-6));
+    if to.is_empty() {
+        return 0.0;
+    }
     // Non-negative f64s order as their bits do.
     let found = AtomicU64::new(0f64.to_bits());
-    let measure = |s: [f64; 3], hint: &mut u32| {
+    for_each_sample(from, spacing_m, stop, &|s, hints| {
         let so_far = f64::from_bits(found.load(Ordering::Relaxed));
-        if !index.any_within(s, so_far, hint) {
-            let d = index.distance(s, so_far.max(index.cell));
+        if !to.any_within(s, so_far.min(bound), hints) {
+            let d = to.distance(s);
             found.fetch_max(d.to_bits(), Ordering::Relaxed);
+            if d > bound {
+                misses.lock().unwrap_or_else(std::sync::PoisonError::into_inner).push(s.map(|v| v as f32));
+            }
         }
-    };
+    });
+    f64::from_bits(found.into_inner())
+}
+
+/// Every sample of `from` at most `spacing_m` apart, each given to `visit` with hints (see
+/// [`SurfaceIndex::any_within`]) shared by neighbouring samples; in parallel, returning early
+/// once `stop` is raised.
+fn for_each_sample(from: &Mesh, spacing_m: f32, stop: Stop, visit: &(dyn Fn([f64; 3], &mut Hints) + Sync)) {
+    let spacing = f64::from(spacing_m.max(1e-6));
     // Triangles' centres first: on a coarse mesh they are the points farthest from the fine
-    // one, so the largest distance is found early and most later samples are only checked.
+    // one, so the largest distance is found early and most later samples are only checked. A
+    // triangle no side of which is longer than the spacing has its corners for samples.
+    let longest = |t: &[u32]| {
+        let [p, q, r] = [0, 1, 2].map(|k| point(from, t[k]));
+        (dist(p, q).max(dist(q, r)).max(dist(r, p)), [p, q, r])
+    };
     from.indices.par_chunks(3 * 256).for_each(|chunk| {
         if stop.requested() {
             return;
         }
-        let mut hint = 0;
+        let mut hints = Hints::default();
         for t in chunk.chunks_exact(3) {
-            let [p, q, r] = [0, 1, 2].map(|k| point(from, t[k]));
-            measure(std::array::from_fn(|k| (p[k] + q[k] + r[k]) / 3.0), &mut hint);
+            let (side, [p, q, r]) = longest(t);
+            if side > spacing {
+                visit(std::array::from_fn(|k| (p[k] + q[k] + r[k]) / 3.0), &mut hints);
+            }
         }
     });
     // Every vertex once, then the points along and inside each triangle (not its corners).
@@ -62,32 +122,52 @@ fn one_sided(from: &Mesh, to: &Mesh, spacing_m: f32, stop: Stop) -> f64 {
         if stop.requested() {
             return;
         }
-        let mut hint = 0;
+        let mut hints = Hints::default();
         for v in chunk {
-            measure(v.map(f64::from), &mut hint);
+            visit(v.map(f64::from), &mut hints);
         }
     });
-    from.indices.par_chunks_exact(3).for_each(|t| {
-        if stop.requested() {
-            return;
-        }
-        let [p, q, r] = [0, 1, 2].map(|k| point(from, t[k]));
-        let longest = dist(p, q).max(dist(q, r)).max(dist(r, p));
-        let n = ((longest / spacing).ceil() as usize).clamp(1, MAX_SPLITS);
+    from.indices.par_chunks(3 * 64).for_each(|chunk| {
         // Neighbouring samples are near the same triangles of `to`: the last one found close
         // enough is tried first.
-        let mut hint = 0;
-        for i in 0..=n {
-            for j in 0..=n - i {
-                if (i == 0 && (j == 0 || j == n)) || i == n {
-                    continue;
-                }
-                let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
-                measure(std::array::from_fn(|k| p[k] + u * (q[k] - p[k]) + v * (r[k] - p[k])), &mut hint);
+        let mut hints = Hints::default();
+        for t in chunk.chunks_exact(3) {
+            if stop.requested() {
+                return;
+            }
+            let (side, corners) = longest(t);
+            if side > spacing {
+                inside_samples(corners, spacing, &mut |s| visit(s, &mut hints));
             }
         }
     });
-    f64::from_bits(found.into_inner())
+}
+
+/// The points of triangle `corners` other than its corners, at most `spacing` apart along rows
+/// parallel to its longest side, the rows at most `spacing` apart (each row at most
+/// `MAX_SPLITS` points, at most `MAX_SPLITS` rows): about area ÷ spacing² points, so a long thin
+/// triangle costs no more than its area.
+fn inside_samples(corners: [[f64; 3]; 3], spacing: f64, visit: &mut impl FnMut([f64; 3])) {
+    let k = (0..3)
+        .max_by(|&i, &j| dist(corners[i], corners[(i + 1) % 3]).total_cmp(&dist(corners[j], corners[(j + 1) % 3])))
+        .unwrap_or(0);
+    let (a, b, c) = (corners[k], corners[(k + 1) % 3], corners[(k + 2) % 3]);
+    let base = dist(a, b);
+    let height = if base > 0.0 { norm(cross(sub(b, a), sub(c, a))) / base } else { 0.0 };
+    let rows = ((height / spacing).ceil() as usize).clamp(1, MAX_SPLITS);
+    let lerp = |p: [f64; 3], q: [f64; 3], t: f64| -> [f64; 3] { std::array::from_fn(|k| p[k] + t * (q[k] - p[k])) };
+    // Row `rows` is the apex, a corner.
+    for j in 0..rows {
+        let t = j as f64 / rows as f64;
+        let (from, to) = (lerp(a, c, t), lerp(b, c, t));
+        let n = ((base * (1.0 - t) / spacing).ceil() as usize).clamp(1, MAX_SPLITS);
+        for i in 0..=n {
+            if j == 0 && (i == 0 || i == n) {
+                continue;
+            }
+            visit(lerp(from, to, i as f64 / n as f64));
+        }
+    }
 }
 
 /// The side of a square of the mesh's mean triangle area, metres (0 without triangles).
@@ -111,162 +191,191 @@ fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
     (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
 }
 
-/// A mesh's triangles by the cells of a regular grid they pass through (compressed: the
-/// occupied cells' keys sorted, each with its range of triangle numbers).
-struct TriangleIndex<'a> {
-    mesh: &'a Mesh,
-    origin: [f64; 3],
-    cell: f64,
-    dims: [i64; 3],
-    keys: Vec<u64>,
-    starts: Vec<u32>,
-    triangles: Vec<u32>,
+/// The triangle (its place in a [`SurfaceIndex`]) found near the last sample. (Keeping four
+/// was slower: each costs a distance, and a miss is rarely saved by an older one.)
+#[derive(Clone, Copy, Default)]
+struct Hints {
+    last: u32,
 }
 
-impl<'a> TriangleIndex<'a> {
-    /// `None` once `stop` is raised: a million triangles take seconds to index.
-    fn new(mesh: &'a Mesh, stop: Stop) -> Option<Self> {
-        let (lo, hi) = mesh.bounds().expect("a mesh with triangles");
-        let origin = lo.map(f64::from);
-        let extent = (0..3).map(|k| f64::from(hi[k] - lo[k])).fold(0.0, f64::max).max(1e-6);
-        // Cells about the size of the mean triangle, so a search reads a few triangles per cell
-        // (only occupied cells are stored); at most 4096 along the longest side.
-        let cell = (extent / 4096.0).max(mean_triangle_side(mesh));
-        let dims: [i64; 3] = std::array::from_fn(|k| ((f64::from(hi[k] - lo[k]) / cell).floor() as i64 + 1).max(1));
-        let key = |c: [i64; 3]| (c[0] + dims[0] * (c[1] + dims[1] * c[2])) as u64;
-        let half_diagonal = 0.5 * cell * 3f64.sqrt();
-        let mut pairs: Vec<(u64, u32)> = mesh
-            .indices
-            .par_chunks_exact(3)
-            .enumerate()
-            .flat_map_iter(|(n, t)| {
-                let mut out = Vec::new();
-                if stop.requested() {
-                    return out;
-                }
-                let tri = [0, 1, 2].map(|k| point(mesh, t[k]));
-                let cell_of = |v: f64, k: usize| (((v - origin[k]) / cell).floor() as i64).clamp(0, dims[k] - 1);
-                let lo: [i64; 3] = std::array::from_fn(|k| cell_of(tri[0][k].min(tri[1][k]).min(tri[2][k]), k));
-                let hi: [i64; 3] = std::array::from_fn(|k| cell_of(tri[0][k].max(tri[1][k]).max(tri[2][k]), k));
-                let small = (0..3).all(|k| hi[k] - lo[k] <= 1);
-                for z in lo[2]..=hi[2] {
-                    for y in lo[1]..=hi[1] {
-                        for x in lo[0]..=hi[0] {
-                            let c = [x, y, z];
-                            // A large triangle keeps only the cells its plane passes through.
-                            let centre: [f64; 3] = std::array::from_fn(|k| origin[k] + (c[k] as f64 + 0.5) * cell);
-                            if small || dist(centre, closest_on_triangle(centre, tri)) <= half_diagonal {
-                                out.push((key(c), n as u32));
-                            }
-                        }
-                    }
-                }
-                out
+/// Triangles a leaf of [`SurfaceIndex`] holds at most.
+const LEAF_TRIANGLES: usize = 4;
+
+/// A node of [`SurfaceIndex`]'s tree: its box and, for a leaf, its range of triangles
+/// (`count` > 0, from `first`), else its children (`first` and `first + 1`).
+#[derive(Clone, Copy)]
+struct Node {
+    lo: [f32; 3],
+    hi: [f32; 3],
+    first: u32,
+    count: u32,
+}
+
+impl Node {
+    /// The squared distance from `p` to the box (0 inside), a lower bound of the distance to
+    /// anything in it; a hair under it, so the f32 box never hides what the f64 test would find.
+    fn gap_2(&self, p: [f64; 3]) -> f64 {
+        let g: f64 =
+            (0..3).map(|k| (f64::from(self.lo[k]) - p[k]).max(p[k] - f64::from(self.hi[k])).max(0.0).powi(2)).sum();
+        g * (1.0 - 1e-6)
+    }
+}
+
+/// A mesh's triangles in a bounding-volume hierarchy (a binary tree of boxes split at the
+/// median along their longest side, up to [`LEAF_TRIANGLES`] a leaf): the distance from a point
+/// to the nearest triangle, and whether any lies within a radius, visiting the nearer child
+/// first and skipping every box farther than what is sought. Boxes are f32 (the mesh's own
+/// precision); every distance that decides a figure is exact in f64.
+/// (The `rstar` crate's R*-tree did the same queries 3–5 times slower on levels of detail: its
+/// within-radius walk visits every box the radius reaches, and its nearest search keeps a heap.)
+pub struct SurfaceIndex {
+    nodes: Vec<Node>,
+    /// The triangles' corners in the tree's order.
+    corners: Vec<[[f32; 3]; 3]>,
+}
+
+impl SurfaceIndex {
+    pub fn new(mesh: &Mesh) -> Self {
+        let mut numbers: Vec<u32> = (0..mesh.triangle_count() as u32).collect();
+        let centres: Vec<[f32; 3]> = numbers
+            .iter()
+            .map(|&n| {
+                let [a, b, c] = corners(mesh, n);
+                std::array::from_fn(|k| (a[k] + b[k] + c[k]) / 3.0)
             })
             .collect();
-        if stop.requested() {
-            return None;
+        let mut nodes = Vec::with_capacity(2 * numbers.len() / LEAF_TRIANGLES + 1);
+        if !numbers.is_empty() {
+            nodes.push(Node { lo: [0.0; 3], hi: [0.0; 3], first: 0, count: 0 });
+            build(mesh, &centres, &mut numbers, 0, 0, &mut nodes);
         }
-        pairs.par_sort_unstable();
-        let mut keys = Vec::new();
-        let mut starts = Vec::new();
-        for (i, &(k, _)) in pairs.iter().enumerate() {
-            if keys.last() != Some(&k) {
-                keys.push(k);
-                starts.push(i as u32);
-            }
-        }
-        starts.push(pairs.len() as u32);
-        let triangles = pairs.into_iter().map(|(_, t)| t).collect();
-        Some(Self { mesh, origin, cell, dims, keys, starts, triangles })
+        let corners = numbers.iter().map(|&n| corners(mesh, n)).collect();
+        Self { nodes, corners }
     }
 
-    /// Whether some triangle lies within `radius` of `p`: the cells next to `p` first (where a
-    /// close triangle usually is), then every cell within `radius`, stopping at the first.
-    /// `hint` is a triangle to try first, and becomes the one found.
-    fn any_within(&self, p: [f64; 3], radius: f64, hint: &mut u32) -> bool {
+    fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// Whether some triangle lies within `radius` of `p`. `hints` holds the triangle found near
+    /// the sample before (neighbouring samples are usually near the same one), tried first; the
+    /// triangle found replaces it.
+    fn any_within(&self, p: [f64; 3], radius: f64, hints: &mut Hints) -> bool {
         let r2 = radius * radius;
-        if (*hint as usize) < self.mesh.triangle_count() && self.triangle_within(*hint, p, r2) {
+        if (hints.last as usize) < self.corners.len() && distance_2(p, self.corners[hints.last as usize]) <= r2 {
             return true;
         }
-        let mut search = |radius: f64| {
-            self.cells_around(p, radius).any(|key| {
-                match self.cell_triangles(key).iter().find(|&&t| self.triangle_within(t, p, r2)) {
-                    Some(&t) => {
-                        *hint = t;
-                        true
-                    }
-                    None => false,
-                }
-            })
-        };
-        search(self.cell.min(radius)) || (radius > self.cell && search(radius))
-    }
-
-    /// The keys of the grid's cells within `radius` of `p` along every axis.
-    fn cells_around(&self, p: [f64; 3], radius: f64) -> impl Iterator<Item = u64> + Clone + '_ {
-        let range = |k: usize| {
-            let lo = (((p[k] - radius - self.origin[k]) / self.cell).floor() as i64).max(0);
-            let hi = (((p[k] + radius - self.origin[k]) / self.cell).floor() as i64).min(self.dims[k] - 1);
-            lo..=hi
-        };
-        let (xs, ys, zs) = (range(0), range(1), range(2));
-        zs.flat_map(move |z| {
-            let xs = xs.clone();
-            ys.clone().flat_map(move |y| xs.clone().map(move |x| (x + self.dims[0] * (y + self.dims[1] * z)) as u64))
-        })
-    }
-
-    /// Whether triangle `t` lies within √`r2` of `p` (its bounding box first).
-    fn triangle_within(&self, t: u32, p: [f64; 3], r2: f64) -> bool {
-        let tri = self.triangle(t);
-        let box_gap: f64 = (0..3)
-            .map(|k| {
-                let lo = tri[0][k].min(tri[1][k]).min(tri[2][k]);
-                let hi = tri[0][k].max(tri[1][k]).max(tri[2][k]);
-                (lo - p[k]).max(p[k] - hi).max(0.0).powi(2)
-            })
-            .sum();
-        box_gap <= r2 && {
-            let d = closest_on_triangle(p, tri);
-            (0..3).map(|k| (d[k] - p[k]).powi(2)).sum::<f64>() <= r2
-        }
-    }
-
-    /// The distance from `p` to the nearest triangle, searching cells within `radius` first and
-    /// doubling it until a triangle closer than the searched radius turns up.
-    fn distance(&self, p: [f64; 3], radius: f64) -> f64 {
-        let mut radius = radius.max(self.cell);
-        loop {
-            let best = self
-                .cells_around(p, radius)
-                .flat_map(|key| self.cell_triangles(key))
-                .map(|&t| dist(p, closest_on_triangle(p, self.triangle(t))))
-                .fold(f64::INFINITY, f64::min);
-            // Every triangle within `radius` of p passes through a searched cell.
-            let whole = (0..3).all(|k| {
-                p[k] - radius <= self.origin[k] && p[k] + radius >= self.origin[k] + self.dims[k] as f64 * self.cell
-            });
-            if best <= radius || whole {
-                return best;
+        let mut found = None;
+        self.walk(p, r2, |t, d2| {
+            if d2 <= r2 {
+                found = Some(t);
+                return -1.0;
             }
-            radius *= 2.0;
+            r2
+        });
+        match found {
+            Some(t) => {
+                hints.last = t as u32;
+                true
+            }
+            None => false,
         }
     }
 
-    /// The triangles listed in cell `key` (none for an empty cell).
-    fn cell_triangles(&self, key: u64) -> &[u32] {
-        match self.keys.binary_search(&key) {
-            Ok(at) => &self.triangles[self.starts[at] as usize..self.starts[at + 1] as usize],
-            Err(_) => &[],
-        }
+    /// The distance from `p` to the nearest triangle (infinite for an empty mesh).
+    fn distance(&self, p: [f64; 3]) -> f64 {
+        let mut best = f64::INFINITY;
+        self.walk(p, best, |_, d2| {
+            best = best.min(d2);
+            best
+        });
+        best.sqrt()
     }
 
-    /// Triangle `t`'s corners.
-    fn triangle(&self, t: u32) -> [[f64; 3]; 3] {
-        let i = &self.mesh.indices[3 * t as usize..][..3];
-        [0, 1, 2].map(|k| point(self.mesh, i[k]))
+    /// Visit the triangles whose boxes lie within √`reach_2` of `p`, nearer children first:
+    /// `seen(slot, squared distance)` returns the squared reach from then on (negative ends the
+    /// walk).
+    fn walk(&self, p: [f64; 3], mut reach_2: f64, mut seen: impl FnMut(usize, f64) -> f64) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut stack: Vec<u32> = Vec::with_capacity(64);
+        stack.push(0);
+        while let Some(n) = stack.pop() {
+            let node = self.nodes[n as usize];
+            if node.gap_2(p) > reach_2 {
+                continue;
+            }
+            if node.count > 0 {
+                for t in node.first as usize..(node.first + node.count) as usize {
+                    let d2 = distance_2(p, self.corners[t]);
+                    reach_2 = seen(t, d2);
+                    if reach_2 < 0.0 {
+                        return;
+                    }
+                }
+                continue;
+            }
+            let (a, b) = (node.first, node.first + 1);
+            let (ga, gb) = (self.nodes[a as usize].gap_2(p), self.nodes[b as usize].gap_2(p));
+            // The nearer child is popped first.
+            if ga <= gb {
+                stack.extend([b, a]);
+            } else {
+                stack.extend([a, b]);
+            }
+        }
     }
+}
+
+/// Fill node `at` for the triangles `numbers[from..]` (`numbers` is that slice), splitting at
+/// the median centre along the longest side of their centres' box; children are pushed as a
+/// pair, so a node's children sit side by side.
+fn build(mesh: &Mesh, centres: &[[f32; 3]], numbers: &mut [u32], from: usize, at: usize, nodes: &mut Vec<Node>) {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    let mut clo = [f32::INFINITY; 3];
+    let mut chi = [f32::NEG_INFINITY; 3];
+    for &n in numbers.iter() {
+        for corner in corners(mesh, n) {
+            for k in 0..3 {
+                lo[k] = lo[k].min(corner[k]);
+                hi[k] = hi[k].max(corner[k]);
+            }
+        }
+        let c = centres[n as usize];
+        for k in 0..3 {
+            clo[k] = clo[k].min(c[k]);
+            chi[k] = chi[k].max(c[k]);
+        }
+    }
+    if numbers.len() <= LEAF_TRIANGLES {
+        nodes[at] = Node { lo, hi, first: from as u32, count: numbers.len() as u32 };
+        return;
+    }
+    let axis = (0..3).max_by(|&i, &j| (chi[i] - clo[i]).total_cmp(&(chi[j] - clo[j]))).unwrap_or(0);
+    let middle = numbers.len() / 2;
+    numbers.select_nth_unstable_by(middle, |&x, &y| {
+        centres[x as usize][axis].total_cmp(&centres[y as usize][axis]).then(x.cmp(&y))
+    });
+    let first = nodes.len();
+    nodes[at] = Node { lo, hi, first: first as u32, count: 0 };
+    nodes.extend([Node { lo, hi, first: 0, count: 0 }; 2]);
+    let (left, right) = numbers.split_at_mut(middle);
+    build(mesh, centres, left, from, first, nodes);
+    build(mesh, centres, right, from + middle, first + 1, nodes);
+}
+
+/// The squared distance from `p` to the triangle with corners `corners`, in f64.
+fn distance_2(p: [f64; 3], corners: [[f32; 3]; 3]) -> f64 {
+    let d = sub(closest_on_triangle(p, corners.map(|c| c.map(f64::from))), p);
+    dot(d, d)
+}
+
+/// Triangle `n` of `mesh`'s corners.
+fn corners(mesh: &Mesh, n: u32) -> [[f32; 3]; 3] {
+    let t = &mesh.indices[3 * n as usize..][..3];
+    [0, 1, 2].map(|k| mesh.positions[t[k] as usize])
 }
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -362,8 +471,14 @@ mod tests {
         // the square's right edge is 5 m from the half.
         let whole = plane(11, |_, _| 0.0);
         let half = heightfield_mesh(&Heightfield::from_fn(6, 11, 1.0, |_, _| 0.0), 4097, None).mesh;
-        assert!(one_sided(&half, &whole, 0.5, Stop::NEVER) < 1e-9);
-        assert!((one_sided(&whole, &half, 0.5, Stop::NEVER) - 5.0).abs() < 1e-9);
+        assert!(
+            one_sided(&half, &SurfaceIndex::new(&whole), 0.5, f64::INFINITY, &Default::default(), Stop::NEVER) < 1e-9
+        );
+        assert!(
+            (one_sided(&whole, &SurfaceIndex::new(&half), 0.5, f64::INFINITY, &Default::default(), Stop::NEVER) - 5.0)
+                .abs()
+                < 1e-9
+        );
         assert!((max_deviation(&whole, &half, 0.5, Stop::NEVER).unwrap() - 5.0).abs() < 1e-6);
     }
 }

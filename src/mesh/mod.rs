@@ -15,12 +15,12 @@ mod rtin;
 mod smooth;
 mod types;
 
-pub use deviation::max_deviation;
+pub use deviation::{max_deviation, max_deviation_from, SurfaceIndex};
 pub use gpu_order::GpuOrder;
 pub use grid_tiles::{grid_patch, tile_edges};
 pub use heightfield_mesh::{heightfield_mesh, mesh_stride, HeightfieldMesh, VertexColorFn, DEFAULT_MAX_SIDE_SAMPLES};
 pub use isosurface::{extract_isosurface, min_crossing, ScalarField};
-pub use lod::{sample_spacing, simplify_within, Lod};
+pub use lod::{sample_spacing, simplify_levels, simplify_within, Lod, SIMPLIFIER_MARGIN};
 pub use normals::recompute_normals;
 pub use rtin::Rtin;
 pub use smooth::{smooth, Smoothing};
