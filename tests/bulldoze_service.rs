@@ -164,17 +164,17 @@ async fn every_bulldoze_example_runs_and_its_mesh_passes_the_validator() {
     }
 }
 
-/// `compression` picks the glb form: quantized by default (the request says so), f32 with
-/// `none`, the same triangles either way, both valid; anything else is a 422 naming the field.
+/// `compression` picks the glb form: f32 by default (the request says `none`), quantized with
+/// `quantize`, the same triangles either way, both valid; anything else is a 422 naming the field.
 #[tokio::test]
 async fn compression_picks_the_glb_form_and_the_request_states_it() {
     let server = TestServer::start().await;
     let mut body = example("bulldoze", "ziggurat");
-    let quantized = server.run("bulldoze", &body).await;
-    assert_eq!(quantized["request"]["compression"], "quantize");
-    body["compression"] = serde_json::json!("none");
     let plain = server.run("bulldoze", &body).await;
     assert_eq!(plain["request"]["compression"], "none");
+    body["compression"] = serde_json::json!("quantize");
+    let quantized = server.run("bulldoze", &body).await;
+    assert_eq!(quantized["request"]["compression"], "quantize");
     let mut counts = Vec::new();
     for (job, required) in [(&quantized, vec!["KHR_mesh_quantization"]), (&plain, vec![])] {
         let glb = server.artifact(job["id"].as_str().unwrap(), "mesh.glb").await;

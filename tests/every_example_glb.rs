@@ -1,18 +1,20 @@
-//! Every example in `api/`, run by the real binary with three levels of detail (in each
-//! compression form for carve-coast's examples and one of every other kind), and every glb
+//! Every example in `api/`, run by the real binary with its default three levels of detail (in
+//! each compression form for carve-coast's examples and one of every other kind), and every glb
 //! loaded as a web client does: three.js's `GLTFLoader` with `MeshoptDecoder` must build the
 //! vertex and triangle counts the result states for each level, the Khronos validator must
-//! find no error, and every level must keep within its error bound. Positions compared as
-//! three.js decodes them, no mesh of any level has a zero-area triangle or two vertices at one
-//! position, which game engines' physics and lightmappers reject: in the 32-bit form for every
-//! kind and level, and in the quantised forms too for carve-coast's full mesh, whose welded
-//! meshes must also open or pinch no edge the 32-bit form's does not. (The quantised forms
-//! still collapse a few triangles elsewhere — carve-coast's and weather-column's simplified
-//! levels, grow-cave's thinnest stalactite tips, a tileable terrain's coarse levels in
-//! `meshopt` — which issues 29 and 31 leave to their own items.) A deform-terrain example's
-//! `sequence.bin` must be no larger than its `heightmap.png`.
+//! find no error, and every level must keep within its error bound; the coarsest level holds at
+//! most 5 % of the full mesh's triangles, or a level names the node it could not reduce and
+//! why. Positions compared as three.js decodes them, no mesh of any level has a zero-area
+//! triangle or two vertices at one position, which game engines' physics and lightmappers
+//! reject: in the 32-bit form for every kind and level, and in the quantised forms too for
+//! carve-coast's full mesh, whose welded meshes must also open or pinch no edge the 32-bit
+//! form's does not. (The quantised forms still collapse a few triangles elsewhere — carve-coast's
+//! and weather-column's simplified levels, grow-cave's thinnest stalactite tips, a tileable
+//! terrain's coarse levels in `meshopt` — which issue 31 leaves open.) A deform-terrain
+//! example's `sequence.bin` must be no larger than its `heightmap.png`. Blender imports every
+//! default-form `mesh.glb` ([`blender_imports`]).
 //!
-//! Needs `npm ci --prefix tests/gltf-validator` first.
+//! Needs `npm ci --prefix tests/gltf-validator` first, and Debian's `blender` with numpy.
 
 mod common;
 
@@ -57,16 +59,16 @@ const QUANTISED_TOO: [&str; 4] = [
 type Unpaired = std::collections::BTreeMap<(String, String), u64>;
 
 /// Problems found in one example's meshes in every form, one line each.
-fn check(example: &Path, dir: &Path) -> Vec<String> {
+fn check(example: &Path, dir: &Path, blender: &ForBlender) -> Vec<String> {
     let mut plain = Unpaired::new();
-    let mut problems = check_form(example, FORMS[0], dir, &mut plain);
+    let mut problems = check_form(example, FORMS[0], dir, &mut plain, blender);
     let closed_in_every_form = example.parent().is_some_and(|kind| kind.ends_with("carve-coast"));
     if !closed_in_every_form && !QUANTISED_TOO.iter().any(|e| example.ends_with(e)) {
         return problems;
     }
     for form in &FORMS[1..] {
         let mut unpaired = Unpaired::new();
-        problems.extend(check_form(example, form, dir, &mut unpaired));
+        problems.extend(check_form(example, form, dir, &mut unpaired, blender));
         if !closed_in_every_form {
             continue;
         }
@@ -85,12 +87,17 @@ fn check(example: &Path, dir: &Path) -> Vec<String> {
     problems
 }
 
-fn check_form(example: &Path, form: &str, dir: &Path, unpaired: &mut Unpaired) -> Vec<String> {
+/// Each default-form `mesh.glb` kept for Blender: its path, its nodes with a mesh, its
+/// triangles and its levels (the full mesh included).
+type ForBlender = std::sync::Mutex<Vec<(PathBuf, usize, u64, usize)>>;
+
+fn check_form(example: &Path, form: &str, dir: &Path, unpaired: &mut Unpaired, blender: &ForBlender) -> Vec<String> {
     let kind = example.parent().unwrap().file_name().unwrap().to_str().unwrap();
     let name = format!("{kind}/{} {form}", example.file_stem().unwrap().to_str().unwrap());
     let mut body: Value = serde_json::from_slice(&std::fs::read(example).unwrap()).unwrap();
     body["compression"] = form.into();
-    body["lods"] = json!([0.002, 0.008, 0.032]);
+    // The default levels of detail, as a request without `lods` gets them.
+    body.as_object_mut().unwrap().remove("lods");
     let out = dir.join(name.replace(['/', ' '], "_"));
     let Some(job) = run_job(kind, &body, &out) else { return vec![format!("{name}: the job failed")] };
     let levels = job["result"]["glb"]["levels"].as_array().cloned().unwrap_or_default();
@@ -133,10 +140,25 @@ fn check_form(example: &Path, form: &str, dir: &Path, unpaired: &mut Unpaired) -
         }
     }
     // Coarser levels have no more triangles (a simple shape may reach its fewest early), and
-    // the first has fewer than the full mesh.
+    // the first has fewer than the full mesh; the coarsest is at most 5 % of the full mesh, or
+    // a level says which node it could not reduce and why.
     let triangles: Vec<u64> = levels.iter().map(|l| l["triangles"].as_u64().unwrap()).collect();
     if triangles.windows(2).any(|p| p[1] > p[0]) || triangles.len() > 1 && triangles[1] >= triangles[0] {
         problems.push(format!("{name}: triangles per level {triangles:?}"));
+    }
+    let unreduced = levels.iter().any(|l| l["unreduced"].as_array().is_some_and(|u| !u.is_empty()));
+    if let (Some(&first), Some(&last)) = (triangles.first(), triangles.last()) {
+        if last * 20 > first && !unreduced {
+            problems.push(format!("{name}: the coarsest level keeps {last} of {first} triangles, no reason given"));
+        }
+    }
+    // The default form goes to Blender too (after every example, in one Blender process).
+    if form == FORMS[0] {
+        let nodes = loaded.first().map_or(0, |l| l["meshes"].as_array().unwrap().len());
+        let kept = dir.join("blender").join(format!("{}.glb", name.replace(['/', ' '], "_")));
+        std::fs::create_dir_all(kept.parent().unwrap()).unwrap();
+        std::fs::copy(out.join("mesh.glb"), &kept).unwrap();
+        blender.lock().unwrap().push((kept, nodes, triangles.first().copied().unwrap_or(0), levels.len()));
     }
     let _ = std::fs::remove_dir_all(&out);
     problems
@@ -147,15 +169,72 @@ fn every_examples_meshes_load_validate_and_are_clean_in_every_form_and_level() {
     let examples = examples();
     assert!(examples.len() >= 25, "{} examples", examples.len());
     let dir = tempfile::tempdir().unwrap();
+    let blender = ForBlender::default();
     // Two at a time: each job uses every core for part of its run.
-    let problems: Vec<String> = examples
+    let mut problems: Vec<String> = examples
         .chunks(2)
         .flat_map(|pair| {
             std::thread::scope(|s| {
-                let handles: Vec<_> = pair.iter().map(|e| s.spawn(|| check(e, dir.path()))).collect();
+                let handles: Vec<_> = pair.iter().map(|e| s.spawn(|| check(e, dir.path(), &blender))).collect();
                 handles.into_iter().flat_map(|h| h.join().unwrap()).collect::<Vec<_>>()
             })
         })
         .collect();
+    problems.extend(blender_imports(&blender.into_inner().unwrap()));
     assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+/// Blender (Debian's 3.4, headless: `tests/blender/import.py`) imports each default-form
+/// `mesh.glb`: it must finish, give every full node and every level node an object (Blender
+/// ignores MSFT_lod and imports the levels as objects of their own), with the triangles the
+/// result states, and every object at scale 1.
+fn blender_imports(files: &[(PathBuf, usize, u64, usize)]) -> Vec<String> {
+    let output = std::process::Command::new("blender")
+        .args(["-b", "--factory-startup", "-P"])
+        .arg(repo().join("tests/blender/import.py"))
+        .arg("--")
+        .args(files.iter().map(|f| &f.0))
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run `blender` ({e}); scripts/test installs Debian's blender"));
+    let reports: Vec<Value> = String::from_utf8_lossy(&output.stdout)
+        .lines()
+        .filter_map(|l| l.strip_prefix("LANDFORM "))
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    if reports.len() != files.len() {
+        return vec![format!(
+            "Blender reported {} of {} files: {}",
+            reports.len(),
+            files.len(),
+            String::from_utf8_lossy(&output.stderr)
+        )];
+    }
+    let mut problems = Vec::new();
+    for ((path, nodes, triangles, levels), report) in files.iter().zip(&reports) {
+        let name = path.file_stem().unwrap().to_string_lossy();
+        if report["result"] != json!(["FINISHED"]) {
+            problems.push(format!("Blender {name}: {}", report["error"]));
+            continue;
+        }
+        let meshes: Vec<&Value> =
+            report["objects"].as_array().unwrap().iter().filter(|o| o["type"] == "MESH").collect();
+        if meshes.len() != nodes * levels {
+            problems.push(format!("Blender {name}: {} mesh objects for {nodes} nodes × {levels} levels", meshes.len()));
+        }
+        let full: u64 = meshes
+            .iter()
+            .filter(|o| !o["name"].as_str().unwrap().contains(" lod"))
+            .map(|o| o["triangles"].as_u64().unwrap())
+            .sum();
+        if full != *triangles {
+            problems
+                .push(format!("Blender {name}: {full} triangles in the full objects, the result states {triangles}"));
+        }
+        for object in report["objects"].as_array().unwrap() {
+            if object["scale"] != json!([1.0, 1.0, 1.0]) {
+                problems.push(format!("Blender {name}: {} has scale {}", object["name"], object["scale"]));
+            }
+        }
+    }
+    problems
 }

@@ -38,10 +38,12 @@ pub const MAX_U16_INDEXED_VERTICES: usize = 65_535;
 /// How a glb's vertex data is stored (see the module docs).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum GlbForm {
-    /// f32 positions, normals and texcoords.
+    /// f32 positions, normals and texcoords: the default, as every importer reads it without an
+    /// extension and every node keeps scale 1 (Blender 3.4 refuses `meshopt`, and shows the
+    /// quantised form's dequantisation as each object's scale).
+    #[default]
     None,
     /// `KHR_mesh_quantization`: 16-bit positions, 8-bit normals, 16-bit texcoords.
-    #[default]
     Quantize,
     /// The quantised arrays compressed by `EXT_meshopt_compression`.
     Meshopt,
@@ -84,7 +86,7 @@ struct Quantized {
     step: f32,
     /// The largest step number: 2^bits − 1.
     top: f64,
-    /// Texcoords written (not in the meshopt form), all in [0, 1] so normalised u16 holds them.
+    /// Texcoords written (in every form), all in [0, 1] so normalised u16 holds them.
     uvs: Option<bool>,
     /// Normals through meshoptimizer's octahedral filter (the meshopt form).
     oct_normals: bool,
@@ -97,7 +99,7 @@ impl Quantized {
         let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max);
         let step = if extent > 0.0 && extent.is_finite() { (f64::from(extent) / top) as f32 } else { 1.0 };
         let unit_uvs = mesh.uvs.iter().flatten().all(|v| (0.0..=1.0).contains(v));
-        Self { origin: lo, step, top, uvs: (!meshopt).then_some(unit_uvs), oct_normals: meshopt }
+        Self { origin: lo, step, top, uvs: Some(unit_uvs), oct_normals: meshopt }
     }
 
     fn position(&self, p: [f32; 3]) -> [u16; 3] {
@@ -1006,7 +1008,6 @@ mod tests {
             let longest = (0..3).map(|k| f64::from(hi[k] - lo[k])).fold(0.0, f64::max);
             assert!((scale - longest / 16383.0).abs() < 1e-9, "14-bit steps of the scene's box");
             let prim = &m["meshes"][n]["primitives"][0];
-            assert!(prim["attributes"].get("TEXCOORD_0").is_none(), "no texcoords in this form");
             // An accessor's elements: its view decoded, from its offset in it (views are shared).
             let view_of = |accessor: &serde_json::Value| -> (Vec<u8>, usize) {
                 let a = &m["accessors"][accessor.as_u64().unwrap() as usize];
@@ -1015,6 +1016,15 @@ mod tests {
                 let count = a["count"].as_u64().unwrap() as usize;
                 (data[at..at + count * stride].to_vec(), stride)
             };
+            let (uvs, stride) = view_of(&prim["attributes"]["TEXCOORD_0"]);
+            for k in 0..mesh.vertex_count() {
+                let uv = order.at(&mesh.uvs, k);
+                for c in 0..2 {
+                    let q = u16::from_le_bytes([uvs[k * stride + 2 * c], uvs[k * stride + 2 * c + 1]]);
+                    let back = f64::from(q) / 65535.0;
+                    assert!((back - f64::from(uv[c])).abs() <= 0.5 / 65535.0 + 1e-9, "texcoord {k}");
+                }
+            }
             let (positions, stride) = view_of(&prim["attributes"]["POSITION"]);
             for k in 0..mesh.vertex_count() {
                 let p = order.at(&mesh.positions, k);

@@ -9,13 +9,10 @@ use super::{write_glb, write_glb_with_levels, Artifact, GlbForm};
 use crate::mesh::{simplify_levels, Lod, Scene, SceneNode};
 use crate::stop::{Stop, Stopped};
 
-/// The levels a request gets when it names none: none yet. Measuring each level's deviation
-/// costs far more than the simulation on the large volume meshes (island-defaults: 0.89 s
-/// without levels, 52 s with three), so levels are made when a request asks for them, e.g.
-/// [`SUGGESTED_LODS`].
-pub const DEFAULT_LODS: [f64; 0] = [];
+/// The levels a request gets when it names none: [`SUGGESTED_LODS`]. `lods: []` turns them off.
+pub const DEFAULT_LODS: [f64; 3] = SUGGESTED_LODS;
 /// Three levels with error bounds of 0.2 %, 0.8 % and 3.2 % of the scene's longest side
-/// (0.5 m, 2 m and 8 m on a 256 m terrain): the schema's example.
+/// (0.5 m, 2 m and 8 m on a 256 m terrain).
 pub const SUGGESTED_LODS: [f64; 3] = [0.002, 0.008, 0.032];
 /// Triangles a second one level's simplification and measuring get through at best: a lower
 /// bound of the time, so only levels no machine could make in the time limit are refused (this

@@ -74,7 +74,7 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>], keys_required: bool) -> Open
         .enum_values(Some(crate::export::GlbForm::NAMES))
         .default(Some(serde_json::Value::from(crate::export::GlbForm::default().name())))
         .description(Some(
-            "How glb artifacts store their vertices: `quantize` (the default) with KHR_mesh_quantization — 16-bit positions (the node's translation and scale give metres; one grid for the whole scene; error at most half of the scene's longest side ÷ 65535), 8-bit normals, 16-bit texcoords; `meshopt`: the same arrays compressed with EXT_meshopt_compression, declared required (no uncompressed fallback is written; three.js reads it with MeshoptDecoder, Babylon.js as it is); or `none`: 32-bit floats.",
+            "How glb artifacts store their vertices: `none` (the default): 32-bit floats, read by every glTF importer, every object at scale 1; `quantize` with KHR_mesh_quantization — 16-bit positions (the node's translation and scale give metres, so Blender shows each object's scale as the quantisation step; one grid for the whole scene; error at most half of the scene's longest side ÷ 65535), 8-bit normals, 16-bit texcoords, read by three.js, Babylon.js and Blender; or `meshopt`: the quantised arrays with 14-bit positions compressed with EXT_meshopt_compression, declared required (no uncompressed fallback is written; three.js reads it with MeshoptDecoder, Babylon.js as it is; Blender 3.4 refuses it).",
         ))
         .into();
 
@@ -85,7 +85,7 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>], keys_required: bool) -> Open
         .default(Some(serde_json::json!(crate::export::DEFAULT_LODS)))
         .examples([serde_json::json!(crate::export::SUGGESTED_LODS)])
         .description(Some(format!(
-            "Levels of detail beside `mesh.glb`: `mesh_lod1.glb`, `mesh_lod2.glb`, … one per error bound, each a fraction of the scene's longest side, increasing (default `[]`: none, as measuring the levels can take far longer than the job). Every node is simplified (meshoptimizer's edge collapser) with the vertices on its open borders and on its bounding box's faces held in place, and the result's `glb.levels` gives each level's triangles and its measured two-sided deviation from the full mesh, which never exceeds the bound. At most {} levels.",
+            "Levels of detail: one per error bound, each a fraction of the scene's longest side, increasing (default `[0.002, 0.008, 0.032]`; `[]` for none). `mesh.glb` carries them (`MSFT_lod` on each node, with `MSFT_screencoverage` hints; Babylon.js and UnityGLTF pick levels themselves, three.js with a small loader plugin, and loaders without the extension show the full mesh), and each is also written alone as `mesh_lod1.glb`, `mesh_lod2.glb`, …. Each level is simplified from the one before (meshoptimizer's edge collapser, at most two tries) with the vertices on its open borders and on the rims of its bounding box's sides held in place, and measured against the full mesh. The result's `glb.levels` gives each level's triangles, its measured two-sided deviation, which never exceeds the bound, and `unreduced`: the nodes a level keeps as the level before, because no simplification kept within the bound, with the reason. At most {} levels.",
             crate::export::MAX_LODS
         )))
         .into();

@@ -31,13 +31,18 @@ pub fn run_job(kind: &str, body: &Value, out: &Path) -> Option<Value> {
 /// What three.js's `GLTFLoader` (with `MeshoptDecoder`) builds from each file: one JSON object
 /// per file, in order (tests/gltf-validator/load_three.mjs).
 pub fn load_in_three(files: &[PathBuf]) -> Vec<Value> {
+    node_script("load_three.mjs", files)
+}
+
+/// What `tests/gltf-validator/<script>` prints for each file: one JSON object per file, in order.
+pub fn node_script(script: &str, files: &[PathBuf]) -> Vec<Value> {
     let dir = repo().join("tests").join("gltf-validator");
     assert!(
         dir.join("node_modules").join("three").is_dir(),
         "three.js is not installed: run `npm ci --prefix tests/gltf-validator` (needs node and npm)"
     );
     let output = Command::new("node")
-        .arg(dir.join("load_three.mjs"))
+        .arg(dir.join(script))
         .args(files)
         .current_dir(&dir)
         .output()
