@@ -247,13 +247,13 @@ mod tests {
                 ("heightmap.png", "image/png"),
                 ("preview.png", "image/png"),
                 ("mesh.glb", "model/gltf-binary"),
-                ("mesh_lod1.glb", "model/gltf-binary"),
-                ("mesh_lod2.glb", "model/gltf-binary"),
-                ("mesh_lod3.glb", "model/gltf-binary"),
                 ("heightfield.npy", "application/octet-stream"),
                 ("heightmap.r16", "application/octet-stream"),
                 ("normalmap.png", "image/png"),
                 ("splatmap.png", "image/png"),
+                ("mesh_lod1.glb", "model/gltf-binary"),
+                ("mesh_lod2.glb", "model/gltf-binary"),
+                ("mesh_lod3.glb", "model/gltf-binary"),
             ]
         );
         let (z_min, z_max) = hf.min_max();

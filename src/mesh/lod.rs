@@ -31,10 +31,12 @@ const MEND_ROUNDS: usize = 4;
 /// it, meshoptimizer takes well under a second.
 const DETACHED_SIMPLIFY_TRIANGLES: usize = 200_000;
 
-/// meshoptimizer's target is a level's error budget divided by this: how far the measured
-/// distance may exceed meshoptimizer's own error before a second try is needed.
-/// `tests::the_simplifier_error_times_the_margin_bounds_the_measured_distance` measures it.
-pub const SIMPLIFIER_MARGIN: f32 = 2.0;
+/// meshoptimizer's target is a level's error budget divided by this: its own error is an
+/// area-weighted mean, and the measured distance ran 3–6 times above it on the examples (cut
+/// rims, thin spires). At 2, most first tries missed and the second held so many vertices that
+/// coarse levels stalled (goblin-valley's level 1 kept its full mesh); at 4 every example's
+/// coarsest level is at most 5.2 % of its full mesh but the chamber's (`scripts/lod-timing`).
+pub const SIMPLIFIER_MARGIN: f32 = 4.0;
 
 /// The share of the bound beyond which a first try's samples are held on the second try.
 const NEAR_MISS: f32 = 0.75;
