@@ -198,9 +198,10 @@ pub fn heightfield_artifacts_peak_bytes(cols: u64, rows: u64, tiles: bool) -> u6
 }
 
 /// Bytes levels of detail of a heightfield add at the peak per triangle they start from: the
-/// deviation's search grid over the one full mesh, meshoptimizer's arrays and the levels kept
-/// until written (measured 96–239 by `tests/cost_estimates.rs`).
-pub const HEIGHTFIELD_LOD_BYTES_PER_TRIANGLE: u64 = 300;
+/// deviation's hierarchy over the one full mesh, meshoptimizer's arrays and the levels kept
+/// until written (measured 20–66 by `tests/cost_estimates.rs` since the hierarchy replaced the
+/// search grid, which took 96–239).
+pub const HEIGHTFIELD_LOD_BYTES_PER_TRIANGLE: u64 = 80;
 
 /// Triangles levels of detail start from for a `cols × rows` grid: the decimated mesh of
 /// `mesh.glb`, and with `tiles` its tiles (the same triangles again, simplified tile by tile).

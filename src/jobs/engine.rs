@@ -450,6 +450,7 @@ impl Engine {
         let Value::Object(mut body) = body else {
             return Err(EngineError::field("", "the body must be a JSON object"));
         };
+        let lods_named = body.get("lods").is_some_and(|l| !l.is_null());
         let (seed, label, mesh) = take_common_fields(&mut body)?;
         let limits = self.inner.config.limits.clone();
         let prepared = tokio::task::spawn_blocking(move || kind_impl.prepare(Value::Object(body), &limits))
@@ -472,7 +473,7 @@ impl Engine {
             });
         }
         self.check_references(&prepared.references, owner.clone()).await?;
-        let lods = mesh.lods.len();
+        let lods = (mesh.lods.len(), lods_named);
         let (cost, params, uploads) =
             self.estimate(kind, prepared.params, seed, prepared.references.uploads, owner.clone(), lods).await?;
         self.check_quota(who, &cost).await?;
@@ -531,7 +532,7 @@ impl Engine {
         seed: u64,
         uploads: Vec<(String, Vec<u8>)>,
         owner: Option<String>,
-        lods: usize,
+        (lods, lods_named): (usize, bool),
     ) -> Result<(super::Cost, Value, Vec<(String, Vec<u8>)>), EngineError> {
         let kind_impl = self.inner.kinds.get(kind).cloned().ok_or_else(|| EngineError::UnknownKind(kind.into()))?;
         let store = self.inner.store.clone();
@@ -547,9 +548,18 @@ impl Engine {
             super::SimError::Terrain(t) => EngineError::field("terrain", t.to_string()),
             other => EngineError::Internal(other.to_string()),
         })?;
-        // Levels of detail run after the rest, from the meshes the kind counted.
+        // Levels of detail run after the rest, from the meshes the kind counted. Their cost
+        // grows with the kind's own mesh, so the kind's field is named for it unless the
+        // request named `lods` itself (the default levels are not the client's choice).
         let (bytes, seconds) = lod_cost(&cost, lods);
-        let cost = cost.with_stage("lods", bytes, seconds);
+        let cost = if lods_named {
+            cost.with_stage("lods", bytes, seconds)
+        } else {
+            let (memory_field, work_field) = (cost.memory_field.clone(), cost.work_field.clone());
+            let mut cost = cost.with_stage("lods", bytes, seconds);
+            (cost.memory_field, cost.work_field) = (memory_field, work_field);
+            cost
+        };
         self.check_cost(&cost)?;
         Ok((cost, params, uploads))
     }
@@ -611,7 +621,7 @@ impl Engine {
             )),
             other => other,
         })?;
-        let lods = original.request.get("lods").and_then(Value::as_array).map_or(0, Vec::len);
+        let lods = (original.request.get("lods").and_then(Value::as_array).map_or(0, Vec::len), false);
         let seed = original.request.get("seed").and_then(Value::as_u64).unwrap_or(0);
         let (cost, _, _) =
             self.estimate(&original.kind, prepared.params, seed, Vec::new(), original.owner.clone(), lods).await?;

@@ -20,7 +20,8 @@ const TUBE_VERTEX_BYTES: u64 = 140;
 const SURFACE_SAMPLE_BYTES: u64 = 100;
 /// Bytes per glb node (a speleothem): its JSON and glTF structures.
 const NODE_BYTES: u64 = 10_000;
-const BASE_BYTES: u64 = 6 << 20;
+/// The job's fixed part, with the 32-bit glb of a small cave (the default form since issue 31).
+const BASE_BYTES: u64 = 7 << 20;
 /// What levels of detail add at the peak, in percent of the rest of the estimate: the levels
 /// of a cave's pieces are kept until written, smaller copies of what the rest holds (measured
 /// 0–26 % of it on the examples: thin straws hardly simplify, crowded pieces do). A share of
