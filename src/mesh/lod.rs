@@ -5,8 +5,9 @@
 //! a mesh already reduced), with meshoptimizer's target the bound's remaining budget divided by
 //! [`SIMPLIFIER_MARGIN`]. meshoptimizer bounds its own error measure (an area-weighted mean of
 //! plane distances), not the distance between the surfaces, so a level measured over its bound
-//! is made once more with a target scaled by how far it missed; if that misses too, the level
-//! is the previous one unchanged and says why ([`Lod::unreduced`]), never a silent full mesh.
+//! is made once more, holding the vertices near where it came within [`NEAR_MISS`] of the bound
+//! and with a target scaled by how far it missed; if that misses too, the level is the previous
+//! one unchanged and says why ([`Lod::unreduced`]), never a silent full mesh.
 //! Vertices on the mesh's topological border (where it meets another mesh: a tile's or a
 //! heightfield's edge, an open rim) never move, nor do those on the rim of a vertical side of
 //! the bounding box (where a carved coast's top meets its box side) or on two sides (the box's
@@ -78,8 +79,10 @@ pub fn simplify_levels(mesh: &Mesh, bounds_m: &[f32], stop: Stop) -> Result<Vec<
     let mut source = Cow::Borrowed(mesh);
     let mut locked = Arc::new(locked_vertices(mesh));
     let mut source_deviation = 0.0f32;
+    // The full mesh's typical side, for every level's spacing (see [`sample_spacing`]).
+    let full_side = mean_triangle_side(mesh) as f32;
     for &bound in bounds_m {
-        let spacing = sample_spacing(mesh, bound);
+        let spacing = bound.max(full_side);
         let budget = (bound - source_deviation).max(0.0);
         let mut target = budget / SIMPLIFIER_MARGIN;
         let mut made = None;
@@ -280,12 +283,12 @@ fn mend_slivers(mut indices: Vec<u32>, positions: &[[f32; 3]]) -> Vec<u32> {
     indices
 }
 
-/// How far apart the deviation's samples lie: half the bound, but no closer than the full
-/// mesh's typical triangle side (a square of its mean triangle area), which keeps the measure
-/// to seconds on meshes of a million triangles. The distance to a surface changes by at most
-/// the distance moved, so a point between samples may exceed the largest sampled distance by
-/// up to about half the spacing; the reported figure is the sampled one. Every vertex of both
-/// meshes, where the surfaces bend, is a sample.
+/// How far apart the deviation's samples lie: the bound, but no closer than the full mesh's
+/// typical triangle side (a square of its mean triangle area), which keeps the measure under a
+/// second on meshes of a million triangles. The distance to a surface changes by at most the
+/// distance moved, so a point between samples may exceed the largest sampled distance by up to
+/// about half the spacing; the reported figure is the sampled one. Every vertex of both meshes,
+/// where the surfaces bend, is a sample.
 pub fn sample_spacing(mesh: &Mesh, bound_m: f32) -> f32 {
     bound_m.max(mean_triangle_side(mesh) as f32)
 }
