@@ -4,6 +4,8 @@
 #
 #   blender -b -P scripts/render_glb.py -- mesh.glb out.png EYE_X EYE_Y EYE_Z AT_X AT_Y AT_Z [sun]
 #
+# Several glbs separated by commas render together (tiles side by side).
+#
 # With `sun` the scene is lit as outdoors instead: a sun 35° above the horizon from behind the
 # eye's left shoulder and a grey sky (terrain seen from a player's height).
 #
@@ -24,7 +26,8 @@ eye = [float(v) for v in argv[2:5]]
 target = [float(v) for v in argv[5:8]]
 outdoors = len(argv) > 8 and argv[8] == "sun"
 bpy.ops.wm.read_factory_settings(use_empty=True)
-bpy.ops.import_scene.gltf(filepath=glb)
+for path in glb.split(","):
+    bpy.ops.import_scene.gltf(filepath=path)
 
 
 def to_blender(p):

@@ -107,7 +107,11 @@ async fn a_job_streams_to_done_and_its_artifacts_are_valid_and_replayable() {
     assert_eq!((splat.width(), splat.height(), splat.color()), (129, 129, image::ColorType::Rgba8));
     let splat = splat.to_rgba8();
     assert!(splat.pixels().all(|p| p.0.iter().map(|&v| u32::from(v)).sum::<u32>() == 255), "weights sum to 255");
-    assert!(splat.pixels().all(|p| p.0[3] == 0), "bulldoze names no material");
+    // Its material is the bulldozer's work: cells moved over 1 cm, so no more than it changed.
+    let shaped = splat.pixels().filter(|p| p.0[3] == 255).count() as u64;
+    assert!(splat.pixels().all(|p| p.0[3] == 0 || p.0[3] == 255), "shaped or not");
+    let changed = job["result"]["changed_samples"].as_u64().unwrap();
+    assert!(shaped > 0 && shaped <= changed, "{shaped} cells shaped, {changed} changed");
 
     // The sequence endpoint serves the artifact.
     let (status, seq) = server.get_json(&format!("/v1/jobs/{id}/sequence")).await;

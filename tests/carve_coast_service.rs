@@ -37,7 +37,9 @@ async fn a_deformed_island_is_carved_and_replayed_to_the_same_bytes() {
     assert_eq!(result["pieces"], 1, "{result}");
     assert!(result["spheres"]["total"].as_u64().unwrap() > 0, "{result}");
     let names: Vec<&str> = job["artifacts"].as_array().unwrap().iter().map(|a| a["name"].as_str().unwrap()).collect();
-    for want in ["mesh.glb", "preview.png", "heightmap.png", "sequence.json"] {
+    for want in
+        ["mesh.glb", "preview.png", "heightmap.png", "heightmap.r16", "normalmap.png", "splatmap.png", "sequence.json"]
+    {
         assert!(names.contains(&want), "{want} in {names:?}");
     }
     let glb = server.artifact(&id, "mesh.glb").await;

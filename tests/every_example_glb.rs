@@ -4,15 +4,13 @@
 //! vertex and triangle counts the result states for each level, the Khronos validator must
 //! find no error, and every level must keep within its error bound; the coarsest level holds at
 //! most 5 % of the full mesh's triangles (or 100 a node, or 1 000 in all), or a level names the node it could not
-//! reduce and why. Positions compared as three.js decodes them, no mesh of any level has a zero-area
-//! triangle or two vertices at one position, which game engines' physics and lightmappers
-//! reject: in the 32-bit form for every kind and level, and in the quantised forms too for
-//! carve-coast's full mesh, whose welded meshes must also open or pinch no edge the 32-bit
-//! form's does not. (The quantised forms still collapse a few triangles elsewhere — carve-coast's
-//! and weather-column's simplified levels, grow-cave's thinnest stalactite tips, a tileable
-//! terrain's coarse levels in `meshopt` — which issue 31 leaves open.) A deform-terrain
-//! example's `sequence.bin` must be no larger than its `heightmap.png`. Blender imports every
-//! default-form `mesh.glb` ([`blender_imports`]).
+//! reduce and why. Positions compared as three.js decodes them, no mesh of any level in any form
+//! has a zero-area triangle or an edge of three triangles or more (by the file's own indices),
+//! which game engines' physics and lightmappers reject, and in the 32-bit form no two vertices
+//! at one position; carve-coast's welded meshes must also open or pinch no edge in the quantised
+//! forms that the 32-bit form's does not. A deform-terrain example's `sequence.bin` must be no
+//! larger than its `heightmap.png`. Blender imports every default-form `mesh.glb`
+//! ([`blender_imports`]).
 //!
 //! Needs `npm ci --prefix tests/gltf-validator` first, and Debian's `blender` with numpy.
 
@@ -48,10 +46,12 @@ const FORMS: [&str; 3] = ["none", "quantize", "meshopt"];
 /// every kind's encoder is read back by three.js and the validator in every form and level.
 /// (All 40 in all three forms took 21 of CI's minutes; the encoding does not depend on the
 /// example beyond what these hold.)
-const QUANTISED_TOO: [&str; 4] = [
+const QUANTISED_TOO: [&str; 6] = [
     "bulldoze/mill-creek.json",
     "deform-terrain/tileable.json",
     "grow-cave/chamber-with-entrance.json",
+    "grow-cave/columns.json",
+    "weather-column/goblin-cap.json",
     "weather-column/goblin-valley.json",
 ];
 
@@ -88,8 +88,16 @@ fn check(example: &Path, dir: &Path, blender: &ForBlender) -> Vec<String> {
 }
 
 /// Each default-form `mesh.glb` kept for Blender: its path, its nodes with a mesh, its
-/// triangles and its levels (the full mesh included).
-type ForBlender = std::sync::Mutex<Vec<(PathBuf, usize, u64, usize)>>;
+/// triangles, its levels (the full mesh included) and every node's name and origin (its
+/// translation: the piece's pivot).
+type ForBlender = std::sync::Mutex<Vec<BlenderFile>>;
+type BlenderFile = (PathBuf, usize, u64, usize, Vec<(String, [f32; 3])>);
+
+/// Every node's name and translation in a glb.
+fn node_origins(glb: &[u8]) -> Vec<(String, [f32; 3])> {
+    let gltf = gltf::Gltf::from_slice_without_validation(glb).expect("glb parses");
+    gltf.nodes().map(|n| (n.name().unwrap_or_default().to_string(), n.transform().decomposed().0)).collect()
+}
 
 fn check_form(example: &Path, form: &str, dir: &Path, unpaired: &mut Unpaired, blender: &ForBlender) -> Vec<String> {
     let kind = example.parent().unwrap().file_name().unwrap().to_str().unwrap();
@@ -127,13 +135,17 @@ fn check_form(example: &Path, form: &str, dir: &Path, unpaired: &mut Unpaired, b
         if three["validator_errors"] != 0 {
             problems.push(format!("{what}: validator errors {}: {}", three["validator_errors"], three["first_errors"]));
         }
-        let clean_in_this_form = form == "none" || kind == "carve-coast" && level["file"] == "mesh.glb";
+        // In every form and level: no triangle flat as decoded, no edge of three triangles or
+        // more; in `none` (f32 as made) no two vertices at one position either (the quantised
+        // grids may put two distinct vertices on one step).
         for mesh in three["meshes"].as_array().unwrap() {
             let node = mesh["name"].as_str().unwrap_or_default();
-            let (zero_area, shared) = (mesh["zero_area"].as_u64().unwrap(), mesh["duplicates"].as_u64().unwrap());
-            if clean_in_this_form && (zero_area, shared) != (0, 0) {
-                problems
-                    .push(format!("{what} node {node}: {zero_area} zero-area triangles, {shared} shared positions"));
+            let (zero_area, crowded) = (mesh["zero_area"].as_u64().unwrap(), mesh["crowded_edges"].as_u64().unwrap());
+            let shared = if form == "none" { mesh["duplicates"].as_u64().unwrap() } else { 0 };
+            if (zero_area, crowded, shared) != (0, 0, 0) {
+                problems.push(format!(
+                    "{what} node {node}: {zero_area} zero-area triangles, {crowded} edges of 3+ triangles, {shared} shared positions"
+                ));
             }
             let level_file = level["file"].as_str().unwrap().to_string();
             unpaired.insert((level_file, node.to_string()), mesh["welded_unpaired_edges"].as_u64().unwrap());
@@ -167,7 +179,8 @@ fn check_form(example: &Path, form: &str, dir: &Path, unpaired: &mut Unpaired, b
         let kept = dir.join("blender").join(format!("{}.glb", name.replace(['/', ' '], "_")));
         std::fs::create_dir_all(kept.parent().unwrap()).unwrap();
         std::fs::copy(out.join("mesh.glb"), &kept).unwrap();
-        blender.lock().unwrap().push((kept, nodes, triangles.first().copied().unwrap_or(0), levels.len()));
+        let origins = node_origins(&std::fs::read(&kept).unwrap());
+        blender.lock().unwrap().push((kept, nodes, triangles.first().copied().unwrap_or(0), levels.len(), origins));
     }
     let _ = std::fs::remove_dir_all(&out);
     problems
@@ -196,8 +209,8 @@ fn every_examples_meshes_load_validate_and_are_clean_in_every_form_and_level() {
 /// Blender (Debian's 3.4, headless: `tests/blender/import.py`) imports each default-form
 /// `mesh.glb`: it must finish, give every full node and every level node an object (Blender
 /// ignores MSFT_lod and imports the levels as objects of their own), with the triangles the
-/// result states, and every object at scale 1.
-fn blender_imports(files: &[(PathBuf, usize, u64, usize)]) -> Vec<String> {
+/// result states, and every object at scale 1 with its origin at the node's pivot.
+fn blender_imports(files: &[BlenderFile]) -> Vec<String> {
     let output = std::process::Command::new("blender")
         .args(["-b", "--factory-startup", "-P"])
         .arg(repo().join("tests/blender/import.py"))
@@ -219,7 +232,7 @@ fn blender_imports(files: &[(PathBuf, usize, u64, usize)]) -> Vec<String> {
         )];
     }
     let mut problems = Vec::new();
-    for ((path, nodes, triangles, levels), report) in files.iter().zip(&reports) {
+    for ((path, nodes, triangles, levels, origins), report) in files.iter().zip(&reports) {
         let name = path.file_stem().unwrap().to_string_lossy();
         if report["result"] != json!(["FINISHED"]) {
             problems.push(format!("Blender {name}: {}", report["error"]));
@@ -242,6 +255,20 @@ fn blender_imports(files: &[(PathBuf, usize, u64, usize)]) -> Vec<String> {
         for object in report["objects"].as_array().unwrap() {
             if object["scale"] != json!([1.0, 1.0, 1.0]) {
                 problems.push(format!("Blender {name}: {} has scale {}", object["name"], object["scale"]));
+            }
+            // Blender is Z-up: glTF's (x, y, z) is its (x, −z, y).
+            let origin = origins.iter().find(|(n, _)| object["name"] == n.as_str()).map(|o| o.1);
+            let location: Vec<f64> =
+                object["location"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+            match origin {
+                Some([x, y, z]) => {
+                    let want = [f64::from(x), -f64::from(z), f64::from(y)];
+                    if want.iter().zip(&location).any(|(a, b)| (a - b).abs() > 1e-5 * (1.0 + a.abs())) {
+                        problems
+                            .push(format!("Blender {name}: {} at {location:?}, its pivot is {want:?}", object["name"]));
+                    }
+                }
+                None => problems.push(format!("Blender {name}: object {} names no node", object["name"])),
             }
         }
     }

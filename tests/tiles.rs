@@ -241,3 +241,141 @@ async fn the_service_serves_tiles_by_their_folder_names() {
         assert_eq!(Some(&format!("{:x}", sha2::Sha256::digest(&bytes))), listed.get(file), "{file}");
     }
 }
+
+/// A triangle as its corners' positions in metres.
+type Corners = [[f64; 3]; 3];
+
+/// A tile's triangles split into its surface and its skirt (the walls standing on the sides of
+/// the tile's box seen from above: every corner on one side), each as corner positions in
+/// metres.
+fn surface_and_skirt(tile: &Read) -> (Vec<Corners>, Vec<Corners>) {
+    let (lo, hi) = tile.metres.iter().fold(([f64::MAX; 3], [f64::MIN; 3]), |(lo, hi), p| {
+        (std::array::from_fn(|k| lo[k].min(p[k])), std::array::from_fn(|k| hi[k].max(p[k])))
+    });
+    let corners = |t: &[u32; 3]| t.map(|i| tile.metres[i as usize]);
+    tile.triangles.iter().map(corners).partition(|t| {
+        ![(0, lo[0]), (0, hi[0]), (2, lo[2]), (2, hi[2])].iter().any(|&(k, at)| t.iter().all(|p| p[k] == at))
+    })
+}
+
+/// The surface's border along the tile side where coordinate `axis` is `at`: (position along
+/// it, height) of the surface's vertices there, in order.
+fn border_profile(surface: &[Corners], axis: usize, at: f64) -> Vec<(f64, f64)> {
+    let along = 2 - axis;
+    let mut out: Vec<(f64, f64)> =
+        surface.iter().flatten().filter(|p| (p[axis] - at).abs() < 1e-6).map(|p| (p[along], p[1])).collect();
+    out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    out.dedup_by(|a, b| (a.0 - b.0).abs() < 1e-9);
+    out
+}
+
+/// The height of a border profile at `u`, linear between its vertices.
+fn height_at(profile: &[(f64, f64)], u: f64) -> f64 {
+    let k = profile.partition_point(|p| p.0 < u - 1e-9).min(profile.len() - 1);
+    if k == 0 || (profile[k].0 - u).abs() < 1e-9 {
+        return profile[k].1;
+    }
+    let ((u0, h0), (u1, h1)) = (profile[k - 1], profile[k]);
+    h0 + (h1 - h0) * (u - u0) / (u1 - u0)
+}
+
+/// With `skirt_m`, coarse tiles are not mostly border, and the skirts hide every gap between
+/// neighbours at any two levels side by side: measured at every full-grid vertex along each
+/// shared side against the depth the index states; level 0 less its skirts is `mesh.glb`.
+#[test]
+fn skirted_tiles_simplify_their_borders_and_their_skirts_cover_every_gap() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("skirted");
+    let mut body = example_body("bulldoze", "hillside-road");
+    body["lods"] = json!(LODS);
+    body["tiles"] = json!({ "count": [2, 2], "skirt_m": 0.25 });
+    run_job("bulldoze", &body, &out).expect("hillside-road with skirts");
+    let index: Value = serde_json::from_slice(&std::fs::read(out.join("tiles/index.json")).unwrap()).unwrap();
+    let depth = index["skirt_m"].as_f64().expect("the skirt's depth");
+    let entries = index["tiles"].as_array().unwrap();
+    let drift = entries
+        .iter()
+        .flat_map(|e| e["levels"].as_array().unwrap().iter().map(|l| l["border_drift_m"].as_f64().unwrap()))
+        .fold(0.0, f64::max);
+    assert!(depth >= 0.25 && depth >= 2.0 * drift - 1e-3, "skirt {depth} m, largest drift {drift} m");
+    // tiles[(x, z)][level] = (surface, skirt)
+    let mut tiles: BTreeMap<(u64, u64), Vec<_>> = BTreeMap::new();
+    for entry in entries {
+        let place = (entry["x"].as_u64().unwrap(), entry["z"].as_u64().unwrap());
+        for figures in entry["levels"].as_array().unwrap() {
+            let file = out.join(figures["file"].as_str().unwrap());
+            let report = validate_glb(&std::fs::read(&file).unwrap());
+            assert_eq!(report.errors, 0, "{file:?}: {}", report.summary());
+            let (surface, skirt) = surface_and_skirt(&read(&file));
+            assert_eq!(surface.len() as u64, figures["triangles"].as_u64().unwrap(), "{file:?}");
+            // Two skirt triangles per border edge of the surface, each `depth` tall.
+            let mut edges: BTreeMap<[u64; 6], usize> = BTreeMap::new();
+            for t in &surface {
+                for k in 0..3 {
+                    let (a, b) = (t[k], t[(k + 1) % 3]);
+                    let (a, b) = if a < b { (a, b) } else { (b, a) };
+                    let key: [u64; 6] = std::array::from_fn(|i| if i < 3 { a[i] } else { b[i - 3] }.to_bits());
+                    *edges.entry(key).or_insert(0) += 1;
+                }
+            }
+            let border = edges.values().filter(|&&n| n == 1).count();
+            assert_eq!(skirt.len(), 2 * border, "{file:?}");
+            for t in &skirt {
+                let (lo, hi) = t.iter().fold((f64::MAX, f64::MIN), |(l, h), p| (l.min(p[1]), h.max(p[1])));
+                assert!(hi - lo >= depth - 1e-3, "{file:?}: a wall {} m tall", hi - lo);
+            }
+            tiles.entry(place).or_default().push(surface);
+        }
+    }
+    for (&(x, z), levels) in &tiles {
+        let (lo, hi) = levels[0].iter().flatten().fold(([f64::MAX; 3], [f64::MIN; 3]), |(lo, hi), p| {
+            (std::array::from_fn(|k| lo[k].min(p[k])), std::array::from_fn(|k| hi[k].max(p[k])))
+        });
+        // Coarse levels are not mostly border: at most a quarter of a level's vertices lie on
+        // its border once it has 256 or more (held borders kept all 512 of this tile's at every
+        // level, 80–94 % of a level-3 tile); below that, where even an even grid of n vertices
+        // has 4 (√n − 1) of them on its border, at most 1.5 times that share.
+        for (level, surface) in levels.iter().enumerate().skip(1) {
+            let vertices: BTreeSet<[u64; 3]> = surface.iter().flatten().map(|p| p.map(f64::to_bits)).collect();
+            let on_border = vertices
+                .iter()
+                .filter(|p| {
+                    let p = p.map(f64::from_bits);
+                    [(0, lo[0]), (0, hi[0]), (2, lo[2]), (2, hi[2])].iter().any(|&(k, v)| p[k] == v)
+                })
+                .count();
+            let n = vertices.len() as f64;
+            let allowed = if n >= 256.0 { 0.25 } else { 1.5 * 4.0 * (n.sqrt() - 1.0) / n };
+            println!("tile {x}_{z} level {level}: {on_border} of {n} vertices on the border");
+            assert!(
+                on_border as f64 <= allowed * n,
+                "tile {x}_{z} level {level}: {on_border} of {n} vertices on its border"
+            );
+        }
+        // Each shared side: at every vertex of the full grid along it, the gap between this
+        // tile's border and its neighbour's, at any two levels, is within the skirt.
+        for (axis, neighbour) in [(0, (x + 1, z)), (2, (x, z + 1))] {
+            let Some(other) = tiles.get(&neighbour) else { continue };
+            let at = hi[axis];
+            let grid: Vec<f64> = border_profile(&levels[0], axis, at).iter().map(|p| p.0).collect();
+            assert!(grid.len() > 10, "tile {x}_{z}: {} grid vertices along its side", grid.len());
+            for (a, mine) in levels.iter().enumerate() {
+                for (b, theirs) in other.iter().enumerate() {
+                    let (p, q) = (border_profile(mine, axis, at), border_profile(theirs, axis, at));
+                    let gap = grid.iter().map(|&u| (height_at(&p, u) - height_at(&q, u)).abs()).fold(0.0, f64::max);
+                    assert!(gap <= depth + 1e-4, "tiles {x}_{z} level {a} and {neighbour:?} level {b}: a {gap} m gap");
+                }
+            }
+        }
+    }
+    // Level 0 less its skirts is mesh.glb's surface, triangle for triangle.
+    let key = |t: &Corners| {
+        let mut c = t.map(|p| p.map(|v| (v * 1e4).round() as i64));
+        c.sort();
+        c
+    };
+    let whole: BTreeSet<_> = surface_and_skirt(&read(&out.join("mesh.glb"))).0.iter().map(key).collect();
+    let together: BTreeSet<_> = tiles.values().flat_map(|l| l[0].iter().map(key)).collect();
+    assert_eq!(together.len(), tiles.values().map(|l| l[0].len()).sum::<usize>(), "no triangle in two tiles");
+    assert!(together == whole, "the tiles at level 0 less their skirts are not mesh.glb's mesh");
+}

@@ -7,13 +7,17 @@
 //! below the primitive-restart value 65535, else u32. Output bytes depend only on the scene and
 //! the form:
 //!
-//! - [`GlbForm::None`]: f32 positions (as they are), normals and texcoords.
+//! - [`GlbForm::None`]: f32 positions, normals and texcoords. Each node's `translation` is its
+//!   pivot ([`SceneNode::pivot`]: the piece's base) and its positions are relative to it, so
+//!   an importer shows every piece at its place with its origin at its base and scale 1.
 //! - [`GlbForm::Quantize`] (`KHR_mesh_quantization`, declared used and required): positions as
 //!   unsigned 16-bit steps from the scene's lowest corner, one step (the longest side of the
 //!   box around every node ÷ 65535; one grid for all nodes) on every axis, which each node's
 //!   `translation` and uniform `scale`
 //!   turn back into metres (the same step on every axis keeps normals right under the node's
-//!   transform; the error is at most half a step); normals as normalised signed bytes;
+//!   transform; the error is at most half a step; the node's origin is that corner, not the
+//!   piece's pivot, since the extension puts dequantisation on the node and its unsigned steps
+//!   start at the origin); normals as normalised signed bytes;
 //!   texcoords as normalised unsigned 16-bit when they lie in [0, 1], else f32. Every importer
 //!   that reads glTF 2.0 meshes in engines and Blender reads it.
 //! - [`GlbForm::Meshopt`]: the quantised arrays above, each buffer view compressed with
@@ -78,7 +82,7 @@ const QUANTIZATION: &str = "KHR_mesh_quantization";
 const MESHOPT: &str = "EXT_meshopt_compression";
 /// Bits per position coordinate in the meshopt form (gltfpack's default): an error of at most
 /// half of the scene's longest side ÷ 16383.
-const MESHOPT_POSITION_BITS: u32 = 14;
+pub(super) const MESHOPT_POSITION_BITS: u32 = 14;
 
 /// A mesh's quantisation: positions are `origin + q × step` for q in 0..=`top`.
 struct Quantized {
@@ -185,14 +189,18 @@ fn encode(scene: &Scene, levels: &[(&Scene, f64)], form: GlbForm, frame: Option<
     // First every mesh's place in the shared views, then the views, then the JSON per node.
     let mut groups: Vec<Group> = Vec::new();
     // Each node of the scene, then its levels' nodes.
+    // Each node of the scene, then its levels' nodes, with the scene node's pivot (a level
+    // keeps its node's transform, as MSFT_lod loaders show a level in the node's place).
     let entries: Vec<(usize, &SceneNode)> = (0..scene.nodes.len())
         .flat_map(|i| {
             std::iter::once((0, &scene.nodes[i]))
                 .chain(levels.iter().enumerate().map(move |(k, (l, _))| (k + 1, &l.nodes[i])))
         })
         .collect();
+    let pivots: Vec<[f32; 3]> = scene.nodes.iter().map(SceneNode::pivot).collect();
+    let entry_pivot = |e: usize| pivots[e / (levels.len() + 1)];
     let mut layouts: Vec<Option<Layout>> = Vec::with_capacity(entries.len());
-    for (_, node) in &entries {
+    for (e, (_, node)) in entries.iter().enumerate() {
         let mesh = &node.mesh;
         if let Err(e) = mesh.check() {
             panic!("mesh of node {:?} is malformed: {e}", node.name);
@@ -200,8 +208,11 @@ fn encode(scene: &Scene, levels: &[(&Scene, f64)], form: GlbForm, frame: Option<
         // glTF forbids empty accessors, so a node without triangles carries no mesh.
         layouts.push((mesh.triangle_count() > 0).then(|| {
             let bounds = mesh.bounds().expect("a mesh with triangles has vertices");
-            let quantized = form.quantizes().then(|| Quantized::of(mesh, frame.unwrap_or(bounds), form));
-            Layout::new(mesh, bounds, quantized, &mut groups)
+            let placement = match form.quantizes() {
+                true => Placement::Quantized(Quantized::of(mesh, frame.unwrap_or(bounds), form)),
+                false => Placement::Pivot(entry_pivot(e)),
+            };
+            Layout::new(mesh, bounds, placement, &mut groups)
         }));
     }
     let len = place_groups(&mut groups);
@@ -225,13 +236,16 @@ fn encode(scene: &Scene, levels: &[(&Scene, f64)], form: GlbForm, frame: Option<
         let name = if *level == 0 { node.name.clone() } else { format!("{} lod{level}", node.name) };
         let mut gltf_node = json::Node { name: Some(name), ..Default::default() };
         if let Some(layout) = layout {
-            if let Some(q) = &layout.quantized {
-                gltf_node.translation = Some(q.origin);
-                gltf_node.scale = Some([q.step; 3]);
-                if root.extensions_used.is_empty() {
-                    root.extensions_used.push(QUANTIZATION.into());
-                    root.extensions_required.push(QUANTIZATION.into());
+            match &layout.placement {
+                Placement::Quantized(q) => {
+                    gltf_node.translation = Some(q.origin);
+                    gltf_node.scale = Some([q.step; 3]);
+                    if root.extensions_used.is_empty() {
+                        root.extensions_used.push(QUANTIZATION.into());
+                        root.extensions_required.push(QUANTIZATION.into());
+                    }
                 }
+                Placement::Pivot(pivot) => gltf_node.translation = Some(*pivot),
             }
             let key = (node.material, mesh.colors.is_some());
             let material = match materials.iter().position(|m| *m == key) {
@@ -400,11 +414,35 @@ fn place_groups(groups: &mut [Group]) -> usize {
     offset
 }
 
+/// How a mesh's positions are stored against its node's transform.
+enum Placement {
+    /// f32 positions less the pivot, the node's translation (scale 1).
+    Pivot([f32; 3]),
+    /// Steps of a quantisation frame, whose origin and step are the node's translation and
+    /// scale (KHR_mesh_quantization dequantises on the node; a mesh has no transform).
+    Quantized(Quantized),
+}
+
+impl Placement {
+    fn quantized(&self) -> Option<&Quantized> {
+        match self {
+            Self::Quantized(q) => Some(q),
+            Self::Pivot(_) => None,
+        }
+    }
+}
+
+/// A world position relative to `pivot`: the difference taken in f64 (exact for f32 inputs of
+/// like magnitude) and rounded once, so a loader's `pivot + relative` is within half an f32 step of `p`.
+fn relative(p: [f32; 3], pivot: [f32; 3]) -> [f32; 3] {
+    std::array::from_fn(|k| (f64::from(p[k]) - f64::from(pivot[k])) as f32)
+}
+
 /// Where one mesh's arrays sit in the shared views.
 struct Layout {
     /// The mesh's bounding box (lowest and highest corner).
     bounds: ([f32; 3], [f32; 3]),
-    quantized: Option<Quantized>,
+    placement: Placement,
     positions: Member,
     normals: Member,
     uvs: Option<Member>,
@@ -414,21 +452,21 @@ struct Layout {
 }
 
 impl Layout {
-    fn new(mesh: &Mesh, bounds: ([f32; 3], [f32; 3]), quantized: Option<Quantized>, groups: &mut Vec<Group>) -> Self {
+    fn new(mesh: &Mesh, bounds: ([f32; 3], [f32; 3]), placement: Placement, groups: &mut Vec<Group>) -> Self {
         let n = mesh.vertex_count();
         let wide_indices = n > MAX_U16_INDEXED_VERTICES;
-        let (position_bytes, normal_bytes, uv_bytes) = strides(quantized.as_ref());
+        let (position_bytes, normal_bytes, uv_bytes) = strides(placement.quantized());
         let positions = join_group(groups, Slot::Positions, position_bytes, n);
         let normals = join_group(groups, Slot::Normals, normal_bytes, n);
         let uvs = (uv_bytes > 0).then(|| join_group(groups, Slot::TexCoords, uv_bytes, n));
         let colors = mesh.colors.as_ref().map(|_| join_group(groups, Slot::Colors, 4, n));
         let index_bytes = if wide_indices { 4 } else { 2 };
         let indices = join_group(groups, Slot::Indices, index_bytes, mesh.indices.len());
-        Self { bounds, quantized, positions, normals, uvs, colors, indices, wide_indices }
+        Self { bounds, placement, positions, normals, uvs, colors, indices, wide_indices }
     }
 
     fn strides(&self) -> (usize, usize, usize) {
-        strides(self.quantized.as_ref())
+        strides(self.placement.quantized())
     }
 
     /// Accessors (into the shared `views`) and the primitive for this mesh.
@@ -449,13 +487,15 @@ impl Layout {
             let accessor = push_accessor(root, views[at.group], at.at, n, component, ty, normalized, bounds);
             attributes.insert(Valid(semantic), accessor);
         };
-        match &self.quantized {
-            None => {
-                let bounds = Some((json::Value::from(min.to_vec()), json::Value::from(max.to_vec())));
+        match &self.placement {
+            Placement::Pivot(pivot) => {
+                // Subtracting the pivot keeps order, so the corners give the data's bounds.
+                let corner = |p: [f32; 3]| json::Value::from(relative(p, *pivot).to_vec());
+                let bounds = Some((corner(min), corner(max)));
                 attribute(root, Semantic::Positions, self.positions, ComponentType::F32, Type::Vec3, false, bounds);
                 attribute(root, Semantic::Normals, self.normals, ComponentType::F32, Type::Vec3, false, None);
             }
-            Some(q) => {
+            Placement::Quantized(q) => {
                 // Rounding keeps order, so the corners' steps are the data's bounds.
                 let steps = |p: [f32; 3]| json::Value::from(q.position(p).map(u32::from).to_vec());
                 let bounds = Some((steps(min), steps(max)));
@@ -653,17 +693,19 @@ fn fill_buffer(len: usize, groups: &[Group], meshes: &[(&Layout, &Mesh)]) -> Vec
     for (layout, mesh) in meshes {
         let n = mesh.vertex_count();
         let (ps, ns, us) = layout.strides();
-        let order = match &layout.quantized {
+        let order = match layout.placement.quantized() {
             Some(q) if q.oct_normals => GpuOrder::for_compression(mesh),
             _ => GpuOrder::of(mesh),
         };
         let positions = region(&mut bin, groups, layout.positions, n * ps);
-        match &layout.quantized {
-            None => put(positions, ps, &order, &mesh.positions, f32s::<3, 12>),
-            Some(q) => put(positions, ps, &order, &mesh.positions, |p| u16s::<3, 6>(q.position(p))),
+        match &layout.placement {
+            Placement::Pivot(pivot) => {
+                put(positions, ps, &order, &mesh.positions, |p| f32s::<3, 12>(relative(p, *pivot)))
+            }
+            Placement::Quantized(q) => put(positions, ps, &order, &mesh.positions, |p| u16s::<3, 6>(q.position(p))),
         }
         let normals = region(&mut bin, groups, layout.normals, n * ns);
-        match &layout.quantized {
+        match layout.placement.quantized() {
             None => put(normals, ns, &order, &mesh.normals, |v| f32s::<3, 12>(unit(v))),
             Some(q) if q.oct_normals => oct_normals(normals, &order, &mesh.normals),
             Some(_) => put(normals, ns, &order, &mesh.normals, |v| {
@@ -796,30 +838,40 @@ mod tests {
         let prim = node.mesh().unwrap().primitives().next().unwrap();
         let n = mesh.vertex_count();
 
+        let order = GpuOrder::of(&mesh);
         let pos = prim.get(&gltf::Semantic::Positions).unwrap();
         assert_eq!(pos.count(), n);
+        // The node's origin is the middle of the bottom of the mesh's box, scale 1, and the
+        // positions are relative to it.
         let (lo, hi) = mesh.bounds().unwrap();
+        let pivot = [(lo[0] + hi[0]) / 2.0, lo[1], (lo[2] + hi[2]) / 2.0];
+        let (translation, rotation, scale) = node.transform().decomposed();
+        assert!(translation.iter().zip(pivot).all(|(a, b)| (a - b).abs() < 1e-5), "{translation:?} ≠ {pivot:?}");
+        let pivot = translation;
+        assert_eq!((rotation, scale), ([0.0, 0.0, 0.0, 1.0], [1.0; 3]));
         let bound = |v: Option<gltf::json::Value>| -> Vec<f32> {
             v.unwrap().as_array().unwrap().iter().map(|x| x.as_f64().unwrap() as f32).collect()
         };
-        assert_eq!(bound(pos.min()), lo.to_vec());
-        assert_eq!(bound(pos.max()), hi.to_vec());
-        // The same vertices, in the GPU order (tested in mesh::gpu_order).
-        let sorted = |mut v: Vec<[f32; 3]>| {
-            v.sort_by(|a, b| a.partial_cmp(b).unwrap());
-            v
-        };
-        assert_eq!(sorted(read_floats::<3>(&p, &pos)), sorted(mesh.positions.clone()));
+        let less_pivot = |p: [f32; 3]| -> [f32; 3] { std::array::from_fn(|k| p[k] - pivot[k]) };
+        assert_eq!(bound(pos.min()), less_pivot(lo).to_vec());
+        assert_eq!(bound(pos.max()), less_pivot(hi).to_vec());
+        // The same vertices, in the GPU order (tested in mesh::gpu_order), back in place
+        // within an f32 rounding of a metre-sized coordinate.
+        let read = read_floats::<3>(&p, &pos);
+        for (k, q) in read.iter().enumerate() {
+            let want = order.at(&mesh.positions, k);
+            for c in 0..3 {
+                assert!((f64::from(q[c] + pivot[c]) - f64::from(want[c])).abs() < 1e-5, "{q:?} + {pivot:?} ≠ {want:?}");
+            }
+        }
 
         let normals = prim.get(&gltf::Semantic::Normals).unwrap();
         for v in read_floats::<3>(&p, &normals) {
             let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
             assert!((len - 1.0).abs() < 1e-6);
         }
-        let order = GpuOrder::of(&mesh);
         let uvs: Vec<[f32; 2]> = (0..n).map(|k| order.at(&mesh.uvs, k)).collect();
         assert_eq!(read_floats::<2>(&p, &prim.get(&gltf::Semantic::TexCoords(0)).unwrap()), uvs);
-        assert_eq!(read_floats::<3>(&p, &pos), (0..n).map(|k| order.at(&mesh.positions, k)).collect::<Vec<_>>());
 
         let colors = prim.get(&gltf::Semantic::Colors(0)).unwrap();
         assert_eq!(colors.data_type(), gltf::accessor::DataType::U8);

@@ -5,8 +5,9 @@
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
+use super::glb::MESHOPT_POSITION_BITS;
 use super::{write_glb, write_glb_with_levels, Artifact, GlbForm};
-use crate::mesh::{simplify_levels, Lod, Scene, SceneNode};
+use crate::mesh::{simplify_levels_with, sliver_height, Border, Lod, Scene, SceneNode};
 use crate::stop::{Stop, Stopped};
 
 /// The levels a request gets when it names none: [`SUGGESTED_LODS`]. `lods: []` turns them off.
@@ -126,8 +127,13 @@ struct LevelFigures {
 /// [`simplify_levels`]), and each level's worst measured deviation.
 fn simplified(scene: &Scene, bounds_m: &[f64], stop: Stop) -> Result<Vec<(Scene, LevelFigures)>, Stopped> {
     let bounds: Vec<f32> = bounds_m.iter().map(|&b| b as f32).collect();
-    let per_node: Vec<Vec<Lod>> =
-        scene.nodes.par_iter().map(|node| simplify_levels(&node.mesh, &bounds, stop)).collect::<Result<_, _>>()?;
+    // A triangle the coarsest grid a glb stores positions on would flatten is a sliver.
+    let sliver = sliver_height(longest_side(scene), MESHOPT_POSITION_BITS);
+    let per_node: Vec<Vec<Lod>> = scene
+        .nodes
+        .par_iter()
+        .map(|node| simplify_levels_with(&node.mesh, &bounds, Border::Held, sliver, stop))
+        .collect::<Result<_, _>>()?;
     let mut per_node: Vec<std::vec::IntoIter<Lod>> = per_node.into_iter().map(Vec::into_iter).collect();
     let mut levels = Vec::with_capacity(bounds.len());
     for &bound_m in bounds_m {
@@ -149,7 +155,12 @@ fn simplified(scene: &Scene, bounds_m: &[f64], stop: Stop) -> Result<Vec<(Scene,
             .nodes
             .iter()
             .zip(lods)
-            .map(|(node, lod)| SceneNode { name: node.name.clone(), mesh: lod.mesh, material: node.material })
+            .map(|(node, lod)| SceneNode {
+                name: node.name.clone(),
+                mesh: lod.mesh,
+                material: node.material,
+                pivot: Some(node.pivot()),
+            })
             .collect();
         levels.push((
             Scene { nodes },

@@ -81,7 +81,8 @@ pub struct HeightfieldExport<'a> {
     pub rock: Option<&'a [u8]>,
     /// How `mesh.glb` stores its vertices, and its levels of detail.
     pub mesh: MeshSettings,
-    /// Below it the preview and the vertex colours show water (0 m unless the kind knows one).
+    /// Below it the preview and the vertex colours show water, and `splatmap.png` a bed of
+    /// deposit (0 m unless the kind knows one).
     pub sea_level_m: f32,
     /// The request's `tiles`: the mesh cut into tiles at every level too.
     pub tiles: Option<TileGrid>,
@@ -109,7 +110,7 @@ pub fn heightfield_artifacts(hf: &Heightfield, options: &HeightfieldExport) -> R
                 || {
                     rayon::join(
                         || heightmap_r16(hf),
-                        || rayon::join(|| normalmap_png(hf), || splatmap_png(hf, material, rock)),
+                        || rayon::join(|| normalmap_png(hf), || splatmap_png(hf, material, rock, sea_level_m)),
                     )
                 },
             )

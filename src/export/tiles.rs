@@ -3,12 +3,19 @@
 //! tile's place and bounds.
 //!
 //! Tiles are rectangles of the terrain mesh's vertex grid; neighbours share their edge
-//! vertices, as engines' terrain tiles do (no skirts). At level 0 they hold the grid's own
-//! vertices and triangles, so together they are `mesh.glb`'s mesh exactly. Each level
-//! simplifies each tile on its own within the level's error bound with the tile's border held
-//! in place (see [`simplify_levels`]), so every border vertex of every level is the grid's own
-//! and the same in both tiles that share it. Every tile is quantised in the whole terrain's
-//! frame (its box), so a shared vertex also decodes to the same floats in both files.
+//! vertices, as engines' terrain tiles do. At level 0 they hold the grid's own vertices and
+//! triangles, so together they are `mesh.glb`'s mesh exactly. Each level simplifies each tile
+//! on its own within the level's error bound (see [`simplify_levels_with`]):
+//!
+//! - without a skirt, with the tile's border held in place, so every border vertex of every
+//!   level is the grid's own and the same in both tiles that share it;
+//! - with `skirt_m`, with the border free to simplify along itself (corners held), so a coarse
+//!   tile is not mostly border; neighbours' borders then part by up to both tiles' vertical
+//!   drift ([`border_drift`]), and a wall hanging from every border edge ([`with_skirt`]), at
+//!   least twice the largest drift deep, hides the gap.
+//!
+//! Every tile is quantised in the whole terrain's frame (its box, down to the skirts' feet),
+//! so a shared vertex also decodes to the same floats in both files.
 
 use std::borrow::Cow;
 
@@ -16,10 +23,13 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 
-use super::glb::write_glb_in_frame;
+use super::glb::{write_glb_in_frame, MESHOPT_POSITION_BITS};
 use super::mesh_glbs::{round_mm, round_up_mm};
 use super::{short_decimal, Artifact, MeshSettings};
-use crate::mesh::{grid_patch, simplify_levels, tile_edges, Mesh, Scene};
+use crate::mesh::{
+    border_drift, bottom_centre, grid_patch, simplify_levels_with, sliver_height, tile_edges, with_skirt, without_fins,
+    Border, MaterialKind, Mesh, Scene, SceneNode,
+};
 use crate::stop::{Stop, Stopped};
 use crate::validate::{Limits, Validate, Validator};
 
@@ -27,12 +37,19 @@ use crate::validate::{Limits, Validate, Validator};
 pub const MAX_TILES_PER_SIDE: u32 = 16;
 
 /// How a heightfield's mesh is cut into tiles.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TileGrid {
     /// Tiles along X (the grid's columns) and along Z (its rows).
     pub count: [u32; 2],
+    /// With a skirt, metres: each tile's border is free to simplify like its inside, and a
+    /// wall at least this deep hangs from it to hide where neighbours part.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skirt_m: Option<f32>,
 }
+
+/// Deepest skirt a request may ask for, metres (deeper than any terrain's relief is useless).
+pub const MAX_SKIRT_M: f32 = 10_000.0;
 
 impl utoipa::ToSchema for TileGrid {
     fn name() -> Cow<'static, str> {
@@ -58,11 +75,21 @@ impl utoipa::PartialSchema for TileGrid {
             )));
         ObjectBuilder::new()
             .description(Some(
-                "Cut the terrain's mesh into tiles: `tiles/{level}/{x}_{z}.glb` for level 0 (the full mesh) and each level of `lods`, x counting along X and z along Z from 0, and `tiles/index.json` giving each tile's vertex range, bounds (metres) and, per level, file, vertices, triangles and measured deviation. Neighbouring tiles share their edge vertices, bit for bit in every level and every compression form (borders are held in place when simplifying; every tile is quantised in the whole terrain's box); at level 0 the tiles together are `mesh.glb`'s mesh exactly. Texture coordinates are the whole terrain's, so the maps apply to every tile as they are.",
+                "Cut the terrain's mesh into tiles: `tiles/{level}/{x}_{z}.glb` for level 0 (the full mesh) and each level of `lods`, x counting along X and z along Z from 0, and `tiles/index.json` giving each tile's vertex range, bounds (metres) and, per level, file, vertices, triangles and measured deviation. Without `skirt_m`, neighbouring tiles share their edge vertices, bit for bit in every level and every compression form (borders are held in place when simplifying; every tile is quantised in the whole terrain's box); at level 0 the tiles together are `mesh.glb`'s mesh exactly (with skirts, less the skirts). In the `none` form every tile's node origin is one pivot, the middle of the bottom of the terrain's box (`pivot` in the index). Texture coordinates are the whole terrain's, so the maps apply to every tile as they are.",
             ))
             .property("count", count)
+            .property(
+                "skirt_m",
+                ObjectBuilder::new()
+                    .schema_type(SchemaType::new(Type::Number))
+                    .exclusive_minimum(Some(0.0))
+                    .maximum(Some(f64::from(MAX_SKIRT_M)))
+                    .description(Some(format!(
+                        "Skirts, metres (more than 0, at most {MAX_SKIRT_M}): each tile's border simplifies like its inside (vertices move only along the border, the corners stay), so a coarse tile is not mostly border, and from every border edge a vertical wall hangs down, outward-facing, as deep as this or twice the largest vertical gap any level's border has from the full grid, whichever is more (so tiles at any two levels side by side show no crack); `tiles/index.json` states the depth used (`skirt_m`) and each tile level's `border_drift_m`. Without it, borders are held in place at every level and neighbours meet exactly."
+                    ))),
+            )
             .required("count")
-            .examples([json!({ "count": [4, 4] })])
+            .examples([json!({ "count": [4, 4] }), json!({ "count": [4, 4], "skirt_m": 2.0 })])
             .into()
     }
 }
@@ -72,19 +99,26 @@ impl Validate for TileGrid {
         if self.count.iter().any(|c| !(1..=MAX_TILES_PER_SIDE).contains(c)) {
             v.error("count", format!("each count must be from 1 to {MAX_TILES_PER_SIDE}"));
         }
+        if let Some(skirt) = self.skirt_m {
+            if !(skirt > 0.0 && skirt <= MAX_SKIRT_M) {
+                v.error("skirt_m", format!("must be more than 0 and at most {MAX_SKIRT_M} m"));
+            }
+        }
     }
 }
 
-/// One tile at every level: its glbs and its figures.
+/// One tile at every level: its meshes, then its glbs, and its figures.
 struct Tile {
     x: usize,
     z: usize,
     first: [usize; 2],
     last: [usize; 2],
     bounds: ([f32; 3], [f32; 3]),
+    meshes: Vec<Mesh>,
     files: Vec<Vec<u8>>,
-    /// Per level: vertices, triangles, measured deviation (metres).
-    figures: Vec<(usize, usize, f32)>,
+    /// Per level: vertices, triangles, measured deviation and border drift (metres); the
+    /// counts are the surface's, without a skirt.
+    figures: Vec<(usize, usize, f32, f32)>,
 }
 
 /// The tiles of `grid`, a heightfield's grid mesh of `vertices[0] × vertices[1]` vertices row
@@ -99,27 +133,56 @@ pub fn tile_artifacts(
     longest_m: f64,
     stop: Stop,
 ) -> Result<(Vec<Artifact>, Value), Stopped> {
-    let frame = grid.bounds().unwrap_or_default();
+    let terrain_box = grid.bounds().unwrap_or_default();
     let xs = tile_edges(vertices[0], tiles.count[0] as usize);
     let zs = tile_edges(vertices[1], tiles.count[1] as usize);
     let places: Vec<(usize, usize)> = (0..zs.len() - 1).flat_map(|z| (0..xs.len() - 1).map(move |x| (x, z))).collect();
     let bounds_m: Vec<f32> = settings.lods.iter().map(|f| (f * longest_m) as f32).collect();
-    let write = |mesh: Mesh| write_glb_in_frame(&Scene::single("terrain", mesh), settings.form, Some(frame));
+    // With a skirt a tile's border simplifies too, and the skirt hides the gaps.
+    let border = if tiles.skirt_m.is_some() { Border::Free } else { Border::Held };
+    let sliver = sliver_height(longest_m, MESHOPT_POSITION_BITS);
     let mut made: Vec<Tile> = places
         .par_iter()
         .map(|&(x, z)| {
             let (first, last) = ([xs[x], zs[z]], [xs[x + 1], zs[z + 1]]);
             let full = grid_patch(grid, vertices[0], first[0]..=last[0], first[1]..=last[1]);
             let bounds = full.bounds().unwrap_or_default();
-            let levels: Vec<(Mesh, f32)> =
-                simplify_levels(&full, &bounds_m, stop)?.into_iter().map(|lod| (lod.mesh, lod.deviation_m)).collect();
-            let mut figures = vec![(full.vertex_count(), full.triangle_count(), 0.0)];
-            figures.extend(levels.iter().map(|(m, d)| (m.vertex_count(), m.triangle_count(), *d)));
-            let mut files = vec![write(full)];
-            files.extend(levels.into_iter().map(|(m, _)| write(m)));
-            Ok(Tile { x, z, first, last, bounds, files, figures })
+            let mut levels = simplify_levels_with(&full, &bounds_m, border, sliver, stop)?;
+            if border == Border::Free {
+                // Dropping a fin leaves the surface as it was seen from above, within the bound.
+                levels.iter_mut().for_each(|l| l.mesh = without_fins(&l.mesh, bounds));
+            }
+            let mut figures = vec![(full.vertex_count(), full.triangle_count(), 0.0, 0.0)];
+            figures.extend(levels.iter().map(|l| {
+                (l.mesh.vertex_count(), l.mesh.triangle_count(), l.deviation_m, border_drift(&full, &l.mesh))
+            }));
+            let mut meshes = vec![full];
+            meshes.extend(levels.into_iter().map(|l| l.mesh));
+            Ok(Tile { x, z, first, last, bounds, meshes, files: Vec::new(), figures })
         })
         .collect::<Result<_, Stopped>>()?;
+    // A skirt deep enough for the widest gap two tiles can open, at any two levels side by
+    // side: twice the largest drift of any border.
+    let drift = made.iter().flat_map(|t| t.figures.iter().map(|f| f.3)).fold(0.0f32, f32::max);
+    let skirt_m = tiles.skirt_m.map(|s| s.max(2.0 * drift));
+    // Every tile is quantised in the whole terrain's box, reaching down to the skirts' feet,
+    // and has one pivot, the middle of the bottom of the terrain's box: a vertex two tiles
+    // share decodes to the same floats in both, and every tile drops in place with one origin.
+    let frame = ([terrain_box.0[0], terrain_box.0[1] - skirt_m.unwrap_or(0.0), terrain_box.0[2]], terrain_box.1);
+    let pivot = bottom_centre(terrain_box.0, terrain_box.1);
+    made.par_iter_mut().for_each(|t| {
+        t.files = std::mem::take(&mut t.meshes)
+            .into_iter()
+            .map(|mesh| {
+                let mesh = match skirt_m {
+                    Some(depth) => with_skirt(&mesh, depth),
+                    None => mesh,
+                };
+                let node = SceneNode::new("terrain", mesh, MaterialKind::default()).with_pivot(pivot);
+                write_glb_in_frame(&Scene { nodes: vec![node] }, settings.form, Some(frame))
+            })
+            .collect();
+    });
 
     let file = |level: usize, t: &Tile| format!("tiles/{level}/{}_{}.glb", t.x, t.z);
     let level_count = bounds_m.len() + 1;
@@ -136,12 +199,13 @@ pub fn tile_artifacts(
         .map(|t| {
             let levels: Vec<Value> = (0..level_count)
                 .map(|level| {
-                    let (vertices, triangles, deviation) = t.figures[level];
+                    let (vertices, triangles, deviation, drift) = t.figures[level];
                     json!({
                         "file": file(level, t),
                         "vertices": vertices,
                         "triangles": triangles,
                         "max_deviation_m": round_up_mm(f64::from(deviation)),
+                        "border_drift_m": round_up_mm(f64::from(drift)),
                     })
                 })
                 .collect();
@@ -172,6 +236,8 @@ pub fn tile_artifacts(
         "vertices": vertices,
         "form": settings.form.name(),
         "frame": { "min": corner(frame.0), "max": corner(frame.1) },
+        "pivot": corner(pivot),
+        "skirt_m": skirt_m.map(|d| round_up_mm(f64::from(d))),
         "levels": summary_levels,
         "tiles": index_tiles,
     });

@@ -69,15 +69,42 @@ pub fn simplify_within(mesh: &Mesh, bound_m: f32, stop: Stop) -> Result<Lod, Sto
     Ok(simplify_levels(mesh, &[bound_m], stop)?.remove(0))
 }
 
+/// What a level may do with the mesh's topological border (its open edges).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Border {
+    /// Every border vertex and every rim of a vertical side of the box stays: pieces that
+    /// meet there stay joined at every level.
+    Held,
+    /// Border vertices may collapse along the border onto their neighbours (meshoptimizer
+    /// moves a border vertex only along a border edge, so a straight side stays on its line in
+    /// plan); only the corners of the box's sides stay. For a tile whose skirt hides where
+    /// its border and its neighbour's part.
+    Free,
+}
+
 /// One level of `mesh` for each of `bounds_m` (increasing), each made from the one before and
-/// measured against `mesh`. `stop` is looked at between tries and while measuring.
+/// measured against `mesh`, its border held. `stop` is looked at between tries and while
+/// measuring.
 pub fn simplify_levels(mesh: &Mesh, bounds_m: &[f32], stop: Stop) -> Result<Vec<Lod>, Stopped> {
+    simplify_levels_with(mesh, bounds_m, Border::Held, 0.0, stop)
+}
+
+/// [`simplify_levels`], with the border held or free, and every triangle less than `sliver_m`
+/// high (from its longest side to the corner across) mended as a sliver: a glb that stores
+/// positions on a grid of steps makes such a triangle flat (see [`sliver_height`]).
+pub fn simplify_levels_with(
+    mesh: &Mesh,
+    bounds_m: &[f32],
+    border: Border,
+    sliver_m: f32,
+    stop: Stop,
+) -> Result<Vec<Lod>, Stopped> {
     // The full mesh's index, built beside meshoptimizer's first simplification.
     let index = std::sync::OnceLock::new();
     let mut levels: Vec<Lod> = Vec::with_capacity(bounds_m.len());
     // The level the next is made from, its locked vertices and its distance to `mesh`.
     let mut source = Cow::Borrowed(mesh);
-    let mut locked = Arc::new(locked_vertices(mesh));
+    let mut locked = Arc::new(locked_vertices(mesh, border));
     let mut source_deviation = 0.0f32;
     // The full mesh's typical side, for every level's spacing (see [`sample_spacing`]).
     let full_side = mean_triangle_side(mesh) as f32;
@@ -89,29 +116,38 @@ pub fn simplify_levels(mesh: &Mesh, bounds_m: &[f32], stop: Stop) -> Result<Vec<
         let mut missed = None;
         let mut tries = 0;
         let mut try_locked = Arc::clone(&locked);
+        let source_crowded = crowded(&source.indices).0;
         while tries < 2 && budget > 0.0 {
             stop.check()?;
             tries += 1;
             let (simplified, _) = rayon::join(
-                || simplify_stoppable(&source, &try_locked, target, stop),
+                || simplify_stoppable(&source, &try_locked, target, border, stop),
                 || index.get_or_init(|| SurfaceIndex::new(mesh)),
             );
             let (indices, error) = simplified?;
             let index = index.get().expect("built");
-            let indices = mend_slivers(indices, &source.positions);
+            let indices = mend_slivers(indices, &source.positions, sliver_m);
             if indices.len() >= source.indices.len() {
                 break;
             }
+            // Edges of three triangles or more the source did not have: meshoptimizer keeps
+            // the topology of each collapse's neighbourhood, not always of the whole.
+            let (crowded_edges, crowded) = crowded(&indices);
             let (simple, kept) = compact_keeping(&source, &indices);
             stop.check()?;
             // The first try notes where it came near the bound, for the second to hold.
             let near = if tries == 1 { NEAR_MISS * bound } else { f32::INFINITY };
             let (deviation, misses) = deviation_and_misses(mesh, index, &simple, spacing, near, stop)?;
-            if deviation <= bound {
+            let folded = crowded_edges > source_crowded;
+            if deviation <= bound && !folded {
                 made = Some((simple, kept, error, deviation));
                 break;
             }
-            missed = Some(deviation);
+            missed = Some(if folded {
+                format!("simplified twice, it had {crowded_edges} edges of three triangles or more")
+            } else {
+                format!("simplified twice, it lay {deviation:.4} m from the full mesh, over the bound of {bound:.4} m")
+            });
             if tries == 2 {
                 break;
             }
@@ -119,10 +155,17 @@ pub fn simplify_levels(mesh: &Mesh, bounds_m: &[f32], stop: Stop) -> Result<Vec<
             // sharp features (a cut's rim, a thin spire) while the rest holds. The second try
             // keeps the vertices near every sample that came within NEAR_MISS of the bound or
             // beyond (a miss moves to the next-worst place), and aims a fifth further inside the
-            // budget in proportion to the miss.
+            // budget in proportion to the miss; and it keeps every corner of the triangles on an
+            // edge the first made crowded.
             let radius = 2.0 * spacing.max(mean_triangle_side(&source) as f32);
-            try_locked = Arc::new(lock_near(&source.positions, &locked, &misses, radius));
-            target *= 0.8 * budget / (deviation - source_deviation).max(budget);
+            let mut hold = lock_near(&source.positions, &locked, &misses, radius);
+            for v in crowded {
+                hold[v as usize] = true;
+            }
+            try_locked = Arc::new(hold);
+            if deviation > bound {
+                target *= 0.8 * budget / (deviation - source_deviation).max(budget);
+            }
         }
         let lod = match made {
             Some((simple, kept, error, deviation)) => {
@@ -147,9 +190,7 @@ pub fn simplify_levels(mesh: &Mesh, bounds_m: &[f32], stop: Stop) -> Result<Vec<
                 deviation_m: source_deviation,
                 sample_spacing_m: spacing,
                 tries,
-                unreduced: missed.map(|d| {
-                    format!("simplified twice, it lay {d:.4} m from the full mesh, over the bound of {bound:.4} m")
-                }),
+                unreduced: missed,
             },
         };
         levels.push(lod);
@@ -166,7 +207,7 @@ fn lock_near(positions: &[[f32; 3]], locked: &[bool], points: &[[f32; 3]], radiu
 
 /// meshoptimizer's simplification of `indices` over `positions` to within `target` metres,
 /// `locked` vertices kept, and the error it reports.
-fn simplify(indices: &[u32], positions: &[[f32; 3]], locked: &[bool], target: f32) -> (Vec<u32>, f32) {
+fn simplify(indices: &[u32], positions: &[[f32; 3]], locked: &[bool], target: f32, border: Border) -> (Vec<u32>, f32) {
     let adapter = meshopt::VertexDataAdapter::new(meshopt::typed_to_bytes(positions), 12, 0)
         .expect("positions are 12-byte vertices");
     let mut error = 0.0f32;
@@ -176,7 +217,10 @@ fn simplify(indices: &[u32], positions: &[[f32; 3]], locked: &[bool], target: f3
         locked,
         0,
         target,
-        meshopt::SimplifyOptions::ErrorAbsolute | meshopt::SimplifyOptions::LockBorder,
+        match border {
+            Border::Held => meshopt::SimplifyOptions::ErrorAbsolute | meshopt::SimplifyOptions::LockBorder,
+            Border::Free => meshopt::SimplifyOptions::ErrorAbsolute,
+        },
         Some(&mut error),
     );
     (indices, error)
@@ -192,19 +236,20 @@ fn simplify_stoppable(
     mesh: &Mesh,
     locked: &Arc<Vec<bool>>,
     target: f32,
+    border: Border,
     stop: Stop,
 ) -> Result<(Vec<u32>, f32), Stopped> {
     if !stop.can_stop() || mesh.triangle_count() < DETACHED_SIMPLIFY_TRIANGLES {
-        return Ok(simplify(&mesh.indices, &mesh.positions, &locked[..], target));
+        return Ok(simplify(&mesh.indices, &mesh.positions, &locked[..], target, border));
     }
     let (indices, positions, kept) = (mesh.indices.clone(), mesh.positions.clone(), Arc::clone(locked));
     let (send, receive) = mpsc::channel();
     let spawned = std::thread::Builder::new().name("meshopt-simplify".into()).spawn(move || {
         // The receiver is gone when the level stopped: nobody wants the result.
-        let _ = send.send(simplify(&indices, &positions, &kept, target));
+        let _ = send.send(simplify(&indices, &positions, &kept, target, border));
     });
     if spawned.is_err() {
-        return Ok(simplify(&mesh.indices, &mesh.positions, &locked[..], target));
+        return Ok(simplify(&mesh.indices, &mesh.positions, &locked[..], target, border));
     }
     loop {
         match receive.recv_timeout(Duration::from_millis(20)) {
@@ -215,23 +260,25 @@ fn simplify_stoppable(
     }
 }
 
-/// `indices` without zero-area triangles, the surface unchanged. meshoptimizer can leave a
-/// sliver whose three corners lie on one line where the surface runs exactly straight (a
-/// refined grid resampled bilinearly, a locked straight border). The sliver is dropped, and
-/// the triangle across its longest edge — which has the sliver's middle corner on that edge,
-/// a T-junction — is split there in two, so the mesh stays watertight and its count of
-/// triangles does not grow.
-fn mend_slivers(mut indices: Vec<u32>, positions: &[[f32; 3]]) -> Vec<u32> {
+/// `indices` without zero-area triangles, nor ones lower than `sliver_m` (0: only exactly flat
+/// ones), the surface unchanged to within that height. meshoptimizer can leave a sliver whose
+/// three corners lie on (or, for a glb's grid, near) one line where the surface runs straight (a
+/// refined grid resampled bilinearly, a locked straight border, a chamber's flat wall). The
+/// sliver is dropped, and the triangle across its longest edge — which has the sliver's middle
+/// corner on (or within `sliver_m` of) that edge, a T-junction — is split there in two, so the
+/// mesh stays watertight and its count of triangles does not grow. A split that would give an
+/// edge a third triangle waits for the next round; what no round can mend is dropped at the
+/// end (a gap no wider than `sliver_m`, nothing once quantised), except a low sliver on the
+/// border, which stays: dropping it would move the border a neighbour shares.
+fn mend_slivers(mut indices: Vec<u32>, positions: &[[f32; 3]], sliver_m: f32) -> Vec<u32> {
     let p = |i: u32| positions[i as usize];
-    let is_sliver = |t: &[u32]| zero_area(p(t[0]), p(t[1]), p(t[2]));
+    let flat = |t: &[u32]| zero_area(p(t[0]), p(t[1]), p(t[2]));
+    let is_sliver = |t: &[u32]| flat(t) || sliver_m > 0.0 && height(p(t[0]), p(t[1]), p(t[2])) < f64::from(sliver_m);
     for round in 0..=MEND_ROUNDS {
         if !indices.chunks_exact(3).any(is_sliver) {
             break;
         }
-        if round == MEND_ROUNDS {
-            // What is left after the rounds is dropped unmended: zero area covers nothing.
-            return indices.chunks_exact(3).filter(|t| !is_sliver(t)).flatten().copied().collect();
-        }
+        let last = round == MEND_ROUNDS;
         let triangles: Vec<[u32; 3]> = indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
         let across: HashMap<(u32, u32), usize> = triangles
             .iter()
@@ -239,6 +286,7 @@ fn mend_slivers(mut indices: Vec<u32>, positions: &[[f32; 3]]) -> Vec<u32> {
             .flat_map(|(n, t)| [((t[0], t[1]), n), ((t[1], t[2]), n), ((t[2], t[0]), n)])
             .collect();
         let mut dead = vec![false; triangles.len()];
+        let mut on_border = vec![false; triangles.len()];
         let mut split = Vec::new();
         let mut added = HashSet::new();
         for (n, t) in triangles.iter().enumerate() {
@@ -256,9 +304,11 @@ fn mend_slivers(mut indices: Vec<u32>, positions: &[[f32; 3]]) -> Vec<u32> {
             let (from, to, middle) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
             // The neighbour runs the edge the other way: (to, from, far) → (to, middle, far) and
             // (middle, from, far), the same winding.
-            // Without one the long edge is the mesh's border, and the sliver just goes; one split
-            // already this round waits for the next, when its halves are the neighbours.
+            // Without one the long edge is the mesh's border: a flat sliver just goes, a low one
+            // stays; one split already this round waits for the next, when its halves are the
+            // neighbours.
             match across.get(&(to, from)) {
+                Some(_) if last => continue,
                 Some(&m) if dead[m] || m == n => continue,
                 Some(&m) => {
                     let o = triangles[m];
@@ -274,13 +324,73 @@ fn mend_slivers(mut indices: Vec<u32>, positions: &[[f32; 3]]) -> Vec<u32> {
                     dead[m] = true;
                     split.extend([to, middle, far, middle, from, far]);
                 }
+                None if !flat(t) => {
+                    on_border[n] = true;
+                    continue;
+                }
                 None => {}
             }
             dead[n] = true;
         }
+        if last || !dead.contains(&true) {
+            // Nothing more can be mended: the slivers left go, but those a border keeps.
+            return triangles
+                .iter()
+                .enumerate()
+                .filter(|&(n, t)| !dead[n] && (on_border[n] || !is_sliver(t)))
+                .flat_map(|(_, t)| *t)
+                .chain(split)
+                .collect();
+        }
         indices = triangles.iter().zip(&dead).filter(|(_, &d)| !d).flat_map(|(t, _)| *t).chain(split).collect();
     }
     indices
+}
+
+/// A triangle's least height: twice its area over its longest side (0 when flat).
+fn height(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> f64 {
+    let (a, b, c) = (a.map(f64::from), b.map(f64::from), c.map(f64::from));
+    let d = |p: [f64; 3], q: [f64; 3]| [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+    let len = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    let (u, v) = (d(a, b), d(a, c));
+    let cross = len([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]);
+    let longest = len(u).max(len(v)).max(len(d(b, c)));
+    if longest > 0.0 {
+        cross / longest
+    } else {
+        0.0
+    }
+}
+
+/// The height under which a triangle is mended as a sliver for a glb whose positions lie on a
+/// grid of `bits` bits over `longest_m` (the quantised forms'; the meshopt form's 14 bits are
+/// the coarsest): rounding moves each corner by at most √3 ÷ 2 of a step, so a triangle less
+/// than twice that high may come out flat.
+pub fn sliver_height(longest_m: f64, bits: u32) -> f32 {
+    (3f64.sqrt() * longest_m / f64::from((1u32 << bits) - 1)) as f32
+}
+
+/// The number of edges `indices` gives three triangles or more, and every corner of the
+/// triangles on them.
+fn crowded(indices: &[u32]) -> (usize, Vec<u32>) {
+    let mut edges: Vec<(u32, u32, u32)> = indices
+        .chunks_exact(3)
+        .enumerate()
+        .flat_map(|(n, t)| [(t[0], t[1], n as u32), (t[1], t[2], n as u32), (t[2], t[0], n as u32)])
+        .map(|(a, b, n)| (a.min(b), a.max(b), n))
+        .collect();
+    edges.sort_unstable();
+    let mut count = 0;
+    let mut corners = Vec::new();
+    for run in edges.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
+        if run.len() > 2 {
+            count += 1;
+            for &(_, _, n) in run {
+                corners.extend_from_slice(&indices[3 * n as usize..3 * n as usize + 3]);
+            }
+        }
+    }
+    (count, corners)
 }
 
 /// How far apart the deviation's samples lie: the bound, but no closer than the full mesh's
@@ -298,8 +408,9 @@ pub fn sample_spacing(mesh: &Mesh, bound_m: f32) -> f32 {
 /// sides and the bottom), or on two sides (the box's vertical edges). There a neighbouring
 /// piece meets the mesh (a carved coast's top meets its box side, a tile meets the next), so
 /// they never move. The inside of a side, and its foot on the bottom, are planes and straight
-/// lines free to simplify, as are the top and bottom.
-fn locked_vertices(mesh: &Mesh) -> Vec<bool> {
+/// lines free to simplify, as are the top and bottom. With a [`Border::Free`] only the box's
+/// vertical edges stay (a tile's corners).
+fn locked_vertices(mesh: &Mesh, border: Border) -> Vec<bool> {
     let Some((lo, hi)) = mesh.bounds() else { return Vec::new() };
     let tolerance = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max) * 1e-6;
     // Bit s set: the vertex lies on face s (x low, x high, z low, z high, bottom).
@@ -318,6 +429,9 @@ fn locked_vertices(mesh: &Mesh) -> Vec<bool> {
         })
         .collect();
     let mut locked: Vec<bool> = faces.iter().map(|f| (f & SIDES).count_ones() >= 2).collect();
+    if border == Border::Free {
+        return locked;
+    }
     for t in mesh.indices.chunks_exact(3) {
         if faces[t[0] as usize] & faces[t[1] as usize] & faces[t[2] as usize] == 0 {
             for &v in t {
@@ -406,7 +520,7 @@ mod tests {
         // is gone.
         let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 0.0, 1.0], [1.0, 0.0, -1.0]];
         let (a, b, c, d, e) = (0, 1, 2, 3, 4);
-        let mended = mend_slivers(vec![a, b, c, a, c, d, b, a, e, c, b, e], &positions);
+        let mended = mend_slivers(vec![a, b, c, a, c, d, b, a, e, c, b, e], &positions, 0.0);
         let triangles: Vec<&[u32]> = mended.chunks_exact(3).collect();
         assert_eq!(triangles.len(), 4, "{mended:?}");
         assert!(triangles.iter().all(|t| !zero_area(
@@ -542,7 +656,7 @@ mod tests {
         let positions =
             [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 0.0, 1.0], [0.5, 1.0, 0.5], [1.5, 1.0, 0.5]];
         let (a, b, c, d, e, f) = (0, 1, 2, 3, 4, 5);
-        let mended = mend_slivers(vec![a, b, c, a, c, d, b, d, e, d, b, f], &positions);
+        let mended = mend_slivers(vec![a, b, c, a, c, d, b, d, e, d, b, f], &positions, 0.0);
         let mut edges: Vec<(u32, u32)> = mended
             .chunks_exact(3)
             .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
@@ -556,6 +670,34 @@ mod tests {
             positions[t[1] as usize],
             positions[t[2] as usize]
         )));
+    }
+
+    #[test]
+    fn a_triangle_lower_than_the_grid_can_hold_is_mended_too() {
+        // As the sliver test's, B 1 mm off the line A C: flat once a glb rounds it to a 1 cm
+        // grid, so mended at that height and kept without.
+        let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.001], [2.0, 0.0, 0.0], [1.0, 0.0, 1.0], [1.0, 0.0, -1.0]];
+        let (a, b, c, d, e) = (0, 1, 2, 3, 4);
+        let mesh = vec![a, b, c, a, c, d, b, a, e, c, b, e];
+        assert_eq!(mend_slivers(mesh.clone(), &positions, 0.0), mesh);
+        let mended = mend_slivers(mesh, &positions, sliver_height(2.0, 8));
+        assert_eq!(mended.len(), 12, "{mended:?}");
+        assert!(mended.chunks_exact(3).all(|t| !(t.contains(&a) && t.contains(&c))), "the edge A C is split at B");
+        let p = |i: u32| positions[i as usize];
+        assert!(mended.chunks_exact(3).all(|t| height(p(t[0]), p(t[1]), p(t[2])) > 0.5), "{mended:?}");
+        // 2 m over 8 bits: steps of 7.8 mm, so triangles under 13.6 mm high are slivers.
+        assert!((sliver_height(2.0, 8) - 0.013_585).abs() < 1e-5);
+    }
+
+    #[test]
+    fn crowded_edges_and_their_triangles_are_found() {
+        // Three triangles on the edge 0–1 (a fin), one more elsewhere.
+        let indices = [0, 1, 2, 1, 0, 3, 0, 1, 4, 2, 5, 6];
+        let (count, mut corners) = crowded(&indices);
+        corners.sort_unstable();
+        corners.dedup();
+        assert_eq!((count, corners), (1, vec![0, 1, 2, 3, 4]));
+        assert_eq!(crowded(&hills().indices).0, 0);
     }
 
     #[test]

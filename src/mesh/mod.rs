@@ -17,11 +17,14 @@ mod types;
 
 pub use deviation::{max_deviation, max_deviation_from, SurfaceIndex};
 pub use gpu_order::GpuOrder;
-pub use grid_tiles::{grid_patch, tile_edges};
+pub use grid_tiles::{border_drift, grid_patch, tile_edges, with_skirt, without_fins};
 pub use heightfield_mesh::{heightfield_mesh, mesh_stride, HeightfieldMesh, VertexColorFn, DEFAULT_MAX_SIDE_SAMPLES};
 pub use isosurface::{extract_isosurface, min_crossing, ScalarField};
-pub use lod::{sample_spacing, simplify_levels, simplify_within, Lod, SIMPLIFIER_MARGIN};
+pub use lod::{
+    sample_spacing, simplify_levels, simplify_levels_with, simplify_within, sliver_height, Border, Lod,
+    SIMPLIFIER_MARGIN,
+};
 pub use normals::recompute_normals;
 pub use rtin::Rtin;
 pub use smooth::{smooth, Smoothing};
-pub use types::{MaterialKind, Mesh, Scene, SceneNode};
+pub use types::{bottom_centre, MaterialKind, Mesh, Scene, SceneNode};

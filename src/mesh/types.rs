@@ -150,12 +150,35 @@ pub struct SceneNode {
     pub name: String,
     pub mesh: Mesh,
     pub material: MaterialKind,
+    /// The piece's own base in world coordinates, where a glb puts the node's origin (its
+    /// `translation`), so an engine or Blender moves, rotates and scales the piece about it:
+    /// a speleothem's root on the roof or floor. `None`: the middle of the bottom of the
+    /// mesh's box (see [`SceneNode::pivot`]).
+    pub pivot: Option<[f32; 3]>,
 }
 
 impl SceneNode {
     pub fn new(name: impl Into<String>, mesh: Mesh, material: MaterialKind) -> Self {
-        Self { name: name.into(), mesh, material }
+        Self { name: name.into(), mesh, material, pivot: None }
     }
+
+    /// This node with its pivot at `pivot` (world coordinates).
+    pub fn with_pivot(self, pivot: [f32; 3]) -> Self {
+        Self { pivot: Some(pivot), ..self }
+    }
+
+    /// Where the node's origin goes: the pivot given, else the centre of the bottom face of
+    /// the mesh's box (a rock's or a terrain's foot), else the world origin for an empty mesh.
+    pub fn pivot(&self) -> [f32; 3] {
+        self.pivot.or_else(|| self.mesh.bounds().map(|(lo, hi)| bottom_centre(lo, hi))).unwrap_or([0.0; 3])
+    }
+}
+
+/// The centre of the bottom (lowest y) face of the box `(lo, hi)`, computed so that it lies
+/// exactly between the corners' x and z.
+pub fn bottom_centre(lo: [f32; 3], hi: [f32; 3]) -> [f32; 3] {
+    let mid = |a: f32, b: f32| ((f64::from(a) + f64::from(b)) / 2.0) as f32;
+    [mid(lo[0], hi[0]), lo[1], mid(lo[2], hi[2])]
 }
 
 /// What a glb holds: named nodes in world coordinates (no transforms), written in this order.

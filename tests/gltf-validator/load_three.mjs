@@ -3,7 +3,7 @@
 // the bounding box in metres (the node's transform applied, so quantised positions come back
 // in metres), its degeneracies as decoded (zero-area triangles, vertices at the position of
 // another, and edges not shared by exactly two triangles once vertices at one position are
-// welded), and the Khronos validator's error count and first errors for the file (one node
+// welded; edges of three triangles or more by the file's indices), and the Khronos validator's error count and first errors for the file (one node
 // process for both, so a sweep over many files stays quick). Used by the asset tests.
 //
 //   node load_three.mjs file.glb [...]   → one JSON line per file
@@ -52,6 +52,8 @@ function degeneracies(geometry) {
   let zeroArea = 0;
   const triangles = Math.floor(index.length / 3);
   const edges = new Float64Array(3 * triangles);
+  // The same edges by the file's own vertex indices (the mesh's topology, unwelded).
+  const indexEdges = new Float64Array(3 * triangles);
   for (let t = 0; t < triangles; t++) {
     const [a, b, c] = [index[3 * t], index[3 * t + 1], index[3 * t + 2]];
     const u = [xyz[3 * b] - xyz[3 * a], xyz[3 * b + 1] - xyz[3 * a + 1], xyz[3 * b + 2] - xyz[3 * a + 2]];
@@ -59,11 +61,22 @@ function degeneracies(geometry) {
     const cross = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
     if (cross[0] === 0 && cross[1] === 0 && cross[2] === 0) zeroArea++;
     const w = [id[a], id[b], id[c]];
+    const raw = [a, b, c];
     for (let e = 0; e < 3; e++) {
       const [x, y] = [w[e], w[(e + 1) % 3]];
       // Welded ids stay below 2^26, so the pair is exact in a double.
       edges[3 * t + e] = Math.min(x, y) * 67108864 + Math.max(x, y);
+      const [p, q] = [raw[e], raw[(e + 1) % 3]];
+      indexEdges[3 * t + e] = Math.min(p, q) * 67108864 + Math.max(p, q);
     }
+  }
+  indexEdges.sort();
+  let crowded = 0;
+  for (let k = 0; k < indexEdges.length; ) {
+    let run = 1;
+    while (k + run < indexEdges.length && indexEdges[k + run] === indexEdges[k]) run++;
+    if (run > 2) crowded++;
+    k += run;
   }
   edges.sort();
   let unpaired = 0;
@@ -73,7 +86,7 @@ function degeneracies(geometry) {
     if (run !== 2) unpaired++;
     k += run;
   }
-  return { zero_area: zeroArea, duplicates, welded_unpaired_edges: unpaired };
+  return { zero_area: zeroArea, duplicates, welded_unpaired_edges: unpaired, crowded_edges: crowded };
 }
 loader.setMeshoptDecoder(MeshoptDecoder);
 

@@ -377,18 +377,19 @@ impl<'a, W: Watcher> Bulldozer<'a, W> {
 
 impl Edit {
     /// The bulldozer's own figures: counts of what was applied, and how the grid changed.
+    /// The start's heights on the final grid: a refined grid is compared with the start
+    /// resampled to it.
+    fn initial_on_grid(&self) -> std::borrow::Cow<'_, [f32]> {
+        if self.initial.cols == self.hf.cols && self.initial.rows == self.hf.rows {
+            std::borrow::Cow::Borrowed(&self.initial.heights_m)
+        } else {
+            std::borrow::Cow::Owned(self.initial.resampled(self.hf.cell_size_m).heights_m)
+        }
+    }
+
     fn figures(&self) -> serde_json::Map<String, Value> {
         let cell_area = self.hf.cell_size_m as f64 * self.hf.cell_size_m as f64;
-        // A refined grid is compared with the start resampled to it.
-        let same = self.initial.cols == self.hf.cols && self.initial.rows == self.hf.rows;
-        let resampled;
-        let initial = if same {
-            &self.initial.heights_m
-        } else {
-            resampled = self.initial.resampled(self.hf.cell_size_m);
-            &resampled.heights_m
-        };
-        let (changed, cut, fill) = change_totals(initial, &self.hf);
+        let (changed, cut, fill) = change_totals(&self.initial_on_grid(), &self.hf);
         let t = self.tally;
         [
             ("operations", json!(t.primitives + t.passes + t.scoped)),
@@ -408,6 +409,8 @@ impl Edit {
     /// The job's outcome: the export summary merged with the bulldozer's figures.
     fn finish(self, output: HeightfieldExport) -> Result<Outcome<BulldozeSequence>, SimError> {
         let figures = self.figures();
+        let material = shaped_cells(&self.initial_on_grid(), &self.hf.heights_m);
+        let output = HeightfieldExport { material: Some(&material), ..output };
         let exported = crate::export::heightfield_artifacts(&self.hf, &output)?;
         let mut result = match exported.summary {
             Value::Object(map) => map,
@@ -416,6 +419,15 @@ impl Edit {
         result.extend(figures);
         Ok(Outcome { result: Value::Object(result), sequence: self.sequence, artifacts: exported.artifacts })
     }
+}
+
+/// A sample the bulldozer moved by more than this (metres) is its work in `splatmap.png`'s A.
+pub const SHAPED_M: f32 = 0.01;
+
+/// `splatmap.png`'s material: 255 where the bulldozer cut or filled more than [`SHAPED_M`]
+/// (roads, pads, channels), 0 elsewhere.
+fn shaped_cells(initial: &[f32], after: &[f32]) -> Vec<u8> {
+    initial.par_iter().zip(after).map(|(&b, &a)| if (a - b).abs() > SHAPED_M { 255 } else { 0 }).collect()
 }
 
 /// Samples whose height changed, and the summed height lost (cut) and gained (fill) in

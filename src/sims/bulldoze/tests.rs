@@ -252,6 +252,30 @@ fn figures_count_steps_changes_and_volumes() {
     assert_eq!(figures["cut_volume_m3"], 205.0 * 0.25);
 }
 
+/// `splatmap.png`'s A is the bulldozer's work: every cell the box filled and the road cut,
+/// counted by hand from the shapes, and nothing else; the rest is ground on this flat land.
+#[test]
+fn the_splat_maps_material_is_the_cells_the_bulldozer_shaped() {
+    let t = TestContext::new(Heightfield::flat(41, 41, 0.5, 3.0));
+    let p = params(json!({"operations": [
+        {"primitive": {"shape": {"box": {"center": {"x": 10, "z": 10}, "size_x_m": 5, "size_z_m": 5, "height_m": 2}}}},
+        {"pass": {"path": [{"x": 0, "z": 2}, {"x": 10, "z": 2}, {"x": 20, "z": 2}],
+                  "blade": {"width_m": 2, "profile": [[-1, -1], [1, -1]]}, "operator": "add"}}
+    ]}));
+    let kind = Kind::<Bulldoze>::default();
+    let run = kind.run(&serde_json::to_value(&p).unwrap(), 0, &t.ctx()).unwrap();
+    let splat = &run.artifacts.iter().find(|a| a.name == "splatmap.png").expect("splatmap.png").bytes;
+    let (info, rgba) = crate::export::test_png::decode(splat);
+    assert_eq!((info.width, info.height), (41, 41));
+    // The box: x and z 7.5–12.5 m, samples 15–25; the road: z 1–3 m, samples 2–6, every column.
+    for (i, px) in rgba.chunks_exact(4).enumerate() {
+        let (c, r) = (i % 41, i / 41);
+        let shaped = (15..=25).contains(&c) && (15..=25).contains(&r) || (2..=6).contains(&r);
+        assert_eq!(px[3], if shaped { 255 } else { 0 }, "sample ({c}, {r})");
+    }
+    assert_eq!(rgba[4 * (35 * 41 + 35)..][..4], [255, 0, 0, 0], "untouched flat ground");
+}
+
 #[test]
 fn a_cancelled_job_stops() {
     let t = TestContext::new(hills(33, 1.0));

@@ -18,6 +18,9 @@ const TRIANGLES_PER_CUBE: f64 = 10.0;
 /// Bytes per sphere: the sphere, its bin entries and its line of `sequence.json`.
 const SPHERE_BYTES: u64 = 360;
 const BASE_BYTES: u64 = 4 << 20;
+/// Bytes per column of the top surface for its maps, all written at once: `heightmap.r16`, the
+/// normal map's RGB and the splat map's RGBA with their PNGs, and the splat material.
+const MAP_BYTES_PER_COLUMN: u64 = 24;
 /// Bytes levels of detail add at the peak per triangle (measured 23–109 with the search grid the
 /// deviation used before; 4 on small-island-one-pass with its hierarchy, whose levels now fit
 /// under the carve's own peak; larger islands are not measured by the test, and the hierarchy
@@ -66,6 +69,7 @@ pub fn estimate(params: &CarveCoastParams, terrain: &dyn TerrainLookup) -> Resul
         .memory("terrain", 4 * extent.cells())
         .memory("voxel_size_m", SAMPLE_BYTES.saturating_mul(voxels))
         .memory("erosion", SPHERE_BYTES * spheres)
+        .memory("voxel_size_m", MAP_BYTES_PER_COLUMN * columns as u64)
         .memory("terrain", TRIANGLE_BYTES.saturating_mul(triangles));
 
     // Seed scans step through the band on every column within reach of it, each pass;

@@ -10,7 +10,8 @@ use super::field::{bands, columns, grid_for, remove_fragments, sample_planes, su
 use super::implicit::{Carving, Implicit};
 use super::params::CarveCoastParams;
 use crate::export::{
-    heightfield_npy, heightmap_png16, mesh_glbs, render_png, render_png_framed, Artifact, MeshSettings, View,
+    heightfield_npy, heightmap_png16, heightmap_r16, mesh_glbs, normalmap_png, r16_summary, render_png,
+    render_png_framed, splatmap_png, Artifact, MeshSettings, View,
 };
 use crate::jobs::{SimError, HEIGHTFIELD_ARTIFACT};
 use crate::mesh::{extract_isosurface, MaterialKind, Mesh, ScalarField, Scene, SceneNode};
@@ -312,9 +313,25 @@ pub fn build(
     } else {
         "writing the mesh and its levels of detail"
     });
-    let ((glbs, preview), (heightmap, npy)) = rayon::join(
+    let carved = sea_worn(&top, implicit.hf, voxel_m);
+    let ((glbs, preview), ((heightmap, npy), (r16, (normals, splat)))) = rayon::join(
         || rayon::join(|| mesh_glbs(&scene, mesh_settings, stop), || render_png_framed(&scene, &view, focus, stop)),
-        || rayon::join(|| heightmap_png16(&top), || heightfield_npy(&top)),
+        || {
+            rayon::join(
+                || rayon::join(|| heightmap_png16(&top), || heightfield_npy(&top)),
+                || {
+                    rayon::join(
+                        || heightmap_r16(&top),
+                        || {
+                            rayon::join(
+                                || normalmap_png(&top),
+                                || splatmap_png(&top, Some(&carved), None, params.sea_level),
+                            )
+                        },
+                    )
+                },
+            )
+        },
     );
     let (glbs, glb_figures) = glbs?;
     let preview = preview?;
@@ -337,6 +354,7 @@ pub fn build(
         // The topmost surface's grid, as heightfield kinds report it, so later jobs can read it.
         "grid": { "cols": top.cols, "rows": top.rows, "cell_size_m": top.cell_size_m },
         "z_min": z_min, "z_max": z_max,
+        "heightmap_r16": r16_summary(&top),
         "glb": glb_figures,
     });
     let mut glbs = glbs.into_iter();
@@ -345,9 +363,32 @@ pub fn build(
         Artifact::new("preview.png", "image/png", preview),
         Artifact::new("heightmap.png", "image/png", heightmap),
         Artifact::new(HEIGHTFIELD_ARTIFACT, "application/octet-stream", npy),
+        Artifact::new("heightmap.r16", "application/octet-stream", r16),
+        Artifact::new("normalmap.png", "image/png", normals),
+        Artifact::new("splatmap.png", "image/png", splat),
     ];
     artifacts.extend(glbs);
     Ok((result, artifacts))
+}
+
+/// Depth of cut (in voxels) over which the splat map's material goes from none to all: less
+/// than half a voxel is the sampling's own error against the source terrain.
+const WORN_VOXELS: (f32, f32) = (0.5, 1.5);
+
+/// `splatmap.png`'s material for the coast: the rock the sea cut away (cliff faces, wave-cut
+/// platforms, cave mouths seen from above), 0–255 by how far the topmost surface `top` lies
+/// below the source terrain `source` at each sample, from [`WORN_VOXELS`] voxels.
+fn sea_worn(top: &Heightfield, source: &Heightfield, voxel_m: f32) -> Vec<u8> {
+    let (lo, hi) = (WORN_VOXELS.0 * voxel_m, WORN_VOXELS.1 * voxel_m);
+    top.heights_m
+        .par_iter()
+        .enumerate()
+        .map(|(k, &h)| {
+            let (x, z) = ((k % top.cols) as f32 * top.cell_size_m, (k / top.cols) as f32 * top.cell_size_m);
+            let t = ((source.sample(x, z) - h - lo) / (hi - lo)).clamp(0.0, 1.0);
+            (t * t * (3.0 - 2.0 * t) * 255.0).round() as u8
+        })
+        .collect()
 }
 
 #[cfg(test)]

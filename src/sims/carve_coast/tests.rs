@@ -509,6 +509,50 @@ fn the_heightmap_border_is_the_terrain_surface_not_the_box_bottom() {
     assert!(lo >= hf.min_max().0 - 1.0, "z_min {lo} below the terrain's lowest point {:?}", hf.min_max());
 }
 
+/// Like the heightfield kinds, the coast writes `heightmap.r16`, `normalmap.png` and
+/// `splatmap.png` of its topmost surface; the splat map's A is the rock the sea cut away: all
+/// of it where the surface lies 1.5 voxels or more below the source terrain, none where no
+/// sphere reached; the untouched sea bed is deposit.
+#[test]
+fn the_coast_writes_heightfield_maps_and_its_splat_material_is_the_rock_the_sea_cut() {
+    let p = island(129, 0.2);
+    let hf = terrain(&p);
+    let out = CarveCoast::run(&p, 5, &ctx().ctx()).unwrap();
+    let get = |name: &str| &out.artifacts.iter().find(|a| a.name == name).unwrap_or_else(|| panic!("{name}")).bytes;
+    let top = crate::export::read_heightfield_npy(get(crate::jobs::HEIGHTFIELD_ARTIFACT), 1.0).unwrap();
+    assert_eq!(get("heightmap.r16").len(), 2 * 129 * 129);
+    assert_eq!(
+        (out.result["heightmap_r16"]["width"].as_u64(), out.result["heightmap_r16"]["height"].as_u64()),
+        (Some(129), Some(129))
+    );
+    let (info, _) = crate::export::test_png::decode(get("normalmap.png"));
+    assert_eq!((info.width, info.height), (129, 129));
+    let (info, rgba) = crate::export::test_png::decode(get("splatmap.png"));
+    assert_eq!((info.width, info.height), (129, 129));
+    let near_a_sphere = |x: f32, z: f32| {
+        out.sequence.spheres.iter().any(|s| {
+            let (a, b) = s.bounds();
+            x >= a[0] - 1.0 && x <= b[0] + 1.0 && z >= a[2] - 1.0 && z <= b[2] + 1.0
+        })
+    };
+    let (mut cut, mut bed) = (0, 0);
+    for (k, px) in rgba.chunks_exact(4).enumerate() {
+        let (x, z) = ((k % 129) as f32, (k / 129) as f32);
+        let depth = hf.sample(x, z) - top.heights_m[k];
+        if depth >= 1.5 {
+            assert_eq!(px[3], 255, "({x}, {z}) cut {depth} m");
+            cut += 1;
+        } else if !near_a_sphere(x, z) {
+            assert_eq!(px[3], 0, "({x}, {z}) untouched, {depth} m");
+            if top.heights_m[k] < p.sea_level && px[1] == 0 {
+                assert_eq!(px[..3], [0, 0, 255], "({x}, {z}): the sea bed");
+                bed += 1;
+            }
+        }
+    }
+    assert!(cut > 20 && bed > 100, "{cut} samples cut, {bed} of sea bed");
+}
+
 #[test]
 fn a_sequence_names_its_generator_and_terrain_and_another_versions_is_refused() {
     use crate::jobs::{JobKind, Kind};

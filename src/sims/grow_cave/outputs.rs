@@ -65,17 +65,21 @@ fn site_nodes(params: &GrowCaveParams, index: usize, site: &RecordedSite, profil
     let colour = mineral_colour(site.mineral, params.intensity);
     let segments = params.segments as usize;
     let node = |name: &str, mesh: Mesh| SceneNode::new(format!("{name} {index}"), mesh, MaterialKind::VertexColors);
+    // Each piece's pivot is its root: where the drip site meets the roof (a stalactite) or
+    // the floor (a stalagmite, and a column, which stands on it).
+    let g = &site.growth;
+    let (on_roof, on_floor) = ([g.x_m, g.roof_y_m, g.z_m], [g.x_m, g.floor_y_m, g.z_m]);
     // Roughness keys: the stalactite (and a column) 2i, the stalagmite 2i + 1.
     let key = index as u64 * 2;
     match profiles {
-        SiteProfiles::Column(p) => vec![node("column", profile_mesh(p, key, segments, colour))],
+        SiteProfiles::Column(p) => vec![node("column", profile_mesh(p, key, segments, colour)).with_pivot(on_floor)],
         SiteProfiles::Apart { stalactite, stalagmite } => {
             let mut out = Vec::new();
             if let Some(p) = stalactite {
-                out.push(node("stalactite", profile_mesh(p, key, segments, colour)));
+                out.push(node("stalactite", profile_mesh(p, key, segments, colour)).with_pivot(on_roof));
             }
             if let Some(p) = stalagmite {
-                out.push(node("stalagmite", profile_mesh(p, key + 1, segments, colour)));
+                out.push(node("stalagmite", profile_mesh(p, key + 1, segments, colour)).with_pivot(on_floor));
             }
             out
         }

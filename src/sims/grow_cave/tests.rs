@@ -216,6 +216,48 @@ fn every_speleothem_mesh_is_closed_and_faces_out() {
     assert!(kinds.len() >= 2, "{kinds:?}");
 }
 
+/// Each speleothem's origin in a glb is its root: the drip site's point on the roof (a
+/// stalactite) or the floor (a stalagmite, a column standing on it), recomputed here from the
+/// chamber's relief, to 1 mm; and the piece's own surface crosses that level around it.
+#[test]
+fn each_piece_pivots_at_its_root_on_the_roof_or_floor() {
+    let p = random_cave(30, 60);
+    let seq = grown(&p, 7);
+    let scene = outputs::scene(&p, &seq);
+    let shape = ChamberShape::new(&p.chamber, seq.seed);
+    let mut kinds = std::collections::BTreeMap::new();
+    for node in &scene.nodes[1..] {
+        let (kind, index) = node.name.split_once(' ').expect("kind and site");
+        let site = &seq.sites[index.parse::<usize>().expect("a site number")].growth;
+        let y = if kind == "stalactite" { shape.roof_y(site.x_m, site.z_m) } else { shape.floor_y(site.x_m, site.z_m) };
+        let pivot = node.pivot();
+        let off = [pivot[0] - site.x_m, pivot[1] - y, pivot[2] - site.z_m];
+        assert!(off.iter().map(|d| d * d).sum::<f32>().sqrt() < 1e-3, "{}: pivot {pivot:?} is {off:?} off", node.name);
+        // The surface runs from inside the rock past the pivot's level, and the vertices
+        // nearest that level surround the pivot.
+        let (lo, hi) = node.mesh.bounds().expect("a mesh");
+        assert!(lo[1] < pivot[1] && pivot[1] < hi[1], "{}: {lo:?}..{hi:?} misses {pivot:?}", node.name);
+        let mut by_level: Vec<[f32; 3]> = node.mesh.positions.clone();
+        by_level.sort_by(|a, b| (a[1] - pivot[1]).abs().total_cmp(&(b[1] - pivot[1]).abs()));
+        let ring = &by_level[..p.segments as usize];
+        let (mut xz_lo, mut xz_hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+        for v in ring {
+            for (k, c) in [v[0], v[2]].into_iter().enumerate() {
+                xz_lo[k] = xz_lo[k].min(c);
+                xz_hi[k] = xz_hi[k].max(c);
+            }
+        }
+        let inside = (0..2).all(|k| xz_lo[k] <= [pivot[0], pivot[2]][k] && [pivot[0], pivot[2]][k] <= xz_hi[k]);
+        assert!(inside, "{}: pivot {pivot:?} outside its ring {xz_lo:?}..{xz_hi:?}", node.name);
+        *kinds.entry(kind.to_string()).or_insert(0) += 1;
+    }
+    assert!(kinds.len() >= 2, "{kinds:?}");
+    // The chamber has no pivot of its own: the middle of the bottom of its box.
+    let (lo, hi) = scene.nodes[0].mesh.bounds().expect("the chamber");
+    let want = [(lo[0] + hi[0]) / 2.0, lo[1], (lo[2] + hi[2]) / 2.0];
+    assert!(scene.nodes[0].pivot().iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-5), "{want:?}");
+}
+
 #[test]
 fn manual_rings_are_used_as_given() {
     let mut p = one_site("2", "standard", "normal", 10);
