@@ -116,7 +116,6 @@ pub fn simplify_levels_with(
         let mut missed = None;
         let mut tries = 0;
         let mut try_locked = Arc::clone(&locked);
-        let source_crowded = crowded(&source.indices).0;
         while tries < 2 && budget > 0.0 {
             stop.check()?;
             tries += 1;
@@ -130,24 +129,18 @@ pub fn simplify_levels_with(
             if indices.len() >= source.indices.len() {
                 break;
             }
-            // Edges of three triangles or more the source did not have: meshoptimizer keeps
-            // the topology of each collapse's neighbourhood, not always of the whole.
-            let (crowded_edges, crowded) = crowded(&indices);
             let (simple, kept) = compact_keeping(&source, &indices);
             stop.check()?;
             // The first try notes where it came near the bound, for the second to hold.
             let near = if tries == 1 { NEAR_MISS * bound } else { f32::INFINITY };
             let (deviation, misses) = deviation_and_misses(mesh, index, &simple, spacing, near, stop)?;
-            let folded = crowded_edges > source_crowded;
-            if deviation <= bound && !folded {
+            if deviation <= bound {
                 made = Some((simple, kept, error, deviation));
                 break;
             }
-            missed = Some(if folded {
-                format!("simplified twice, it had {crowded_edges} edges of three triangles or more")
-            } else {
-                format!("simplified twice, it lay {deviation:.4} m from the full mesh, over the bound of {bound:.4} m")
-            });
+            missed = Some(format!(
+                "simplified twice, it lay {deviation:.4} m from the full mesh, over the bound of {bound:.4} m"
+            ));
             if tries == 2 {
                 break;
             }
@@ -155,17 +148,10 @@ pub fn simplify_levels_with(
             // sharp features (a cut's rim, a thin spire) while the rest holds. The second try
             // keeps the vertices near every sample that came within NEAR_MISS of the bound or
             // beyond (a miss moves to the next-worst place), and aims a fifth further inside the
-            // budget in proportion to the miss; and it keeps every corner of the triangles on an
-            // edge the first made crowded.
+            // budget in proportion to the miss.
             let radius = 2.0 * spacing.max(mean_triangle_side(&source) as f32);
-            let mut hold = lock_near(&source.positions, &locked, &misses, radius);
-            for v in crowded {
-                hold[v as usize] = true;
-            }
-            try_locked = Arc::new(hold);
-            if deviation > bound {
-                target *= 0.8 * budget / (deviation - source_deviation).max(budget);
-            }
+            try_locked = Arc::new(lock_near(&source.positions, &locked, &misses, radius));
+            target *= 0.8 * budget / (deviation - source_deviation).max(budget);
         }
         let lod = match made {
             Some((simple, kept, error, deviation)) => {
@@ -368,29 +354,6 @@ fn height(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> f64 {
 /// than twice that high may come out flat.
 pub fn sliver_height(longest_m: f64, bits: u32) -> f32 {
     (3f64.sqrt() * longest_m / f64::from((1u32 << bits) - 1)) as f32
-}
-
-/// The number of edges `indices` gives three triangles or more, and every corner of the
-/// triangles on them.
-fn crowded(indices: &[u32]) -> (usize, Vec<u32>) {
-    let mut edges: Vec<(u32, u32, u32)> = indices
-        .chunks_exact(3)
-        .enumerate()
-        .flat_map(|(n, t)| [(t[0], t[1], n as u32), (t[1], t[2], n as u32), (t[2], t[0], n as u32)])
-        .map(|(a, b, n)| (a.min(b), a.max(b), n))
-        .collect();
-    edges.sort_unstable();
-    let mut count = 0;
-    let mut corners = Vec::new();
-    for run in edges.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
-        if run.len() > 2 {
-            count += 1;
-            for &(_, _, n) in run {
-                corners.extend_from_slice(&indices[3 * n as usize..3 * n as usize + 3]);
-            }
-        }
-    }
-    (count, corners)
 }
 
 /// How far apart the deviation's samples lie: the bound, but no closer than the full mesh's
@@ -687,17 +650,6 @@ mod tests {
         assert!(mended.chunks_exact(3).all(|t| height(p(t[0]), p(t[1]), p(t[2])) > 0.5), "{mended:?}");
         // 2 m over 8 bits: steps of 7.8 mm, so triangles under 13.6 mm high are slivers.
         assert!((sliver_height(2.0, 8) - 0.013_585).abs() < 1e-5);
-    }
-
-    #[test]
-    fn crowded_edges_and_their_triangles_are_found() {
-        // Three triangles on the edge 0–1 (a fin), one more elsewhere.
-        let indices = [0, 1, 2, 1, 0, 3, 0, 1, 4, 2, 5, 6];
-        let (count, mut corners) = crowded(&indices);
-        corners.sort_unstable();
-        corners.dedup();
-        assert_eq!((count, corners), (1, vec![0, 1, 2, 3, 4]));
-        assert_eq!(crowded(&hills().indices).0, 0);
     }
 
     #[test]
