@@ -125,7 +125,7 @@ pub fn simplify_levels_with(
             );
             let (indices, error) = simplified?;
             let index = index.get().expect("built");
-            let indices = mend_slivers(indices, &source.positions, sliver_m);
+            let indices = mend_slivers(indices, &source.positions, sliver_m, stop)?;
             if indices.len() >= source.indices.len() {
                 break;
             }
@@ -256,11 +256,12 @@ fn simplify_stoppable(
 /// edge a third triangle waits for the next round; what no round can mend is dropped at the
 /// end (a gap no wider than `sliver_m`, nothing once quantised), except a low sliver on the
 /// border, which stays: dropping it would move the border a neighbour shares.
-fn mend_slivers(mut indices: Vec<u32>, positions: &[[f32; 3]], sliver_m: f32) -> Vec<u32> {
+fn mend_slivers(mut indices: Vec<u32>, positions: &[[f32; 3]], sliver_m: f32, stop: Stop) -> Result<Vec<u32>, Stopped> {
     let p = |i: u32| positions[i as usize];
     let flat = |t: &[u32]| zero_area(p(t[0]), p(t[1]), p(t[2]));
     let is_sliver = |t: &[u32]| flat(t) || sliver_m > 0.0 && height(p(t[0]), p(t[1]), p(t[2])) < f64::from(sliver_m);
     for round in 0..=MEND_ROUNDS {
+        stop.check()?;
         if !indices.chunks_exact(3).any(is_sliver) {
             break;
         }
@@ -320,17 +321,17 @@ fn mend_slivers(mut indices: Vec<u32>, positions: &[[f32; 3]], sliver_m: f32) ->
         }
         if last || !dead.contains(&true) {
             // Nothing more can be mended: the slivers left go, but those a border keeps.
-            return triangles
+            return Ok(triangles
                 .iter()
                 .enumerate()
                 .filter(|&(n, t)| !dead[n] && (on_border[n] || !is_sliver(t)))
                 .flat_map(|(_, t)| *t)
                 .chain(split)
-                .collect();
+                .collect());
         }
         indices = triangles.iter().zip(&dead).filter(|(_, &d)| !d).flat_map(|(t, _)| *t).chain(split).collect();
     }
-    indices
+    Ok(indices)
 }
 
 /// A triangle's least height: twice its area over its longest side (0 when flat).
@@ -483,7 +484,7 @@ mod tests {
         // is gone.
         let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 0.0, 1.0], [1.0, 0.0, -1.0]];
         let (a, b, c, d, e) = (0, 1, 2, 3, 4);
-        let mended = mend_slivers(vec![a, b, c, a, c, d, b, a, e, c, b, e], &positions, 0.0);
+        let mended = mend_slivers(vec![a, b, c, a, c, d, b, a, e, c, b, e], &positions, 0.0, Stop::NEVER).unwrap();
         let triangles: Vec<&[u32]> = mended.chunks_exact(3).collect();
         assert_eq!(triangles.len(), 4, "{mended:?}");
         assert!(triangles.iter().all(|t| !zero_area(
@@ -619,7 +620,7 @@ mod tests {
         let positions =
             [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 0.0, 1.0], [0.5, 1.0, 0.5], [1.5, 1.0, 0.5]];
         let (a, b, c, d, e, f) = (0, 1, 2, 3, 4, 5);
-        let mended = mend_slivers(vec![a, b, c, a, c, d, b, d, e, d, b, f], &positions, 0.0);
+        let mended = mend_slivers(vec![a, b, c, a, c, d, b, d, e, d, b, f], &positions, 0.0, Stop::NEVER).unwrap();
         let mut edges: Vec<(u32, u32)> = mended
             .chunks_exact(3)
             .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
@@ -642,8 +643,8 @@ mod tests {
         let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.001], [2.0, 0.0, 0.0], [1.0, 0.0, 1.0], [1.0, 0.0, -1.0]];
         let (a, b, c, d, e) = (0, 1, 2, 3, 4);
         let mesh = vec![a, b, c, a, c, d, b, a, e, c, b, e];
-        assert_eq!(mend_slivers(mesh.clone(), &positions, 0.0), mesh);
-        let mended = mend_slivers(mesh, &positions, sliver_height(2.0, 8));
+        assert_eq!(mend_slivers(mesh.clone(), &positions, 0.0, Stop::NEVER).unwrap(), mesh);
+        let mended = mend_slivers(mesh, &positions, sliver_height(2.0, 8), Stop::NEVER).unwrap();
         assert_eq!(mended.len(), 12, "{mended:?}");
         assert!(mended.chunks_exact(3).all(|t| !(t.contains(&a) && t.contains(&c))), "the edge A C is split at B");
         let p = |i: u32| positions[i as usize];
