@@ -388,8 +388,13 @@ impl Edit {
     }
 
     fn figures(&self) -> serde_json::Map<String, Value> {
+        self.figures_from(&self.initial_on_grid())
+    }
+
+    /// [`Self::figures`] against the start's heights already on the final grid.
+    fn figures_from(&self, initial: &[f32]) -> serde_json::Map<String, Value> {
         let cell_area = self.hf.cell_size_m as f64 * self.hf.cell_size_m as f64;
-        let (changed, cut, fill) = change_totals(&self.initial_on_grid(), &self.hf);
+        let (changed, cut, fill) = change_totals(initial, &self.hf);
         let t = self.tally;
         [
             ("operations", json!(t.primitives + t.passes + t.scoped)),
@@ -408,8 +413,11 @@ impl Edit {
 
     /// The job's outcome: the export summary merged with the bulldozer's figures.
     fn finish(self, output: HeightfieldExport) -> Result<Outcome<BulldozeSequence>, SimError> {
-        let figures = self.figures();
-        let material = shaped_cells(&self.initial_on_grid(), &self.hf.heights_m);
+        // The start on the final grid once: a refined grid is resampled for it.
+        let initial = self.initial_on_grid();
+        let figures = self.figures_from(&initial);
+        let material = shaped_cells(&initial, &self.hf.heights_m);
+        drop(initial);
         let output = HeightfieldExport { material: Some(&material), ..output };
         let exported = crate::export::heightfield_artifacts(&self.hf, &output)?;
         let mut result = match exported.summary {
