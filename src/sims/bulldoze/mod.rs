@@ -387,6 +387,8 @@ impl Edit {
         }
     }
 
+    /// The figures, for tests (a job computes them in `finish`, sharing the resampled start).
+    #[cfg(test)]
     fn figures(&self) -> serde_json::Map<String, Value> {
         self.figures_from(&self.initial_on_grid())
     }
