@@ -18,10 +18,10 @@ const MAX_SPLITS: usize = 256;
 /// apart (or `MAX_SPLITS` per triangle side). 0 for two empty meshes, infinite when only one
 /// is empty. `stop` is looked at between chunks of samples (a large mesh takes seconds).
 pub fn max_deviation(a: &Mesh, b: &Mesh, spacing_m: f32, stop: Stop) -> Result<f32, Stopped> {
-    max_deviation_from(a, &SurfaceIndex::new(a), b, spacing_m, stop)
+    max_deviation_from(a, &SurfaceIndex::new(a, stop)?, b, spacing_m, stop)
 }
 
-/// [`max_deviation`] with `a` already indexed (`a_index` is `SurfaceIndex::new(a)`), for a
+/// [`max_deviation`] with `a` already indexed (`a_index` is `SurfaceIndex::new(a, _)`), for a
 /// mesh measured against several others.
 pub fn max_deviation_from(
     a: &Mesh,
@@ -52,7 +52,7 @@ pub fn deviation_and_misses(
     let misses = std::sync::Mutex::new(Vec::new());
     let bound = f64::from(bound_m);
     let (ab, ba) = rayon::join(
-        || one_sided(a, &SurfaceIndex::new(b), spacing_m, bound, &misses, stop),
+        || SurfaceIndex::new(b, stop).map_or(0.0, |b_index| one_sided(a, &b_index, spacing_m, bound, &misses, stop)),
         || one_sided(b, a_index, spacing_m, bound, &misses, stop),
     );
     stop.check()?;
@@ -235,7 +235,9 @@ pub struct SurfaceIndex {
 }
 
 impl SurfaceIndex {
-    pub fn new(mesh: &Mesh) -> Self {
+    /// The index of `mesh`'s triangles. A million triangles take seconds on a loaded machine,
+    /// so `stop` is looked at while the tree is built.
+    pub fn new(mesh: &Mesh, stop: Stop) -> Result<Self, Stopped> {
         let mut numbers: Vec<u32> = (0..mesh.triangle_count() as u32).collect();
         let centres: Vec<[f32; 3]> = numbers
             .iter()
@@ -247,10 +249,11 @@ impl SurfaceIndex {
         let mut nodes = Vec::with_capacity(2 * numbers.len() / LEAF_TRIANGLES + 1);
         if !numbers.is_empty() {
             nodes.push(Node { lo: [0.0; 3], hi: [0.0; 3], first: 0, count: 0 });
-            build(mesh, &centres, &mut numbers, 0, 0, &mut nodes);
+            build(mesh, &centres, &mut numbers, 0, 0, &mut nodes, stop);
         }
+        stop.check()?;
         let corners = numbers.iter().map(|&n| corners(mesh, n)).collect();
-        Self { nodes, corners }
+        Ok(Self { nodes, corners })
     }
 
     fn is_empty(&self) -> bool {
@@ -331,7 +334,23 @@ impl SurfaceIndex {
 /// Fill node `at` for the triangles `numbers[from..]` (`numbers` is that slice), splitting at
 /// the median centre along the longest side of their centres' box; children are pushed as a
 /// pair, so a node's children sit side by side.
-fn build(mesh: &Mesh, centres: &[[f32; 3]], numbers: &mut [u32], from: usize, at: usize, nodes: &mut Vec<Node>) {
+/// Nodes with at least this many triangles look at the stop before they are split.
+const STOP_CHECK_TRIANGLES: usize = 4096;
+
+/// Split `numbers` into the subtree at `nodes[at]`; a stop leaves the rest unbuilt (the caller
+/// then discards the tree).
+fn build(
+    mesh: &Mesh,
+    centres: &[[f32; 3]],
+    numbers: &mut [u32],
+    from: usize,
+    at: usize,
+    nodes: &mut Vec<Node>,
+    stop: Stop,
+) {
+    if numbers.len() >= STOP_CHECK_TRIANGLES && stop.requested() {
+        return;
+    }
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
     let mut clo = [f32::INFINITY; 3];
@@ -362,8 +381,8 @@ fn build(mesh: &Mesh, centres: &[[f32; 3]], numbers: &mut [u32], from: usize, at
     nodes[at] = Node { lo, hi, first: first as u32, count: 0 };
     nodes.extend([Node { lo, hi, first: 0, count: 0 }; 2]);
     let (left, right) = numbers.split_at_mut(middle);
-    build(mesh, centres, left, from, first, nodes);
-    build(mesh, centres, right, from + middle, first + 1, nodes);
+    build(mesh, centres, left, from, first, nodes, stop);
+    build(mesh, centres, right, from + middle, first + 1, nodes, stop);
 }
 
 /// The squared distance from `p` to the triangle with corners `corners`, in f64.
@@ -453,6 +472,20 @@ mod tests {
         assert_eq!(closest_on_triangle([2.0, 0.0, 2.0], tri), [1.0, 0.0, 1.0]);
     }
 
+    /// A stop raised while a large mesh is indexed ends the build (a carved island's index took
+    /// 4 s under load, past a job's time limit); a small mesh is indexed whatever the stop.
+    #[test]
+    fn indexing_a_large_mesh_stops_when_asked() {
+        let raised = std::sync::atomic::AtomicBool::new(true);
+        let large = plane(129, |x, z| (x * 0.1).sin() + z * 0.01);
+        assert!(large.triangle_count() >= STOP_CHECK_TRIANGLES);
+        assert!(SurfaceIndex::new(&large, Stop::new(&raised)).is_err());
+        assert!(max_deviation(&large, &large, 0.5, Stop::new(&raised)).is_err());
+        let index = SurfaceIndex::new(&large, Stop::NEVER).unwrap();
+        assert_eq!(index.corners.len(), large.triangle_count());
+        assert!((index.distance([10.0, 5.0, 10.0]) - (5.0 - (1.0f64).sin() - 0.1)).abs() < 0.05);
+    }
+
     #[test]
     fn a_lifted_copy_deviates_by_the_lift_and_a_bump_by_its_height() {
         let flat = plane(33, |_, _| 0.0);
@@ -472,10 +505,24 @@ mod tests {
         let whole = plane(11, |_, _| 0.0);
         let half = heightfield_mesh(&Heightfield::from_fn(6, 11, 1.0, |_, _| 0.0), 4097, None).mesh;
         assert!(
-            one_sided(&half, &SurfaceIndex::new(&whole), 0.5, f64::INFINITY, &Default::default(), Stop::NEVER) < 1e-9
+            one_sided(
+                &half,
+                &SurfaceIndex::new(&whole, Stop::NEVER).unwrap(),
+                0.5,
+                f64::INFINITY,
+                &Default::default(),
+                Stop::NEVER
+            ) < 1e-9
         );
         assert!(
-            (one_sided(&whole, &SurfaceIndex::new(&half), 0.5, f64::INFINITY, &Default::default(), Stop::NEVER) - 5.0)
+            (one_sided(
+                &whole,
+                &SurfaceIndex::new(&half, Stop::NEVER).unwrap(),
+                0.5,
+                f64::INFINITY,
+                &Default::default(),
+                Stop::NEVER
+            ) - 5.0)
                 .abs()
                 < 1e-9
         );

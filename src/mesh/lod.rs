@@ -121,10 +121,10 @@ pub fn simplify_levels_with(
             tries += 1;
             let (simplified, _) = rayon::join(
                 || simplify_stoppable(&source, &try_locked, target, border, stop),
-                || index.get_or_init(|| SurfaceIndex::new(mesh)),
+                || index.get_or_init(|| SurfaceIndex::new(mesh, stop)),
             );
             let (indices, error) = simplified?;
-            let index = index.get().expect("built");
+            let index = index.get().expect("built").as_ref().map_err(|_| Stopped)?;
             let indices = mend_slivers(indices, &source.positions, sliver_m, stop)?;
             if indices.len() >= source.indices.len() {
                 break;
