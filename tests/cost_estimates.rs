@@ -51,6 +51,9 @@ struct Measured {
 
 /// Prepare, estimate, then run `body` as the engine would, with levels of detail `lods`, and
 /// measure its peak heap growth.
+/// Held while a run is measured.
+static MEASURING: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 fn measure(kind: &dyn JobKind, body: &Value, lods: &[f64]) -> Measured {
     let mut params = body.clone();
     let seed = params.as_object_mut().and_then(|o| o.remove("seed")).and_then(|v| v.as_u64()).unwrap_or(0);
@@ -73,6 +76,9 @@ fn measure(kind: &dyn JobKind, body: &Value, lods: &[f64]) -> Measured {
         limits: &limits,
         mesh: MeshSettings { lods: lods.to_vec(), ..MeshSettings::default() },
     };
+    // The counter is the process's: a run measured beside another would reset its peak (and
+    // count its bytes), so measured runs take turns.
+    let _turn = MEASURING.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let before = counting_alloc::start();
     let started = std::time::Instant::now();
     let output = kind.run(&prepared.params, seed, &ctx).expect("run");

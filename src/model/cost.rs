@@ -92,6 +92,13 @@ impl CostBuilder {
         self
     }
 
+    /// Bytes the kind frees before its levels are made (a field dropped once meshed), which the
+    /// levels reuse: they add only what is beyond them at the peak.
+    pub fn lods_reuse(&mut self, freed_bytes: u64) -> &mut Self {
+        self.lod_bytes = self.lod_bytes.saturating_sub(freed_bytes);
+        self
+    }
+
     /// Finish with the kind's work unit and its fastest rate (units per second).
     pub fn build(&self, work_unit: &str, work_per_second: f64) -> Cost {
         Cost {

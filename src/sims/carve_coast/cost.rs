@@ -11,6 +11,9 @@ use crate::terrain::TerrainLookup;
 const EVALUATIONS_PER_SECOND: f64 = 4e9;
 /// Bytes per box sample: the field, the meshing mask and flood bits.
 const SAMPLE_BYTES: u64 = 6;
+/// Bytes per box sample of the field's values, freed once the surface is meshed and its caves
+/// counted, before the levels of detail are made.
+const FIELD_VALUE_BYTES: u64 = 4;
 /// Bytes per mesh triangle at the final build: the mesh, its glb (twice) and the render's copy.
 const TRIANGLE_BYTES: u64 = 140;
 /// Triangles per surface cube crossed: marching tetrahedra make 8 on flat ground, up to 12.
@@ -23,7 +26,7 @@ const BASE_BYTES: u64 = 4 << 20;
 const MAP_BYTES_PER_COLUMN: u64 = 24;
 /// Bytes levels of detail add at the peak per triangle (measured 23–109 with the search grid the
 /// deviation used before; 4 on small-island-one-pass with its hierarchy, whose levels now fit
-/// under the carve's own peak; larger islands are not measured by the test, and the hierarchy
+/// under the carve's own peak, in the field's freed values; larger islands are not measured by the test, and the hierarchy
 /// and meshoptimizer's arrays take about 70 B a triangle each while both are alive).
 const LOD_BYTES_PER_TRIANGLE: u64 = 78;
 
@@ -64,7 +67,7 @@ pub fn estimate(params: &CarveCoastParams, terrain: &dyn TerrainLookup) -> Resul
     let spheres = (seeds * per_seed).min(MAX_SPHERES as f64) as u64;
 
     let mut cost = CostBuilder::new();
-    cost.lods(triangles, LOD_BYTES_PER_TRIANGLE);
+    cost.lods(triangles, LOD_BYTES_PER_TRIANGLE).lods_reuse(FIELD_VALUE_BYTES.saturating_mul(voxels));
     cost.memory("", BASE_BYTES)
         .memory("terrain", 4 * extent.cells())
         .memory("voxel_size_m", SAMPLE_BYTES.saturating_mul(voxels))
