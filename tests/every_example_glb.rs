@@ -138,9 +138,7 @@ fn check_form(example: &Path, form: &str, dir: &Path, unpaired: &mut Unpaired, b
         }
         // In every form and level: no triangle flat as decoded; in `none` (f32 as made) no two
         // vertices at one position either (the quantised grids may put two distinct vertices on
-        // one step). Edges of three triangles or more are counted for the report (issue 31
-        // leaves them open at coarse levels).
-        let mut crowded_edges = 0;
+        // one step); and no edge of three triangles or more.
         for mesh in three["meshes"].as_array().unwrap() {
             let node = mesh["name"].as_str().unwrap_or_default();
             let zero_area = mesh["zero_area"].as_u64().unwrap();
@@ -149,12 +147,12 @@ fn check_form(example: &Path, form: &str, dir: &Path, unpaired: &mut Unpaired, b
                 problems
                     .push(format!("{what} node {node}: {zero_area} zero-area triangles, {shared} shared positions"));
             }
-            crowded_edges += mesh["crowded_edges"].as_u64().unwrap();
+            let crowded_edges = mesh["crowded_edges"].as_u64().unwrap();
+            if crowded_edges > 0 {
+                problems.push(format!("{what} node {node}: {crowded_edges} edges of three triangles or more"));
+            }
             let level_file = level["file"].as_str().unwrap().to_string();
             unpaired.insert((level_file, node.to_string()), mesh["welded_unpaired_edges"].as_u64().unwrap());
-        }
-        if crowded_edges > 0 {
-            println!("{what}: {crowded_edges} edges of three triangles or more");
         }
     }
     // Coarser levels have no more triangles (a simple shape may reach its fewest early), and

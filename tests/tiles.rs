@@ -379,3 +379,64 @@ fn skirted_tiles_simplify_their_borders_and_their_skirts_cover_every_gap() {
     assert_eq!(together.len(), tiles.values().map(|l| l[0].len()).sum::<usize>(), "no triangle in two tiles");
     assert!(together == whole, "the tiles at level 0 less their skirts are not mesh.glb's mesh");
 }
+
+/// A skirt asked deeper than the terrain's relief is as deep as its height span, in the
+/// quantised form too: the frame (and so every tile's quantisation step) stays the terrain's
+/// size, every wall is that deep, and the tiles' surfaces decode to the float form's within a
+/// step.
+#[test]
+fn a_deep_skirt_stops_at_the_terrains_height_in_the_quantised_form() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut body = example_body("bulldoze", "hillside-road");
+    body["lods"] = json!([0.01]);
+    body["tiles"] = json!({ "count": [2, 1], "skirt_m": 10000.0 });
+    let outputs: Vec<(Value, PathBuf)> = ["none", "quantize"]
+        .iter()
+        .map(|form| {
+            let out = dir.path().join(form);
+            let mut body = body.clone();
+            body["compression"] = json!(form);
+            run_job("bulldoze", &body, &out).expect("hillside-road with a deep skirt");
+            (serde_json::from_slice(&std::fs::read(out.join("tiles/index.json")).unwrap()).unwrap(), out)
+        })
+        .collect();
+    let mesh = read(&outputs[0].1.join("mesh.glb"));
+    let (low, high) = mesh.metres.iter().fold((f64::MAX, f64::MIN), |(l, h), p| (l.min(p[1]), h.max(p[1])));
+    let span = high - low;
+    assert!(span > 1.0, "hillside-road rises {span} m");
+    for (index, out) in &outputs {
+        let depth = index["skirt_m"].as_f64().unwrap();
+        assert!((depth - span).abs() < 1e-2, "skirt {depth} m on a terrain {span} m high");
+        let frame_height = index["frame"]["max"][1].as_f64().unwrap() - index["frame"]["min"][1].as_f64().unwrap();
+        assert!((frame_height - (span + depth)).abs() < 1e-2, "frame {frame_height} m high");
+        for entry in index["tiles"].as_array().unwrap() {
+            for figures in entry["levels"].as_array().unwrap() {
+                let file = out.join(figures["file"].as_str().unwrap());
+                let (surface, skirt) = surface_and_skirt(&read(&file));
+                assert_eq!(surface.len() as u64, figures["triangles"].as_u64().unwrap(), "{file:?}");
+                assert!(!skirt.is_empty(), "{file:?}");
+                for t in &skirt {
+                    let (lo, hi) = t.iter().fold((f64::MAX, f64::MIN), |(l, h), p| (l.min(p[1]), h.max(p[1])));
+                    assert!(hi - lo >= depth - 1e-2 && lo >= low - depth - 1e-2, "{file:?}: a wall {lo}..{hi}");
+                }
+            }
+        }
+    }
+    // The quantised tiles' surfaces are the float tiles', within a step of the frame's longest
+    // side (16 bits).
+    let frame = &outputs[1].0["frame"];
+    let longest =
+        (0..3).map(|k| frame["max"][k].as_f64().unwrap() - frame["min"][k].as_f64().unwrap()).fold(0.0, f64::max);
+    let step = longest / 65535.0 + 1e-6;
+    for entry in outputs[0].0["tiles"].as_array().unwrap() {
+        for figures in entry["levels"].as_array().unwrap() {
+            let file = figures["file"].as_str().unwrap();
+            let (float, _) = surface_and_skirt(&read(&outputs[0].1.join(file)));
+            let (quantised, _) = surface_and_skirt(&read(&outputs[1].1.join(file)));
+            assert_eq!(float.len(), quantised.len(), "{file}");
+            for (a, b) in float.iter().flatten().zip(quantised.iter().flatten()) {
+                assert!((0..3).all(|k| (a[k] - b[k]).abs() <= step), "{file}: {a:?} and {b:?}");
+            }
+        }
+    }
+}

@@ -50,6 +50,8 @@ pub struct TileGrid {
 
 /// Deepest skirt a request may ask for, metres (deeper than any terrain's relief is useless).
 pub const MAX_SKIRT_M: f32 = 10_000.0;
+/// The deepest skirt on flat ground, as a share of the terrain's longest side.
+const SKIRT_SHARE_ON_FLAT: f32 = 0.01;
 
 impl utoipa::ToSchema for TileGrid {
     fn name() -> Cow<'static, str> {
@@ -85,7 +87,7 @@ impl utoipa::PartialSchema for TileGrid {
                     .exclusive_minimum(Some(0.0))
                     .maximum(Some(f64::from(MAX_SKIRT_M)))
                     .description(Some(format!(
-                        "Skirts, metres (more than 0, at most {MAX_SKIRT_M}): each tile's border simplifies like its inside (vertices move only along the border, the corners stay), so a coarse tile is not mostly border, and from every border edge a vertical wall hangs down, outward-facing, as deep as this or twice the largest vertical gap any level's border has from the full grid, whichever is more (so tiles at any two levels side by side show no crack); `tiles/index.json` states the depth used (`skirt_m`) and each tile level's `border_drift_m`. Without it, borders are held in place at every level and neighbours meet exactly."
+                        "Skirts, metres (more than 0, at most {MAX_SKIRT_M}): each tile's border simplifies like its inside (vertices move only along the border, the corners stay), so a coarse tile is not mostly border, and from every border edge a vertical wall hangs down, outward-facing, as deep as this (but no deeper than the terrain's height span, or a hundredth of its longest side on flat ground) or twice the largest vertical gap any level's border has from the full grid, whichever is more (so tiles at any two levels side by side show no crack); `tiles/index.json` states the depth used (`skirt_m`) and each tile level's `border_drift_m`. Without it, borders are held in place at every level and neighbours meet exactly."
                     ))),
             )
             .required("count")
@@ -139,8 +141,24 @@ pub fn tile_artifacts(
     let places: Vec<(usize, usize)> = (0..zs.len() - 1).flat_map(|z| (0..xs.len() - 1).map(move |x| (x, z))).collect();
     let bounds_m: Vec<f32> = settings.lods.iter().map(|f| (f * longest_m) as f32).collect();
     // With a skirt a tile's border simplifies too, and the skirt hides the gaps.
-    let border = if tiles.skirt_m.is_some() { Border::Free } else { Border::Held };
+    let border = if tiles.skirt_m.is_some() { Border::Free } else { Border::Shared };
     let sliver = sliver_height(longest_m, MESHOPT_POSITION_BITS);
+    // Every tile is quantised in the whole terrain's box, reaching down to the skirts' feet,
+    // and has one pivot, the middle of the bottom of the terrain's box: a vertex two tiles
+    // share decodes to the same floats in both, and every tile drops in place with one origin.
+    let pivot = bottom_centre(terrain_box.0, terrain_box.1);
+    let frame_of = |skirt_m: Option<f32>| {
+        ([terrain_box.0[0], terrain_box.0[1] - skirt_m.unwrap_or(0.0), terrain_box.0[2]], terrain_box.1)
+    };
+    let write = |mesh: Mesh, skirt_m: Option<f32>| {
+        let frame = frame_of(skirt_m);
+        let mesh = match skirt_m {
+            Some(depth) => with_skirt(&mesh, depth),
+            None => mesh,
+        };
+        let node = SceneNode::new("terrain", mesh, MaterialKind::default()).with_pivot(pivot);
+        write_glb_in_frame(&Scene { nodes: vec![node] }, settings.form, Some(frame))
+    };
     let mut made: Vec<Tile> = places
         .par_iter()
         .map(|&(x, z)| {
@@ -158,31 +176,26 @@ pub fn tile_artifacts(
             }));
             let mut meshes = vec![full];
             meshes.extend(levels.into_iter().map(|l| l.mesh));
-            Ok(Tile { x, z, first, last, bounds, meshes, files: Vec::new(), figures })
+            // Without a skirt a tile is written at once; a skirt's depth waits for every tile.
+            let (meshes, files) = match tiles.skirt_m {
+                Some(_) => (meshes, Vec::new()),
+                None => (Vec::new(), meshes.into_iter().map(|m| write(m, None)).collect()),
+            };
+            Ok(Tile { x, z, first, last, bounds, meshes, files, figures })
         })
         .collect::<Result<_, Stopped>>()?;
     // A skirt deep enough for the widest gap two tiles can open, at any two levels side by
-    // side: twice the largest drift of any border.
+    // side: twice the largest drift of any border. Deeper than the terrain's height span (or a
+    // hundredth of its longest side, on flat ground) hides nothing more, and would stretch the
+    // quantised forms' frame: every tile's step grows with it.
     let drift = made.iter().flat_map(|t| t.figures.iter().map(|f| f.3)).fold(0.0f32, f32::max);
-    let skirt_m = tiles.skirt_m.map(|s| s.max(2.0 * drift));
-    // Every tile is quantised in the whole terrain's box, reaching down to the skirts' feet,
-    // and has one pivot, the middle of the bottom of the terrain's box: a vertex two tiles
-    // share decodes to the same floats in both, and every tile drops in place with one origin.
-    let frame = ([terrain_box.0[0], terrain_box.0[1] - skirt_m.unwrap_or(0.0), terrain_box.0[2]], terrain_box.1);
-    let pivot = bottom_centre(terrain_box.0, terrain_box.1);
-    made.par_iter_mut().for_each(|t| {
-        t.files = std::mem::take(&mut t.meshes)
-            .into_iter()
-            .map(|mesh| {
-                let mesh = match skirt_m {
-                    Some(depth) => with_skirt(&mesh, depth),
-                    None => mesh,
-                };
-                let node = SceneNode::new("terrain", mesh, MaterialKind::default()).with_pivot(pivot);
-                write_glb_in_frame(&Scene { nodes: vec![node] }, settings.form, Some(frame))
-            })
-            .collect();
-    });
+    let deepest = (terrain_box.1[1] - terrain_box.0[1]).max(longest_m as f32 * SKIRT_SHARE_ON_FLAT);
+    let skirt_m = tiles.skirt_m.map(|s| s.min(deepest).max(2.0 * drift));
+    if skirt_m.is_some() {
+        made.par_iter_mut().for_each(|t| {
+            t.files = std::mem::take(&mut t.meshes).into_iter().map(|mesh| write(mesh, skirt_m)).collect();
+        });
+    }
 
     let file = |level: usize, t: &Tile| format!("tiles/{level}/{}_{}.glb", t.x, t.z);
     let level_count = bounds_m.len() + 1;
@@ -231,6 +244,7 @@ pub fn tile_artifacts(
         })
         .collect();
     let count = [xs.len() - 1, zs.len() - 1];
+    let frame = frame_of(skirt_m);
     let index = json!({
         "count": count,
         "vertices": vertices,

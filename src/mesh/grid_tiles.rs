@@ -6,6 +6,7 @@
 use std::ops::RangeInclusive;
 
 use super::heightfield_mesh::grid_triangles;
+use super::types::{edge_key, sorted_edges};
 use super::Mesh;
 
 /// Where `count` tiles split `n` vertices along one side: `count + 1` increasing vertex
@@ -97,15 +98,9 @@ pub fn without_fins(mesh: &Mesh, (lo, hi): ([f32; 3], [f32; 3])) -> Mesh {
 /// and colour) lowered by `depth_m`. The surface's vertices and triangles come first,
 /// unchanged.
 pub fn with_skirt(mesh: &Mesh, depth_m: f32) -> Mesh {
-    let mut edges: Vec<(u32, u32)> = mesh
-        .indices
-        .chunks_exact(3)
-        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
-        .map(|(a, b)| (a.min(b), a.max(b)))
-        .collect();
-    edges.sort_unstable();
+    let edges = sorted_edges(&mesh.indices);
     let once = |a: u32, b: u32| {
-        let key = (a.min(b), a.max(b));
+        let key = edge_key(a, b);
         let first = edges.partition_point(|e| *e < key);
         edges.get(first) == Some(&key) && edges.get(first + 1) != Some(&key)
     };

@@ -21,7 +21,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use super::deviation::{deviation_and_misses, mean_triangle_side, SurfaceIndex};
-use super::types::zero_area;
+use super::types::{sorted_edges, zero_area};
 use super::Mesh;
 use crate::stop::{Stop, Stopped};
 
@@ -75,6 +75,11 @@ pub enum Border {
     /// Every border vertex and every rim of a vertical side of the box stays: pieces that
     /// meet there stay joined at every level.
     Held,
+    /// Held, and shared vertex for vertex with a neighbour (a tile without a skirt): a low
+    /// sliver with an edge on it stays even where no split can mend it, since dropping it
+    /// would drop a vertex the neighbour keeps (a lone mesh's edge loses it, so that no
+    /// quantised form decodes the sliver flat).
+    Shared,
     /// Border vertices may collapse along the border onto their neighbours (meshoptimizer
     /// moves a border vertex only along a border edge, so a straight side stays on its line in
     /// plan); only the corners of the box's sides stay. For a tile whose skirt hides where
@@ -116,6 +121,10 @@ pub fn simplify_levels_with(
         let mut missed = None;
         let mut tries = 0;
         let mut try_locked = Arc::clone(&locked);
+        // meshoptimizer does not check the link condition: a collapse can give an edge a third
+        // triangle. A try may have no more such edges than its source (none, from a manifold
+        // mesh).
+        let source_crowded = crowded_edges(&source.indices).len();
         while tries < 2 && budget > 0.0 {
             stop.check()?;
             tries += 1;
@@ -125,25 +134,37 @@ pub fn simplify_levels_with(
             );
             let (indices, error) = simplified?;
             let index = index.get().expect("built").as_ref().map_err(|_| Stopped)?;
-            let indices = mend_slivers(indices, &source.positions, sliver_m, stop)?;
+            let indices = mend_slivers(indices, &source.positions, sliver_m, border == Border::Shared, stop)?;
             if indices.len() >= source.indices.len() {
                 break;
             }
+            let crowded = crowded_edges(&indices);
             let (simple, kept) = compact_keeping(&source, &indices);
             stop.check()?;
             // The first try notes where it came near the bound, for the second to hold.
             let near = if tries == 1 { NEAR_MISS * bound } else { f32::INFINITY };
-            let (deviation, misses) = deviation_and_misses(mesh, index, &simple, spacing, near, stop)?;
-            if deviation <= bound {
+            let (deviation, mut misses) = deviation_and_misses(mesh, index, &simple, spacing, near, stop)?;
+            let within = deviation <= bound;
+            if within && crowded.len() <= source_crowded {
                 made = Some((simple, kept, error, deviation));
                 break;
             }
-            missed = Some(format!(
-                "simplified twice, it lay {deviation:.4} m from the full mesh, over the bound of {bound:.4} m"
-            ));
+            missed = Some(if within {
+                format!("simplified twice, {} edges had three triangles or more", crowded.len())
+            } else {
+                format!("simplified twice, it lay {deviation:.4} m from the full mesh, over the bound of {bound:.4} m")
+            });
             if tries == 2 {
                 break;
             }
+            if within {
+                // Within the bound: only the crowded edges need holding.
+                misses.clear();
+            }
+            // The second try holds the source's vertices around each crowded edge, where the
+            // collapses that crowded it came from.
+            let p = |v: u32| source.positions[v as usize];
+            misses.extend(crowded.iter().flat_map(|&(a, b)| [p(a), p(b)]));
             // meshoptimizer's error is a mean over a vertex's faces, so a level misses at a few
             // sharp features (a cut's rim, a thin spire) while the rest holds. The second try
             // keeps the vertices near every sample that came within NEAR_MISS of the bound or
@@ -151,7 +172,9 @@ pub fn simplify_levels_with(
             // budget in proportion to the miss.
             let radius = 2.0 * spacing.max(mean_triangle_side(&source) as f32);
             try_locked = Arc::new(lock_near(&source.positions, &locked, &misses, radius));
-            target *= 0.8 * budget / (deviation - source_deviation).max(budget);
+            if !within {
+                target *= 0.8 * budget / (deviation - source_deviation).max(budget);
+            }
         }
         let lod = match made {
             Some((simple, kept, error, deviation)) => {
@@ -184,6 +207,16 @@ pub fn simplify_levels_with(
     Ok(levels)
 }
 
+/// The edges of `indices` that three triangles or more share, each once, as (lower, higher)
+/// vertex.
+fn crowded_edges(indices: &[u32]) -> Vec<(u32, u32)> {
+    sorted_edges(indices)
+        .chunk_by(|a, b| a == b)
+        .filter(|run| run.len() > 2)
+        .map(|run| ((run[0] >> 32) as u32, run[0] as u32))
+        .collect()
+}
+
 /// `locked`, and every vertex of `positions` within `radius` of one of `points`.
 fn lock_near(positions: &[[f32; 3]], locked: &[bool], points: &[[f32; 3]], radius: f32) -> Vec<bool> {
     let tree = rstar::RTree::bulk_load(points.to_vec());
@@ -204,7 +237,9 @@ fn simplify(indices: &[u32], positions: &[[f32; 3]], locked: &[bool], target: f3
         0,
         target,
         match border {
-            Border::Held => meshopt::SimplifyOptions::ErrorAbsolute | meshopt::SimplifyOptions::LockBorder,
+            Border::Held | Border::Shared => {
+                meshopt::SimplifyOptions::ErrorAbsolute | meshopt::SimplifyOptions::LockBorder
+            }
             Border::Free => meshopt::SimplifyOptions::ErrorAbsolute,
         },
         Some(&mut error),
@@ -256,7 +291,13 @@ fn simplify_stoppable(
 /// edge a third triangle waits for the next round; what no round can mend is dropped at the
 /// end (a gap no wider than `sliver_m`, nothing once quantised), except a low sliver on the
 /// border, which stays: dropping it would move the border a neighbour shares.
-fn mend_slivers(mut indices: Vec<u32>, positions: &[[f32; 3]], sliver_m: f32, stop: Stop) -> Result<Vec<u32>, Stopped> {
+fn mend_slivers(
+    mut indices: Vec<u32>,
+    positions: &[[f32; 3]],
+    sliver_m: f32,
+    shared_border: bool,
+    stop: Stop,
+) -> Result<Vec<u32>, Stopped> {
     let p = |i: u32| positions[i as usize];
     let flat = |t: &[u32]| zero_area(p(t[0]), p(t[1]), p(t[2]));
     let is_sliver = |t: &[u32]| flat(t) || sliver_m > 0.0 && height(p(t[0]), p(t[1]), p(t[2])) < f64::from(sliver_m);
@@ -320,11 +361,16 @@ fn mend_slivers(mut indices: Vec<u32>, positions: &[[f32; 3]], sliver_m: f32, st
             dead[n] = true;
         }
         if last || !dead.contains(&true) {
-            // Nothing more can be mended: the slivers left go, but those a border keeps.
+            // Nothing more can be mended: the slivers left go, but those a border keeps (on a
+            // shared border, a low one with an edge on it: dropping it would drop a border
+            // vertex the neighbour keeps).
+            let border_edge = |t: &[u32; 3]| (0..3).any(|k| !across.contains_key(&(t[(k + 1) % 3], t[k])));
             return Ok(triangles
                 .iter()
                 .enumerate()
-                .filter(|&(n, t)| !dead[n] && (on_border[n] || !is_sliver(t)))
+                .filter(|&(n, t)| {
+                    !dead[n] && (on_border[n] || !is_sliver(t) || shared_border && !flat(t) && border_edge(t))
+                })
                 .flat_map(|(_, t)| *t)
                 .chain(split)
                 .collect());
@@ -443,6 +489,14 @@ mod tests {
     use crate::mesh::heightfield_mesh;
     use crate::terrain::Heightfield;
 
+    /// Edges by hand: a fan of three triangles on one edge, and a closed tetrahedron.
+    #[test]
+    fn crowded_edges_are_those_of_three_triangles_or_more() {
+        assert_eq!(crowded_edges(&[0, 1, 2, 1, 0, 3, 0, 1, 4]), vec![(0, 1)]);
+        assert_eq!(crowded_edges(&[0, 1, 2, 0, 3, 1, 1, 3, 2, 0, 2, 3]), vec![]);
+        assert_eq!(crowded_edges(&[2, 1, 0, 0, 1, 3, 1, 0, 4, 4, 0, 1]), vec![(0, 1)]);
+    }
+
     fn hills() -> Mesh {
         let hf = Heightfield::from_fn(65, 65, 1.0, |x, z| (x * 0.13).sin() * 6.0 + (z * 0.1).cos() * 4.0);
         heightfield_mesh(&hf, 4097, None).mesh
@@ -484,7 +538,8 @@ mod tests {
         // is gone.
         let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 0.0, 1.0], [1.0, 0.0, -1.0]];
         let (a, b, c, d, e) = (0, 1, 2, 3, 4);
-        let mended = mend_slivers(vec![a, b, c, a, c, d, b, a, e, c, b, e], &positions, 0.0, Stop::NEVER).unwrap();
+        let mended =
+            mend_slivers(vec![a, b, c, a, c, d, b, a, e, c, b, e], &positions, 0.0, false, Stop::NEVER).unwrap();
         let triangles: Vec<&[u32]> = mended.chunks_exact(3).collect();
         assert_eq!(triangles.len(), 4, "{mended:?}");
         assert!(triangles.iter().all(|t| !zero_area(
@@ -620,7 +675,8 @@ mod tests {
         let positions =
             [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 0.0, 1.0], [0.5, 1.0, 0.5], [1.5, 1.0, 0.5]];
         let (a, b, c, d, e, f) = (0, 1, 2, 3, 4, 5);
-        let mended = mend_slivers(vec![a, b, c, a, c, d, b, d, e, d, b, f], &positions, 0.0, Stop::NEVER).unwrap();
+        let mended =
+            mend_slivers(vec![a, b, c, a, c, d, b, d, e, d, b, f], &positions, 0.0, false, Stop::NEVER).unwrap();
         let mut edges: Vec<(u32, u32)> = mended
             .chunks_exact(3)
             .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
@@ -636,6 +692,19 @@ mod tests {
         )));
     }
 
+    /// A low sliver with edges on the border whose split is blocked (the edge B D exists): a
+    /// shared border (a tile's) keeps it, with its vertex B the neighbour tile has too; a lone
+    /// mesh's border lets it go.
+    #[test]
+    fn an_unmendable_sliver_stays_on_a_shared_border_only() {
+        let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.001], [2.0, 0.0, 0.0], [1.0, 0.0, 1.0], [3.0, 0.0, 1.0]];
+        let (a, b, c, d, e) = (0, 1, 2, 3, 4);
+        let mesh = vec![a, b, c, a, c, d, b, e, d];
+        let limit = sliver_height(2.0, 8);
+        assert_eq!(mend_slivers(mesh.clone(), &positions, limit, true, Stop::NEVER).unwrap(), mesh);
+        assert_eq!(mend_slivers(mesh, &positions, limit, false, Stop::NEVER).unwrap(), vec![a, c, d, b, e, d]);
+    }
+
     #[test]
     fn a_triangle_lower_than_the_grid_can_hold_is_mended_too() {
         // As the sliver test's, B 1 mm off the line A C: flat once a glb rounds it to a 1 cm
@@ -643,8 +712,8 @@ mod tests {
         let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.001], [2.0, 0.0, 0.0], [1.0, 0.0, 1.0], [1.0, 0.0, -1.0]];
         let (a, b, c, d, e) = (0, 1, 2, 3, 4);
         let mesh = vec![a, b, c, a, c, d, b, a, e, c, b, e];
-        assert_eq!(mend_slivers(mesh.clone(), &positions, 0.0, Stop::NEVER).unwrap(), mesh);
-        let mended = mend_slivers(mesh, &positions, sliver_height(2.0, 8), Stop::NEVER).unwrap();
+        assert_eq!(mend_slivers(mesh.clone(), &positions, 0.0, false, Stop::NEVER).unwrap(), mesh);
+        let mended = mend_slivers(mesh, &positions, sliver_height(2.0, 8), false, Stop::NEVER).unwrap();
         assert_eq!(mended.len(), 12, "{mended:?}");
         assert!(mended.chunks_exact(3).all(|t| !(t.contains(&a) && t.contains(&c))), "the edge A C is split at B");
         let p = |i: u32| positions[i as usize];

@@ -75,20 +75,7 @@ impl Mesh {
     /// volume without holes or fins (it may still be wound inconsistently; see
     /// [`Mesh::signed_volume`]).
     pub fn is_closed(&self) -> bool {
-        if self.indices.is_empty() {
-            return false;
-        }
-        // Sorting packed edge keys instead of counting in a HashMap keeps this allocation-light
-        // and independent of hashing order.
-        let mut edges: Vec<u64> = Vec::with_capacity(self.indices.len());
-        for t in self.indices.chunks_exact(3) {
-            for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-                let (lo, hi) = if a < b { (a, b) } else { (b, a) };
-                edges.push(((lo as u64) << 32) | hi as u64);
-            }
-        }
-        rayon::slice::ParallelSliceMut::par_sort_unstable(&mut edges[..]);
-        edges.chunk_by(|a, b| a == b).all(|run| run.len() == 2)
+        !self.indices.is_empty() && sorted_edges(&self.indices).chunk_by(|a, b| a == b).all(|run| run.len() == 2)
     }
 
     /// `(zero-area triangles, vertices at the position of another)`: triangles whose corners'
@@ -200,6 +187,23 @@ pub fn zero_area(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> bool {
     let (a, b, c) = (a.map(f64::from), b.map(f64::from), c.map(f64::from));
     let (u, v) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
     u[1] * v[2] - u[2] * v[1] == 0.0 && u[2] * v[0] - u[0] * v[2] == 0.0 && u[0] * v[1] - u[1] * v[0] == 0.0
+}
+
+/// Every triangle's three edges as [`edge_key`]s, sorted: an edge appears once for each
+/// triangle on it. Sorting packed keys instead of counting in a HashMap keeps this
+/// allocation-light and independent of hashing order.
+pub fn sorted_edges(indices: &[u32]) -> Vec<u64> {
+    let mut edges: Vec<u64> = Vec::with_capacity(indices.len());
+    for t in indices.chunks_exact(3) {
+        edges.extend([(t[0], t[1]), (t[1], t[2]), (t[2], t[0])].map(|(a, b)| edge_key(a, b)));
+    }
+    rayon::slice::ParallelSliceMut::par_sort_unstable(&mut edges[..]);
+    edges
+}
+
+/// The edge between vertices `a` and `b`, either way round, as one number.
+pub fn edge_key(a: u32, b: u32) -> u64 {
+    (u64::from(a.min(b)) << 32) | u64::from(a.max(b))
 }
 
 #[cfg(test)]
