@@ -331,13 +331,12 @@ impl SurfaceIndex {
     }
 }
 
-/// Fill node `at` for the triangles `numbers[from..]` (`numbers` is that slice), splitting at
-/// the median centre along the longest side of their centres' box; children are pushed as a
-/// pair, so a node's children sit side by side.
 /// Nodes with at least this many triangles look at the stop before they are split.
 const STOP_CHECK_TRIANGLES: usize = 4096;
 
-/// Split `numbers` into the subtree at `nodes[at]`; a stop leaves the rest unbuilt (the caller
+/// Fill node `at` for the triangles `numbers[from..]` (`numbers` is that slice), splitting at
+/// the median centre along the longest side of their centres' box; children are pushed as a
+/// pair, so a node's children sit side by side. A stop leaves the rest unbuilt (the caller
 /// then discards the tree).
 fn build(
     mesh: &Mesh,
@@ -504,28 +503,12 @@ mod tests {
         // the square's right edge is 5 m from the half.
         let whole = plane(11, |_, _| 0.0);
         let half = heightfield_mesh(&Heightfield::from_fn(6, 11, 1.0, |_, _| 0.0), 4097, None).mesh;
-        assert!(
-            one_sided(
-                &half,
-                &SurfaceIndex::new(&whole, Stop::NEVER).unwrap(),
-                0.5,
-                f64::INFINITY,
-                &Default::default(),
-                Stop::NEVER
-            ) < 1e-9
-        );
-        assert!(
-            (one_sided(
-                &whole,
-                &SurfaceIndex::new(&half, Stop::NEVER).unwrap(),
-                0.5,
-                f64::INFINITY,
-                &Default::default(),
-                Stop::NEVER
-            ) - 5.0)
-                .abs()
-                < 1e-9
-        );
+        let one_way = |from: &Mesh, to: &Mesh| {
+            let index = SurfaceIndex::new(to, Stop::NEVER).unwrap();
+            one_sided(from, &index, 0.5, f64::INFINITY, &Default::default(), Stop::NEVER)
+        };
+        assert!(one_way(&half, &whole) < 1e-9);
+        assert!((one_way(&whole, &half) - 5.0).abs() < 1e-9);
         assert!((max_deviation(&whole, &half, 0.5, Stop::NEVER).unwrap() - 5.0).abs() < 1e-6);
     }
 }
