@@ -117,13 +117,18 @@ fn for_each_sample(from: &Mesh, spacing_m: f32, stop: Stop, visit: &(dyn Fn([f64
             }
         }
     });
-    // Every vertex once, then the points along and inside each triangle (not its corners).
-    from.positions.par_chunks(1024).for_each(|chunk| {
+    // Every vertex a triangle uses once (one no triangle uses is not on the surface), then the
+    // points along and inside each triangle (not its corners).
+    let mut used = vec![false; from.positions.len()];
+    for &i in &from.indices {
+        used[i as usize] = true;
+    }
+    from.positions.par_chunks(1024).zip(used.par_chunks(1024)).for_each(|(chunk, used)| {
         if stop.requested() {
             return;
         }
         let mut hints = Hints::default();
-        for v in chunk {
+        for (v, _) in chunk.iter().zip(used).filter(|(_, &u)| u) {
             visit(v.map(f64::from), &mut hints);
         }
     });
@@ -510,5 +515,18 @@ mod tests {
         assert!(one_way(&half, &whole) < 1e-9);
         assert!((one_way(&whole, &half) - 5.0).abs() < 1e-9);
         assert!((max_deviation(&whole, &half, 0.5, Stop::NEVER).unwrap() - 5.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_vertex_no_triangle_uses_is_not_on_the_surface() {
+        // The same plane twice, one copy with a vertex 7 m up that no triangle uses (a hole's
+        // leftover): the surfaces coincide.
+        let flat = plane(11, |_, _| 0.0);
+        let mut stray = flat.clone();
+        stray.positions.push([5.0, 7.0, 5.0]);
+        stray.normals.push([0.0, 1.0, 0.0]);
+        stray.uvs.push([0.0, 0.0]);
+        assert!(max_deviation(&stray, &flat, 0.5, Stop::NEVER).unwrap() < 1e-6);
+        assert!(max_deviation(&flat, &stray, 0.5, Stop::NEVER).unwrap() < 1e-6);
     }
 }

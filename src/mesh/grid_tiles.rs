@@ -90,7 +90,7 @@ pub fn without_fins(mesh: &Mesh, (lo, hi): ([f32; 3], [f32; 3])) -> Mesh {
         return mesh.clone();
     }
     let kept: Vec<u32> = mesh.indices.chunks_exact(3).filter(|t| !fin(t)).flatten().copied().collect();
-    super::lod::compact(mesh, &kept)
+    super::types::compact(mesh, &kept)
 }
 
 /// `mesh` (a tile) with a skirt: from every border edge a wall hangs `depth_m` straight down,

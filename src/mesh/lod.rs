@@ -6,8 +6,10 @@
 //! [`SIMPLIFIER_MARGIN`]. meshoptimizer bounds its own error measure (an area-weighted mean of
 //! plane distances), not the distance between the surfaces, so a level measured over its bound
 //! is made once more, holding the vertices near where it came within [`NEAR_MISS`] of the bound
-//! and with a target scaled by how far it missed; if that misses too, the level is the previous
-//! one unchanged and says why ([`Lod::unreduced`]), never a silent full mesh.
+//! and with a target scaled by how far it missed; one that gives an edge a third triangle is
+//! made again holding the vertices around it (up to [`CROWDED_RETRIES`] times). If that fails,
+//! the level is the previous one unchanged and says why ([`Lod::unreduced`]), never a silent
+//! full mesh.
 //! Vertices on the mesh's topological border (where it meets another mesh: a tile's or a
 //! heightfield's edge, an open rim) never move, nor do those on the rim of a vertical side of
 //! the bounding box (where a carved coast's top meets its box side) or on two sides (the box's
@@ -20,8 +22,9 @@ use std::sync::mpsc::{self, RecvTimeoutError};
 use std::sync::Arc;
 use std::time::Duration;
 
+use super::crowded::{crowded_edges, relieve_crowded_edges, without_paired_triangles};
 use super::deviation::{deviation_and_misses, mean_triangle_side, SurfaceIndex};
-use super::types::{sorted_edges, zero_area};
+use super::types::{compact_keeping, least_height as height, zero_area};
 use super::Mesh;
 use crate::stop::{Stop, Stopped};
 
@@ -42,6 +45,16 @@ pub const SIMPLIFIER_MARGIN: f32 = 4.0;
 /// The share of the bound beyond which a first try's samples are held on the second try.
 const NEAR_MISS: f32 = 0.75;
 
+/// Tries made again, past the one for distance, when a level keeps within its bound but gives
+/// edges a third triangle. meshoptimizer crowds 0–3 edges a try on the carved coasts, each
+/// time somewhere else (a pinch where two sheets come close), and a flip of a convex quad
+/// relieves few of them ([`relieve_crowded_edges`]: most such quads are concave); holding
+/// what every try before crowded, a later one seldom does. With one retry carve-coast's
+/// coarse levels stayed at 12 % of the full mesh (cliff-strata's at 100 %); with two,
+/// cliff-strata's level 3 still kept level 2 (7.6 %); with four it is 3.3 %. Such retries
+/// mostly fall on coarse levels, made from small meshes.
+const CROWDED_RETRIES: u32 = 4;
+
 /// One level of detail of a mesh.
 #[derive(Clone, Debug)]
 pub struct Lod {
@@ -59,7 +72,7 @@ pub struct Lod {
     pub sample_spacing_m: f32,
     /// Tries of meshoptimizer this level took (0 when there was nothing to simplify).
     pub tries: u32,
-    /// Why this level is the previous one unchanged, when two tries missed the bound.
+    /// Why this level is the previous one unchanged, when its tries missed the bound or crowded an edge.
     pub unreduced: Option<String>,
 }
 
@@ -123,8 +136,11 @@ pub fn simplify_levels_with(
         let mut made = None;
         let mut missed = None;
         let mut tries = 0;
+        // A try over the bound is made again once; one within it that gives an edge a third
+        // triangle up to CROWDED_RETRIES times, each holding what the tries before it held.
+        let (mut retried_for_distance, mut retried_for_crowding) = (false, 0);
         let mut try_locked = Arc::clone(&locked);
-        while tries < 2 && budget > 0.0 {
+        while budget > 0.0 && tries < 2 + CROWDED_RETRIES {
             stop.check()?;
             tries += 1;
             let (simplified, _) = rayon::join(
@@ -135,14 +151,16 @@ pub fn simplify_levels_with(
             let index = index.get().expect("built").as_ref().map_err(|_| Stopped)?;
             let indices = mend_slivers(indices, &source.positions, sliver_m, border == Border::Shared, stop)?;
             let indices = without_paired_triangles(indices);
+            let indices = relieve_crowded_edges(indices, &source.positions, sliver_m);
             if indices.len() >= source.indices.len() {
                 break;
             }
             let crowded = crowded_edges(&indices);
             let (simple, kept) = compact_keeping(&source, &indices);
             stop.check()?;
-            // The first try notes where it came near the bound, for the second to hold.
-            let near = if tries == 1 { NEAR_MISS * bound } else { f32::INFINITY };
+            // Until a try is made again for its distance, each notes where it came near the
+            // bound, for the next to hold.
+            let near = if retried_for_distance { f32::INFINITY } else { NEAR_MISS * bound };
             let (deviation, mut misses) = deviation_and_misses(mesh, index, &simple, spacing, near, stop)?;
             let within = deviation <= bound;
             if within && crowded.len() <= source_crowded {
@@ -150,28 +168,36 @@ pub fn simplify_levels_with(
                 break;
             }
             missed = Some(if within {
-                format!("simplified twice, {} edges had three triangles or more", crowded.len())
+                format!("simplified {tries} times, {} edges had three triangles or more", crowded.len())
             } else {
-                format!("simplified twice, it lay {deviation:.4} m from the full mesh, over the bound of {bound:.4} m")
+                format!(
+                    "simplified {tries} times, it lay {deviation:.4} m from the full mesh, over the bound of {bound:.4} m"
+                )
             });
-            if tries == 2 {
-                break;
-            }
             if within {
+                if retried_for_crowding == CROWDED_RETRIES {
+                    break;
+                }
+                retried_for_crowding += 1;
                 // Within the bound: only the crowded edges need holding.
                 misses.clear();
+            } else {
+                if retried_for_distance {
+                    break;
+                }
+                retried_for_distance = true;
             }
-            // The second try holds the source's vertices around each crowded edge, where the
-            // collapses that crowded it came from.
+            // The next try holds the source's vertices around each crowded edge, where the
+            // collapses that crowded it came from, besides all that the tries before it held.
             let p = |v: u32| source.positions[v as usize];
             misses.extend(crowded.iter().flat_map(|&(a, b)| [p(a), p(b)]));
             // meshoptimizer's error is a mean over a vertex's faces, so a level misses at a few
-            // sharp features (a cut's rim, a thin spire) while the rest holds. The second try
+            // sharp features (a cut's rim, a thin spire) while the rest holds. The next try
             // keeps the vertices near every sample that came within NEAR_MISS of the bound or
             // beyond (a miss moves to the next-worst place), and aims a fifth further inside the
             // budget in proportion to the miss.
             let radius = 2.0 * spacing.max(mean_triangle_side(&source) as f32);
-            try_locked = Arc::new(lock_near(&source.positions, &locked, &misses, radius));
+            try_locked = Arc::new(lock_near(&source.positions, &try_locked, &misses, radius));
             if !within {
                 target *= 0.8 * budget / (deviation - source_deviation).max(budget);
             }
@@ -206,40 +232,6 @@ pub fn simplify_levels_with(
         levels.push(lod);
     }
     Ok(levels)
-}
-
-/// `indices` less every pair of triangles on the same three vertices (a flap of no volume a
-/// collapse folded shut: its edges are each shared by both, so one of them with a neighbour
-/// on each side has four triangles). Dropping both leaves every other edge as it was; of an odd
-/// number, one stays.
-fn without_paired_triangles(indices: Vec<u32>) -> Vec<u32> {
-    let key = |t: &[u32]| {
-        let mut k = [t[0], t[1], t[2]];
-        k.sort_unstable();
-        k
-    };
-    let mut order: Vec<usize> = (0..indices.len() / 3).collect();
-    order.sort_unstable_by_key(|&n| (key(&indices[3 * n..3 * n + 3]), n));
-    let mut dropped = vec![false; order.len()];
-    for run in order.chunk_by(|&a, &b| key(&indices[3 * a..3 * a + 3]) == key(&indices[3 * b..3 * b + 3])) {
-        for &n in &run[..run.len() / 2 * 2] {
-            dropped[n] = true;
-        }
-    }
-    if !dropped.contains(&true) {
-        return indices;
-    }
-    indices.chunks_exact(3).zip(&dropped).filter(|(_, &d)| !d).flat_map(|(t, _)| t.iter().copied()).collect()
-}
-
-/// The edges of `indices` that three triangles or more share, each once, as (lower, higher)
-/// vertex.
-fn crowded_edges(indices: &[u32]) -> Vec<(u32, u32)> {
-    sorted_edges(indices)
-        .chunk_by(|a, b| a == b)
-        .filter(|run| run.len() > 2)
-        .map(|run| ((run[0] >> 32) as u32, run[0] as u32))
-        .collect()
 }
 
 /// `locked`, and every vertex of `positions` within `radius` of one of `points`.
@@ -406,21 +398,6 @@ fn mend_slivers(
     Ok(indices)
 }
 
-/// A triangle's least height: twice its area over its longest side (0 when flat).
-fn height(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> f64 {
-    let (a, b, c) = (a.map(f64::from), b.map(f64::from), c.map(f64::from));
-    let d = |p: [f64; 3], q: [f64; 3]| [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
-    let len = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    let (u, v) = (d(a, b), d(a, c));
-    let cross = len([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]);
-    let longest = len(u).max(len(v)).max(len(d(b, c)));
-    if longest > 0.0 {
-        cross / longest
-    } else {
-        0.0
-    }
-}
-
 /// The height under which a triangle is mended as a sliver for a glb whose positions lie on a
 /// grid of `bits` bits over `longest_m` (the quantised forms'; the meshopt form's 14 bits are
 /// the coarsest): rounding moves each corner by at most √3 ÷ 2 of a step, so a triangle less
@@ -480,60 +457,12 @@ fn locked_vertices(mesh: &Mesh, border: Border) -> Vec<bool> {
     locked
 }
 
-/// The triangles `indices` of `mesh` with only the vertices they use, kept in their order.
-pub(super) fn compact(mesh: &Mesh, indices: &[u32]) -> Mesh {
-    compact_keeping(mesh, indices).0
-}
-
-/// [`compact`], and the number in `mesh` of each vertex kept.
-fn compact_keeping(mesh: &Mesh, indices: &[u32]) -> (Mesh, Vec<u32>) {
-    let mut new_index = vec![u32::MAX; mesh.vertex_count()];
-    for &i in indices {
-        new_index[i as usize] = 0;
-    }
-    let mut kept = Vec::new();
-    for (old, slot) in new_index.iter_mut().enumerate() {
-        if *slot == 0 {
-            *slot = kept.len() as u32;
-            kept.push(old);
-        }
-    }
-    let take = |values: &[_]| kept.iter().map(|&i| values[i]).collect();
-    let mesh = Mesh {
-        positions: take(&mesh.positions),
-        normals: take(&mesh.normals),
-        uvs: kept.iter().map(|&i| mesh.uvs[i]).collect(),
-        colors: mesh.colors.as_ref().map(|c| kept.iter().map(|&i| c[i]).collect()),
-        indices: indices.iter().map(|&i| new_index[i as usize]).collect(),
-    };
-    (mesh, kept.into_iter().map(|i| i as u32).collect())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::mesh::heightfield_mesh;
+    use crate::mesh::types::compact;
     use crate::terrain::Heightfield;
-
-    /// Edges by hand: a fan of three triangles on one edge, and a closed tetrahedron.
-    #[test]
-    fn paired_triangles_go_and_their_edges_are_shared_by_two_again() {
-        // A flap A B C folded shut on the edge A B, which two more triangles share.
-        let mesh = vec![0, 1, 2, 1, 0, 2, 0, 1, 3, 1, 0, 4];
-        assert_eq!(crowded_edges(&mesh), vec![(0, 1)]);
-        let kept = without_paired_triangles(mesh);
-        assert_eq!(kept, vec![0, 1, 3, 1, 0, 4]);
-        assert!(crowded_edges(&kept).is_empty());
-        // Three on the same vertices: one stays.
-        assert_eq!(without_paired_triangles(vec![0, 1, 2, 2, 1, 0, 1, 2, 0]), vec![1, 2, 0]);
-    }
-
-    #[test]
-    fn crowded_edges_are_those_of_three_triangles_or_more() {
-        assert_eq!(crowded_edges(&[0, 1, 2, 1, 0, 3, 0, 1, 4]), vec![(0, 1)]);
-        assert_eq!(crowded_edges(&[0, 1, 2, 0, 3, 1, 1, 3, 2, 0, 2, 3]), vec![]);
-        assert_eq!(crowded_edges(&[2, 1, 0, 0, 1, 3, 1, 0, 4, 4, 0, 1]), vec![(0, 1)]);
-    }
 
     fn hills() -> Mesh {
         let hf = Heightfield::from_fn(65, 65, 1.0, |x, z| (x * 0.13).sin() * 6.0 + (z * 0.1).cos() * 4.0);

@@ -2,6 +2,7 @@
 //!
 //! Units are metres with Y up; front faces wind counter-clockwise (see [`Mesh`]).
 
+mod crowded;
 mod deviation;
 mod gpu_order;
 mod grid_tiles;

@@ -68,7 +68,7 @@ impl Rtin {
     /// `grid` (a square grid mesh of this size, its vertices row by row) triangulated within
     /// `bound`, keeping only the vertices used.
     pub fn mesh(&self, grid: &Mesh, bound: f32) -> Mesh {
-        super::lod::compact(grid, &self.triangles(bound))
+        super::types::compact(grid, &self.triangles(bound))
     }
 }
 

@@ -30,6 +30,11 @@ impl Mesh {
         self.indices.len() / 3
     }
 
+    /// The mesh less the vertices no triangle uses, the others kept in their order.
+    pub fn without_unused_vertices(&self) -> Mesh {
+        compact(self, &self.indices)
+    }
+
     /// Axis-aligned bounds `(min, max)` of the positions; `None` for a mesh without vertices.
     pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
         let first = *self.positions.first()?;
@@ -189,6 +194,21 @@ pub fn zero_area(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> bool {
     u[1] * v[2] - u[2] * v[1] == 0.0 && u[2] * v[0] - u[0] * v[2] == 0.0 && u[0] * v[1] - u[1] * v[0] == 0.0
 }
 
+/// A triangle's least height: twice its area over its longest side (0 when flat).
+pub fn least_height(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> f64 {
+    let (a, b, c) = (a.map(f64::from), b.map(f64::from), c.map(f64::from));
+    let d = |p: [f64; 3], q: [f64; 3]| [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+    let len = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    let (u, v) = (d(a, b), d(a, c));
+    let cross = len([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]);
+    let longest = len(u).max(len(v)).max(len(d(b, c)));
+    if longest > 0.0 {
+        cross / longest
+    } else {
+        0.0
+    }
+}
+
 /// Every triangle's three edges as [`edge_key`]s, sorted: an edge appears once for each
 /// triangle on it. Sorting packed keys instead of counting in a HashMap keeps this
 /// allocation-light and independent of hashing order.
@@ -204,6 +224,35 @@ pub fn sorted_edges(indices: &[u32]) -> Vec<u64> {
 /// The edge between vertices `a` and `b`, either way round, as one number.
 pub fn edge_key(a: u32, b: u32) -> u64 {
     (u64::from(a.min(b)) << 32) | u64::from(a.max(b))
+}
+
+/// The triangles `indices` of `mesh` with only the vertices they use, kept in their order.
+pub(super) fn compact(mesh: &Mesh, indices: &[u32]) -> Mesh {
+    compact_keeping(mesh, indices).0
+}
+
+/// [`compact`], and the number in `mesh` of each vertex kept.
+pub(super) fn compact_keeping(mesh: &Mesh, indices: &[u32]) -> (Mesh, Vec<u32>) {
+    let mut new_index = vec![u32::MAX; mesh.vertex_count()];
+    for &i in indices {
+        new_index[i as usize] = 0;
+    }
+    let mut kept = Vec::new();
+    for (old, slot) in new_index.iter_mut().enumerate() {
+        if *slot == 0 {
+            *slot = kept.len() as u32;
+            kept.push(old);
+        }
+    }
+    let take = |values: &[_]| kept.iter().map(|&i| values[i]).collect();
+    let mesh = Mesh {
+        positions: take(&mesh.positions),
+        normals: take(&mesh.normals),
+        uvs: kept.iter().map(|&i| mesh.uvs[i]).collect(),
+        colors: mesh.colors.as_ref().map(|c| kept.iter().map(|&i| c[i]).collect()),
+        indices: indices.iter().map(|&i| new_index[i as usize]).collect(),
+    };
+    (mesh, kept.into_iter().map(|i| i as u32).collect())
 }
 
 #[cfg(test)]

@@ -167,13 +167,16 @@ pub fn chamber_mesh(shape: &ChamberShape) -> Mesh {
             indices.extend([u, v, uf, v, vf, uf]);
         }
     }
+    // The wall's vertices inside the opening belong to no triangle: dropped, so that nothing
+    // measuring the surface by its vertices (a level's deviation) finds a point in mid-air.
     let mut mesh = Mesh {
         normals: vec![[0.0, 1.0, 0.0]; positions.len()],
         uvs: positions.iter().map(|p| [p[0] / c.width_m.max(1e-6), p[2] / c.depth_m.max(1e-6)]).collect(),
         positions,
         indices,
         ..Mesh::default()
-    };
+    }
+    .without_unused_vertices();
     recompute_normals(&mut mesh);
     mesh
 }
