@@ -172,9 +172,18 @@ fn check_form(example: &Path, form: &str, dir: &Path, unpaired: &mut Unpaired, b
         problems.push(format!("{name}: triangles per level {triangles:?}"));
     }
     let nodes = loaded.first().map_or(1, |l| l["meshes"].as_array().unwrap().len()) as u64;
+    // A reason excuses a node or a level, not a stall: whatever a level reports, the coarsest
+    // keeps at most 10 % (carve-coast's levels once all kept the full mesh, each with a reason).
     if let (Some(&first), Some(&last)) = (triangles.first(), triangles.last()) {
-        if last * 20 > first && !levels.iter().any(unreduced) && last > (100 * nodes).max(1000) {
+        let few = last <= (100 * nodes).max(1000);
+        // A coarsest level made again for its distance holds the vertices near where its first
+        // try missed (small-island-one-pass: 2 581 triangles over the bound, 4 763 within).
+        let retried = levels.last().is_some_and(|l| l["tries"].as_u64().unwrap_or(0) > 1);
+        if last * 20 > first && !levels.iter().any(unreduced) && !retried && !few {
             problems.push(format!("{name}: the coarsest level keeps {last} of {first} triangles, no reason given"));
+        }
+        if last * 10 > first && !few {
+            problems.push(format!("{name}: the coarsest level keeps {last} of {first} triangles (over 10 %)"));
         }
     }
     // The default form goes to Blender too (after every example, in one Blender process).

@@ -76,7 +76,7 @@ impl MeshSettings {
 }
 
 /// `mesh.glb` (with its levels of detail as `MSFT_lod`) and one glb per level of detail, and `{"form", "levels": [{"file", "vertices",
-/// "triangles", "error_bound_m", "max_deviation_m", "sample_spacing_m"}, …]}` (level 0, the
+/// "triangles", "error_bound_m", "max_deviation_m", "sample_spacing_m", "unreduced", "tries"}, …]}` (level 0, the
 /// full mesh, first) for the result. Stopped on request between and within levels.
 pub fn mesh_glbs(scene: &Scene, settings: &MeshSettings, stop: Stop) -> Result<(Vec<Artifact>, Value), Stopped> {
     let longest = longest_side(scene);
@@ -108,6 +108,7 @@ pub fn mesh_glbs(scene: &Scene, settings: &MeshSettings, stop: Stop) -> Result<(
             "max_deviation_m": level_figures.deviation_m,
             "sample_spacing_m": level_figures.spacing_m,
             "unreduced": level_figures.unreduced,
+            "tries": level_figures.tries,
         }));
         artifacts.push(Artifact::new(&name, "model/gltf-binary", bytes));
     }
@@ -121,6 +122,9 @@ struct LevelFigures {
     spacing_m: f64,
     /// `[{"node", "reason"}]`: nodes this level keeps as the level before, and why.
     unreduced: Vec<Value>,
+    /// The most tries of meshoptimizer any node's level took (more than one: the first missed
+    /// the bound or crowded an edge, and the next held vertices around where it did).
+    tries: u32,
 }
 
 /// Every node of `scene` simplified within each of `bounds_m` (a cascade per node, see
@@ -146,6 +150,7 @@ fn simplified(scene: &Scene, bounds_m: &[f64], stop: Stop) -> Result<Vec<(Scene,
             .filter(|(lod, node)| lod.mesh.triangle_count() < node.mesh.triangle_count())
             .map(|(lod, _)| f64::from(lod.sample_spacing_m))
             .fold(0.0, f64::max);
+        let tries = lods.iter().map(|l| l.tries).max().unwrap_or(0);
         let unreduced = lods
             .iter()
             .zip(&scene.nodes)
@@ -169,6 +174,7 @@ fn simplified(scene: &Scene, bounds_m: &[f64], stop: Stop) -> Result<Vec<(Scene,
                 deviation_m: round_up_mm(deviation_m),
                 spacing_m: round_mm(spacing_m),
                 unreduced,
+                tries,
             },
         ));
     }
