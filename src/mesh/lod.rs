@@ -42,7 +42,8 @@ const DETACHED_SIMPLIFY_TRIANGLES: usize = 200_000;
 /// coarsest level is at most 5.2 % of its full mesh but the chamber's (`scripts/lod-timing`).
 pub const SIMPLIFIER_MARGIN: f32 = 4.0;
 
-/// The share of the bound beyond which a first try's samples are held on the second try.
+/// The share of the bound beyond which a try's samples are held on the next try (every try
+/// until one is made again for its distance).
 const NEAR_MISS: f32 = 0.75;
 
 /// Tries made again, past the one for distance, when a level keeps within its bound but gives
