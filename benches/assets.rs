@@ -18,7 +18,8 @@ use serde_json::json;
 use landform::export::{write_glb, GlbForm};
 use landform::jobs::Simulation;
 use landform::mesh::{
-    heightfield_mesh, max_deviation, simplify_within, GpuOrder, Mesh, Rtin, Scene, DEFAULT_MAX_SIDE_SAMPLES,
+    heightfield_mesh, max_deviation, simplify_within, vertical_deviation, GpuOrder, Mesh, Rtin, Scene,
+    DEFAULT_MAX_SIDE_SAMPLES,
 };
 use landform::sims::carve_coast::{CarveCoast, CarveCoastParams};
 use landform::stop::Stop;
@@ -130,28 +131,22 @@ fn stages(label: &str, mesh: &Mesh, rtin_size: Option<usize>) {
         }
     }
     if let Some(size) = rtin_size {
+        // The service's own heightfield levels (`grid_levels`): the grid triangulated within
+        // each bound and measured exactly, no tries.
         let heights: Vec<f32> = mesh.positions.iter().map(|p| p[1]).collect();
-        let (rtin, errors_s) = timed(|| Rtin::new(&heights, size).expect("a 2^k + 1 grid"));
+        let (rtin, errors_s) = timed(|| Rtin::new(&heights, size, size).expect("a grid"));
         for (level, fraction) in LODS.iter().enumerate() {
             let bound = fraction * longest;
-            let spacing = landform::mesh::sample_spacing(mesh, bound);
-            // As the simplifier's levels: measured, and triangulated again within half the
-            // bound while the measure exceeds it (martini's error bounds each split only
-            // against its parent).
-            let started = Instant::now();
-            let (mut target, mut measure_total) = (bound, 0.0);
-            let (simple, deviation, tries) = loop {
-                let simple = rtin.mesh(mesh, target);
-                let (deviation, measure_s) = timed(|| max_deviation(mesh, &simple, spacing, Stop::NEVER).unwrap());
-                measure_total += measure_s;
-                if deviation <= bound || target < bound / 64.0 {
-                    break (simple, deviation, (bound / target).log2() as u32 + 1);
-                }
-                target *= 0.5;
-            };
-            let total_s = started.elapsed().as_secs_f64();
+            let ((simple, deviation), total_s) = timed(|| {
+                let triangles = rtin.triangles(bound);
+                let deviation = vertical_deviation(&heights, size, size, &triangles);
+                (rtin.mesh(mesh, bound), deviation)
+            });
+            let (_, measure_s) = timed(|| {
+                vertical_deviation(&heights, size, size, &rtin.triangles(bound));
+            });
             println!(
-                "| {} | RTIN ({errors_s:.2} s for the errors, once; {tries} tries) | {bound:.3} | {} | {deviation:.4} | {total_s:.2} | {measure_total:.2} |",
+                "| {} | RTIN, measured exactly ({errors_s:.2} s for the errors, once) | {bound:.3} | {} | {deviation:.4} | {total_s:.2} | {measure_s:.2} |",
                 level + 1,
                 simple.triangle_count(),
             );

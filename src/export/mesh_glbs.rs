@@ -7,7 +7,7 @@ use serde_json::{json, Value};
 
 use super::glb::MESHOPT_POSITION_BITS;
 use super::{write_glb, write_glb_with_levels, Artifact, GlbForm};
-use crate::mesh::{simplify_levels_with, sliver_height, Border, Lod, Scene, SceneNode};
+use crate::mesh::{grid_levels, simplify_levels_with, sliver_height, Border, Lod, Scene, SceneNode};
 use crate::stop::{Stop, Stopped};
 
 /// The levels a request gets when it names none: [`SUGGESTED_LODS`]. `lods: []` turns them off.
@@ -136,7 +136,10 @@ fn simplified(scene: &Scene, bounds_m: &[f64], stop: Stop) -> Result<Vec<(Scene,
     let per_node: Vec<Vec<Lod>> = scene
         .nodes
         .par_iter()
-        .map(|node| simplify_levels_with(&node.mesh, &bounds, Border::Held, sliver, stop))
+        .map(|node| match node.grid.and_then(|grid| grid_levels(&node.mesh, grid, &bounds, stop)) {
+            Some(levels) => levels,
+            None => simplify_levels_with(&node.mesh, &bounds, Border::Held, sliver, stop),
+        })
         .collect::<Result<_, _>>()?;
     let mut per_node: Vec<std::vec::IntoIter<Lod>> = per_node.into_iter().map(Vec::into_iter).collect();
     let mut levels = Vec::with_capacity(bounds.len());
@@ -165,6 +168,7 @@ fn simplified(scene: &Scene, bounds_m: &[f64], stop: Stop) -> Result<Vec<(Scene,
                 mesh: lod.mesh,
                 material: node.material,
                 pivot: Some(node.pivot()),
+                grid: None,
             })
             .collect();
         levels.push((

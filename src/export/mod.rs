@@ -48,7 +48,7 @@ pub use tiles::{tile_artifacts, TileGrid, MAX_TILES_PER_SIDE};
 
 use serde_json::{json, Value};
 
-use crate::mesh::{heightfield_mesh, Scene, DEFAULT_MAX_SIDE_SAMPLES};
+use crate::mesh::{heightfield_mesh, MaterialKind, Scene, SceneNode, DEFAULT_MAX_SIDE_SAMPLES};
 use crate::stop::{Stop, Stopped};
 use crate::terrain::Heightfield;
 
@@ -126,7 +126,9 @@ pub fn heightfield_artifacts(hf: &Heightfield, options: &HeightfieldExport) -> R
                         "triangles": meshed.mesh.triangle_count(),
                         "stride": meshed.stride,
                     });
-                    let scene = Scene::single("terrain", meshed.mesh);
+                    let terrain =
+                        SceneNode::new("terrain", meshed.mesh, MaterialKind::default()).with_grid(meshed.vertices);
+                    let scene = Scene { nodes: vec![terrain] };
                     let glbs = rayon::join(
                         || mesh_glbs(&scene, mesh, stop),
                         || {

@@ -45,10 +45,12 @@ pub(super) fn crowded_edges(indices: &[u32]) -> Vec<(u32, u32)> {
 /// triangles on the edge a–b that run it opposite ways, (a, b, c) and (b, a, d), make a quad
 /// a–d–b–c folded on its diagonal; turned onto its other diagonal, (c, a, d) and (d, b, c), it
 /// leaves the edge, while each of its four sides keeps its count and c–d, which must be no edge
-/// yet, gets just these two. Of the quads an edge offers, the flattest is turned whose new
-/// triangles face the way both old ones did and are no lower than `sliver_m` (nor flat). A
-/// vertex never moves; the surface moves by at most the quad's bend, and the level is measured
-/// after. What no flip can relieve is left as it is.
+/// yet, gets just these two. Only neighbours in the ring of triangles around a–b pair up (no
+/// other triangle on the edge lies in the wedge between them): the new diagonal sweeps that
+/// wedge, and would pierce a sheet lying in it. Of the quads an edge offers, the flattest is
+/// turned whose new triangles face the way both old ones did and are no lower than `sliver_m`
+/// (nor flat). A vertex never moves; the surface moves by at most the quad's bend, and the
+/// level is measured after. What no flip can relieve is left as it is.
 pub(super) fn relieve_crowded_edges(mut indices: Vec<u32>, positions: &[[f32; 3]], sliver_m: f32) -> Vec<u32> {
     let crowded = crowded_edges(&indices);
     if crowded.is_empty() {
@@ -68,12 +70,8 @@ pub(super) fn relieve_crowded_edges(mut indices: Vec<u32>, positions: &[[f32; 3]
     let p = |v: u32| positions[v as usize].map(f64::from);
     let normal = |t: [u32; 3]| {
         let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
-        let (u, v) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
-        let n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
-        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(f64::MIN_POSITIVE);
-        n.map(|x| x / len)
+        normalized(cross([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]))
     };
-    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let sound = |t: [u32; 3]| {
         let [a, b, c] = t.map(|v| positions[v as usize]);
         !zero_area(a, b, c) && least_height(a, b, c) >= f64::from(sliver_m)
@@ -89,13 +87,21 @@ pub(super) fn relieve_crowded_edges(mut indices: Vec<u32>, positions: &[[f32; 3]
         };
         let mut on_edge: Vec<usize> = on[&edge_key(a, b)].iter().copied().filter(|n| !turned.contains(n)).collect();
         while on_edge.len() > 2 {
+            let ring = Ring::around(positions, a, b);
+            let third = |n: usize| indices[3 * n..3 * n + 3].iter().copied().find(|&v| v != a && v != b);
+            let at = |v: u32| ring.angle(positions[v as usize]);
+            let angles: Vec<f64> = on_edge.iter().filter_map(|&n| Some(at(third(n)?))).collect();
             let mut best: Option<(f64, usize, usize, u32, u32)> = None;
             for &f in &on_edge {
                 let Some(c) = starting(&indices, f, a, b) else { continue };
                 for &g in &on_edge {
                     let Some(d) = starting(&indices, g, b, a) else { continue };
                     let diagonal = edge_key(c, d);
-                    if c == d || edges.binary_search(&diagonal).is_ok() || added.contains(&diagonal) {
+                    if c == d
+                        || edges.binary_search(&diagonal).is_ok()
+                        || added.contains(&diagonal)
+                        || !ring.neighbours(at(c), at(d), &angles)
+                    {
                         continue;
                     }
                     let (old_f, old_g) = (normal([a, b, c]), normal([b, a, d]));
@@ -122,6 +128,67 @@ pub(super) fn relieve_crowded_edges(mut indices: Vec<u32>, positions: &[[f32; 3]
         }
     }
     indices
+}
+
+/// Directions around the axis a → b: the angle of a point's offset from the axis.
+struct Ring {
+    origin: [f64; 3],
+    across: [f64; 3],
+    up: [f64; 3],
+}
+
+impl Ring {
+    fn around(positions: &[[f32; 3]], a: u32, b: u32) -> Self {
+        let origin = positions[a as usize].map(f64::from);
+        let end = positions[b as usize].map(f64::from);
+        let axis = normalized([end[0] - origin[0], end[1] - origin[1], end[2] - origin[2]]);
+        // Any direction square to the axis: the coordinate axis least along it, less its part
+        // along the axis.
+        let least = (0..3).min_by(|&i, &j| axis[i].abs().total_cmp(&axis[j].abs())).unwrap_or(0);
+        let mut pick = [0.0; 3];
+        pick[least] = 1.0;
+        let along = dot(pick, axis);
+        let across = normalized([pick[0] - along * axis[0], pick[1] - along * axis[1], pick[2] - along * axis[2]]);
+        let up = cross(axis, across);
+        Self { origin, across, up }
+    }
+
+    /// The angle of `p`'s offset from the axis, in [0, 2π).
+    fn angle(&self, p: [f32; 3]) -> f64 {
+        let p = p.map(f64::from);
+        let offset = [p[0] - self.origin[0], p[1] - self.origin[1], p[2] - self.origin[2]];
+        dot(offset, self.up).atan2(dot(offset, self.across)).rem_euclid(std::f64::consts::TAU)
+    }
+
+    /// Whether directions `c` and `d` are next to each other in the ring `all` (which holds
+    /// both): the wedge the segment between them sweeps, the arc of at most a half turn from
+    /// one to the other, holds no other direction.
+    fn neighbours(&self, c: f64, d: f64, all: &[f64]) -> bool {
+        const TURN: f64 = std::f64::consts::TAU;
+        const SLACK: f64 = 1e-9;
+        let empty_from = |start: f64, length: f64| {
+            all.iter().all(|&x| {
+                let offset = (x - start).rem_euclid(TURN);
+                offset <= SLACK || offset >= length - SLACK
+            })
+        };
+        let forward = (d - c).rem_euclid(TURN);
+        (forward <= std::f64::consts::PI + SLACK && empty_from(c, forward))
+            || (forward >= std::f64::consts::PI - SLACK && empty_from(d, TURN - forward))
+    }
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn normalized(v: [f64; 3]) -> [f64; 3] {
+    let len = dot(v, v).sqrt().max(f64::MIN_POSITIVE);
+    v.map(|x| x / len)
 }
 
 #[cfg(test)]
@@ -197,8 +264,11 @@ mod tests {
     #[test]
     fn a_quad_whose_other_diagonal_is_an_edge_already_stays() {
         let (positions, mut indices) = two_sheets();
-        // c–d is an edge elsewhere: the flat quad cannot turn, so a flattest other one (a
-        // triangle of each sheet) does, onto a diagonal that is no edge yet.
+        // c–d is an edge elsewhere: the flat quad cannot turn. Around a–b the third corners lie
+        // c, e, f, d (a half turn from c to d through e and f, above y = 0): of the pairs that
+        // run the edge opposite ways only e and f are neighbours there, so the bent sheet
+        // turns onto e–f. The pair c, f would cross the bent sheet's (a, b, e) (c–f passes
+        // through it at (0.636, 0.227, 0.364)), and e, d the triangle (b, a, f).
         indices.extend([2, 3, 6]);
         let before = edge_counts(&indices);
         let relieved = relieve_crowded_edges(indices, &positions, 0.0);
@@ -206,14 +276,43 @@ mod tests {
         let after = edge_counts(&relieved);
         assert_eq!(after[&edge_key(2, 3)], 1, "c–d keeps just the triangle elsewhere");
         assert_eq!(after[&edge_key(0, 1)], 2);
+        assert_eq!(after[&edge_key(4, 5)], 2, "the bent sheet's other diagonal e–f");
+        assert!(!after.contains_key(&edge_key(2, 5)) && !after.contains_key(&edge_key(4, 3)));
         for (edge, count) in &before {
             if *edge != edge_key(0, 1) {
                 assert_eq!(after[edge], *count, "edge {edge:x}");
             }
         }
         assert_eq!(after.len(), before.len() + 1, "one new edge, the turned quad's diagonal");
+        // The flat sheet stays as it was.
+        assert_eq!(&relieved[..6], &[0, 1, 2, 1, 0, 3]);
         // Three triangles running the edge one way offer no quad: left as they are.
         let same_way = vec![0, 1, 2, 0, 1, 4, 0, 1, 3];
         assert_eq!(relieve_crowded_edges(same_way.clone(), &positions, 0.0), same_way);
+    }
+
+    /// A sheet between the two triangles of a quad keeps them from turning, even where theirs
+    /// is the flattest quad on the edge: the diagonal would pierce it.
+    #[test]
+    fn a_quad_with_another_sheet_in_its_wedge_stays() {
+        let positions = vec![
+            [0.0, 0.0, 0.0],    // a
+            [0.0, 0.0, 1.0],    // b: the edge runs along +z
+            [1.0, 0.0, 0.5],    // c: at 0° around it
+            [0.0, 1.0, 0.5],    // d: 90°
+            [0.7, 0.7, 0.5],    // e: 45°, between c and d
+            [-0.94, 0.34, 0.5], // f: 160°
+        ];
+        // Forward (a, b, c), (a, b, e), (a, b, f); back (b, a, d). The quad on c and d is the
+        // flattest (bend 1, against 1.34 for f and d, 1.71 for e and d), but e lies in its
+        // wedge: f and d, neighbours, turn instead.
+        let indices = vec![0, 1, 2, 1, 0, 3, 0, 1, 4, 0, 1, 5];
+        let turned = relieve_crowded_edges(indices, &positions, 0.0);
+        assert_eq!(turned, vec![0, 1, 2, 3, 1, 5, 0, 1, 4, 5, 0, 3]);
+        assert!(crowded_edges(&turned).is_empty());
+        // Without e, c and d are neighbours and turn.
+        let without_e = vec![0, 1, 2, 1, 0, 3, 0, 1, 5];
+        let turned = relieve_crowded_edges(without_e, &positions, 0.0);
+        assert_eq!(turned, vec![2, 0, 3, 3, 1, 2, 0, 1, 5]);
     }
 }

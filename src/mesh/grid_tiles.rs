@@ -5,7 +5,7 @@
 
 use std::ops::RangeInclusive;
 
-use super::heightfield_mesh::grid_triangles;
+use super::heightfield_mesh::grid_triangles_at;
 use super::types::{edge_key, sorted_edges};
 use super::Mesh;
 
@@ -31,7 +31,7 @@ pub fn grid_patch(mesh: &Mesh, columns: usize, xs: RangeInclusive<usize>, zs: Ra
         normals: take(&mesh.normals),
         uvs: kept.iter().map(|&v| mesh.uvs[v]).collect(),
         colors: mesh.colors.as_ref().map(|c| kept.iter().map(|&v| c[v]).collect()),
-        indices: grid_triangles(xs.count(), zs.count()),
+        indices: grid_triangles_at(xs.clone().count(), zs.clone().count(), [*xs.start(), *zs.start()]),
     }
 }
 

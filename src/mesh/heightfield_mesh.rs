@@ -102,19 +102,33 @@ pub fn heightfield_mesh(hf: &Heightfield, max_side_samples: usize, colors: Optio
 }
 
 /// The triangles of a grid of `nx × nz` vertices numbered row by row: two per quad, wound
-/// counter-clockwise seen from +Y, each quad split along the same diagonal.
+/// counter-clockwise seen from +Y. Quad (i, j) is split along its diagonal from (i, j) to
+/// (i + 1, j + 1) when i + j is even, else along the other: the finest level of a
+/// right-triangulated irregular network ([`super::Rtin`]), whose every edge then lies on the
+/// grid's own edges, so its levels of detail are measured against the grid exactly.
 pub(super) fn grid_triangles(nx: usize, nz: usize) -> Vec<u32> {
+    grid_triangles_at(nx, nz, [0, 0])
+}
+
+/// [`grid_triangles`] of the part of a larger grid whose first vertex is that grid's vertex
+/// `origin` (column, row): its quads split as the larger grid's do.
+pub(super) fn grid_triangles_at(nx: usize, nz: usize, origin: [usize; 2]) -> Vec<u32> {
     let mut indices = vec![0u32; nx.saturating_sub(1) * nz.saturating_sub(1) * 6];
     if nx > 1 {
         indices.par_chunks_mut((nx - 1) * 6).enumerate().for_each(|(j, row)| {
             for (i, quad) in row.chunks_exact_mut(6).enumerate() {
                 // a b     a = (i, j), b = (i + 1, j): +X to the right, +Z downwards, so
-                // c d     a→c→b and b→c→d turn counter-clockwise seen from +Y.
+                // c d     a→c→b and b→c→d (or a→c→d and a→d→b) turn counter-clockwise seen
+                //         from +Y.
                 let a = (j * nx + i) as u32;
                 let b = a + 1;
                 let c = a + nx as u32;
                 let d = c + 1;
-                quad.copy_from_slice(&[a, c, b, b, c, d]);
+                if (origin[0] + i + origin[1] + j) % 2 == 0 {
+                    quad.copy_from_slice(&[a, c, d, a, d, b]);
+                } else {
+                    quad.copy_from_slice(&[a, c, b, b, c, d]);
+                }
             }
         });
     }

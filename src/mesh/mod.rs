@@ -5,6 +5,7 @@
 mod crowded;
 mod deviation;
 mod gpu_order;
+mod grid_levels;
 mod grid_tiles;
 mod heightfield_mesh;
 #[cfg(test)]
@@ -18,6 +19,7 @@ mod types;
 
 pub use deviation::{max_deviation, max_deviation_from, SurfaceIndex};
 pub use gpu_order::GpuOrder;
+pub use grid_levels::grid_levels;
 pub use grid_tiles::{border_drift, grid_patch, tile_edges, with_skirt, without_fins};
 pub use heightfield_mesh::{heightfield_mesh, mesh_stride, HeightfieldMesh, VertexColorFn, DEFAULT_MAX_SIDE_SAMPLES};
 pub use isosurface::{extract_isosurface, min_crossing, ScalarField};
@@ -26,6 +28,6 @@ pub use lod::{
     SIMPLIFIER_MARGIN,
 };
 pub use normals::recompute_normals;
-pub use rtin::Rtin;
+pub use rtin::{vertical_deviation, Rtin};
 pub use smooth::{smooth, Smoothing};
 pub use types::{bottom_centre, MaterialKind, Mesh, Scene, SceneNode};

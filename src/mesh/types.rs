@@ -147,11 +147,20 @@ pub struct SceneNode {
     /// a speleothem's root on the roof or floor. `None`: the middle of the bottom of the
     /// mesh's box (see [`SceneNode::pivot`]).
     pub pivot: Option<[f32; 3]>,
+    /// `Some([columns, rows])` when the mesh is a heightfield's grid of that many vertices,
+    /// as [`heightfield_mesh`](super::heightfield_mesh) lays it out: its levels of detail are
+    /// then triangulated from the grid and measured exactly ([`grid_levels`](super::grid_levels)).
+    pub grid: Option<[usize; 2]>,
 }
 
 impl SceneNode {
     pub fn new(name: impl Into<String>, mesh: Mesh, material: MaterialKind) -> Self {
-        Self { name: name.into(), mesh, material, pivot: None }
+        Self { name: name.into(), mesh, material, pivot: None, grid: None }
+    }
+
+    /// This node as a heightfield's grid of `vertices` (along X, along Z).
+    pub fn with_grid(self, vertices: [usize; 2]) -> Self {
+        Self { grid: Some(vertices), ..self }
     }
 
     /// This node with its pivot at `pivot` (world coordinates).
