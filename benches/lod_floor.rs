@@ -17,9 +17,12 @@ use landform::mesh::SIMPLIFIER_MARGIN;
 
 const KINDS: [&str; 3] = ["grow-cave", "weather-column", "carve-coast"];
 
+/// A node's positions (in its own frame) and triangles.
+type Node = (Vec<[f32; 3]>, Vec<u32>);
+
 /// Each node of a glb in `none` form: positions (in the node's frame) and indices, and the
 /// world box's longest side.
-fn nodes(glb: &[u8]) -> (Vec<(Vec<[f32; 3]>, Vec<u32>)>, f32) {
+fn nodes(glb: &[u8]) -> (Vec<Node>, f32) {
     let gltf = gltf::Gltf::from_slice_without_validation(glb).expect("glb parses");
     let blob = gltf.blob.as_deref().expect("a BIN chunk");
     let mut lo = [f32::INFINITY; 3];
@@ -46,7 +49,7 @@ fn nodes(glb: &[u8]) -> (Vec<(Vec<[f32; 3]>, Vec<u32>)>, f32) {
 }
 
 /// Seconds meshoptimizer takes for the default levels of every node, one after another.
-fn simplifier_alone(nodes: &[(Vec<[f32; 3]>, Vec<u32>)], longest: f32) -> f64 {
+fn simplifier_alone(nodes: &[Node], longest: f32) -> f64 {
     let started = Instant::now();
     for (positions, indices) in nodes {
         let adapter = meshopt::VertexDataAdapter::new(meshopt::typed_to_bytes(positions), 12, 0).expect("vertices");
@@ -89,7 +92,8 @@ fn main() {
     println!("| example | job without levels | meshoptimizer alone, 3 levels | least ratio ({cores} cores) |");
     println!("| --- | ---: | ---: | ---: |");
     for example in examples(root) {
-        let kind = example.parent().and_then(Path::file_name).and_then(|k| k.to_str()).expect("api/<kind>/").to_string();
+        let kind =
+            example.parent().and_then(Path::file_name).and_then(|k| k.to_str()).expect("api/<kind>/").to_string();
         let name = example.file_stem().and_then(|n| n.to_str()).expect("a name").to_string();
         let mut body: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&example).expect("example")).expect("json");

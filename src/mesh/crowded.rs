@@ -5,6 +5,7 @@
 
 use std::collections::{HashMap, HashSet};
 
+use super::intersections::corners_meet;
 use super::types::{edge_key, least_height, sorted_edges, zero_area};
 
 /// `indices` less every pair of triangles on the same three vertices (a flap of no volume a
@@ -45,9 +46,9 @@ pub(super) fn crowded_edges(indices: &[u32]) -> Vec<(u32, u32)> {
 /// triangles on the edge a–b that run it opposite ways, (a, b, c) and (b, a, d), make a quad
 /// a–d–b–c folded on its diagonal; turned onto its other diagonal, (c, a, d) and (d, b, c), it
 /// leaves the edge, while each of its four sides keeps its count and c–d, which must be no edge
-/// yet, gets just these two. Only neighbours in the ring of triangles around a–b pair up (no
-/// other triangle on the edge lies in the wedge between them): the new diagonal sweeps that
-/// wedge, and would pierce a sheet lying in it. Of the quads an edge offers, the flattest is
+/// yet, gets just these two. A pair whose new triangles would meet another triangle on a–b
+/// (exactly, but for a sliver of it along a–b) stays: the new diagonal sweeps the wedge between
+/// the two, and would pierce a sheet lying in it. Of the quads an edge offers, the flattest is
 /// turned whose new triangles face the way both old ones did and are no lower than `sliver_m`
 /// (nor flat). A vertex never moves; the surface moves by at most the quad's bend, and the
 /// level is measured after. What no flip can relieve is left as it is.
@@ -87,21 +88,13 @@ pub(super) fn relieve_crowded_edges(mut indices: Vec<u32>, positions: &[[f32; 3]
         };
         let mut on_edge: Vec<usize> = on[&edge_key(a, b)].iter().copied().filter(|n| !turned.contains(n)).collect();
         while on_edge.len() > 2 {
-            let ring = Ring::around(positions, a, b);
-            let third = |n: usize| indices[3 * n..3 * n + 3].iter().copied().find(|&v| v != a && v != b);
-            let at = |v: u32| ring.angle(positions[v as usize]);
-            let angles: Vec<f64> = on_edge.iter().filter_map(|&n| Some(at(third(n)?))).collect();
             let mut best: Option<(f64, usize, usize, u32, u32)> = None;
             for &f in &on_edge {
                 let Some(c) = starting(&indices, f, a, b) else { continue };
                 for &g in &on_edge {
                     let Some(d) = starting(&indices, g, b, a) else { continue };
                     let diagonal = edge_key(c, d);
-                    if c == d
-                        || edges.binary_search(&diagonal).is_ok()
-                        || added.contains(&diagonal)
-                        || !ring.neighbours(at(c), at(d), &angles)
-                    {
+                    if c == d || edges.binary_search(&diagonal).is_ok() || added.contains(&diagonal) {
                         continue;
                     }
                     let (old_f, old_g) = (normal([a, b, c]), normal([b, a, d]));
@@ -111,6 +104,23 @@ pub(super) fn relieve_crowded_edges(mut indices: Vec<u32>, positions: &[[f32; 3]
                         dot(m, old_f) > 0.0 && dot(m, old_g) > 0.0
                     });
                     if !facing || !new.iter().all(|&t| sound(t)) {
+                        continue;
+                    }
+                    // The new diagonal sweeps the wedge between the two: a sheet in it (another
+                    // triangle on a–b) would be pierced. Each is taken without a sliver along
+                    // a–b, which the diagonal of a flat quad crosses wherever it lies.
+                    let pierced = on_edge.iter().filter(|&&n| n != f && n != g).any(|&n| {
+                        let Some(x) = indices[3 * n..3 * n + 3].iter().copied().find(|&v| v != a && v != b) else {
+                            return true;
+                        };
+                        let toward = |v: u32| {
+                            let (v, x) = (p(v), p(x));
+                            std::array::from_fn(|k| v[k] + 1e-3 * (x[k] - v[k]))
+                        };
+                        let other = [toward(a), toward(b), p(x)];
+                        new.iter().any(|t| corners_meet(t.map(p), other))
+                    });
+                    if pierced {
                         continue;
                     }
                     let bend = 1.0 - dot(old_f, old_g);
@@ -128,54 +138,6 @@ pub(super) fn relieve_crowded_edges(mut indices: Vec<u32>, positions: &[[f32; 3]
         }
     }
     indices
-}
-
-/// Directions around the axis a → b: the angle of a point's offset from the axis.
-struct Ring {
-    origin: [f64; 3],
-    across: [f64; 3],
-    up: [f64; 3],
-}
-
-impl Ring {
-    fn around(positions: &[[f32; 3]], a: u32, b: u32) -> Self {
-        let origin = positions[a as usize].map(f64::from);
-        let end = positions[b as usize].map(f64::from);
-        let axis = normalized([end[0] - origin[0], end[1] - origin[1], end[2] - origin[2]]);
-        // Any direction square to the axis: the coordinate axis least along it, less its part
-        // along the axis.
-        let least = (0..3).min_by(|&i, &j| axis[i].abs().total_cmp(&axis[j].abs())).unwrap_or(0);
-        let mut pick = [0.0; 3];
-        pick[least] = 1.0;
-        let along = dot(pick, axis);
-        let across = normalized([pick[0] - along * axis[0], pick[1] - along * axis[1], pick[2] - along * axis[2]]);
-        let up = cross(axis, across);
-        Self { origin, across, up }
-    }
-
-    /// The angle of `p`'s offset from the axis, in [0, 2π).
-    fn angle(&self, p: [f32; 3]) -> f64 {
-        let p = p.map(f64::from);
-        let offset = [p[0] - self.origin[0], p[1] - self.origin[1], p[2] - self.origin[2]];
-        dot(offset, self.up).atan2(dot(offset, self.across)).rem_euclid(std::f64::consts::TAU)
-    }
-
-    /// Whether directions `c` and `d` are next to each other in the ring `all` (which holds
-    /// both): the wedge the segment between them sweeps, the arc of at most a half turn from
-    /// one to the other, holds no other direction.
-    fn neighbours(&self, c: f64, d: f64, all: &[f64]) -> bool {
-        const TURN: f64 = std::f64::consts::TAU;
-        const SLACK: f64 = 1e-9;
-        let empty_from = |start: f64, length: f64| {
-            all.iter().all(|&x| {
-                let offset = (x - start).rem_euclid(TURN);
-                offset <= SLACK || offset >= length - SLACK
-            })
-        };
-        let forward = (d - c).rem_euclid(TURN);
-        (forward <= std::f64::consts::PI + SLACK && empty_from(c, forward))
-            || (forward >= std::f64::consts::PI - SLACK && empty_from(d, TURN - forward))
-    }
 }
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {

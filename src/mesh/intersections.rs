@@ -1,5 +1,5 @@
-//! Exact checks of a closed surface for tests: 2-manifold and consistently oriented, and free of
-//! self-intersections — every pair of triangles tested with Shewchuk's exact orientation
+//! Exact checks of a closed surface (for tests, and for a level of detail's flips): 2-manifold
+//! and consistently oriented, and free of self-intersections — every pair of triangles tested with Shewchuk's exact orientation
 //! predicates (`robust`), so a touch is found however small and nothing is found that is not
 //! there. Triangles sharing a vertex or an edge are tested for what they share beyond it.
 
@@ -185,23 +185,32 @@ pub fn self_intersections(mesh: &Mesh) -> usize {
         .par_iter()
         .filter(|&&(i, j)| {
             let ((ti, pi), (tj, pj)) = (corners(mesh, i), corners(mesh, j));
-            let shared: Vec<(usize, usize)> =
-                (0..3).flat_map(|a| (0..3).map(move |b| (a, b))).filter(|&(a, b)| ti[a] == tj[b]).collect();
-            match shared.len() {
-                0 => disjoint_triangles_meet(pi, pj),
-                1 => {
-                    let (a, b) = shared[0];
-                    fan_neighbours_meet(pi[a], pi[(a + 1) % 3], pi[(a + 2) % 3], pj[(b + 1) % 3], pj[(b + 2) % 3])
-                }
-                2 => {
-                    let other = |sh: &[usize]| (0..3).find(|k| !sh.contains(k)).expect("a third corner");
-                    let (oi, oj) = (other(&[shared[0].0, shared[1].0]), other(&[shared[0].1, shared[1].1]));
-                    edge_neighbours_meet(pi[shared[0].0], pi[shared[1].0], pi[oi], pj[oj])
-                }
-                _ => true, // the same triangle twice
-            }
+            meet_beyond_shared((ti, pi), (tj, pj))
         })
         .count()
+}
+
+/// Whether the triangles with corners `t` and `u` meet anywhere (taken as sharing no vertex).
+pub fn corners_meet(t: [[f64; 3]; 3], u: [[f64; 3]; 3]) -> bool {
+    disjoint_triangles_meet(t, u)
+}
+
+fn meet_beyond_shared((ti, pi): ([u32; 3], [P; 3]), (tj, pj): ([u32; 3], [P; 3])) -> bool {
+    let shared: Vec<(usize, usize)> =
+        (0..3).flat_map(|a| (0..3).map(move |b| (a, b))).filter(|&(a, b)| ti[a] == tj[b]).collect();
+    match shared.len() {
+        0 => disjoint_triangles_meet(pi, pj),
+        1 => {
+            let (a, b) = shared[0];
+            fan_neighbours_meet(pi[a], pi[(a + 1) % 3], pi[(a + 2) % 3], pj[(b + 1) % 3], pj[(b + 2) % 3])
+        }
+        2 => {
+            let other = |sh: &[usize]| (0..3).find(|k| !sh.contains(k)).expect("a third corner");
+            let (oi, oj) = (other(&[shared[0].0, shared[1].0]), other(&[shared[0].1, shared[1].1]));
+            edge_neighbours_meet(pi[shared[0].0], pi[shared[1].0], pi[oi], pj[oj])
+        }
+        _ => true, // the same triangle twice
+    }
 }
 
 /// Whether any triangle of `a` meets any of `b` (no vertices shared between them).

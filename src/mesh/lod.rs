@@ -52,9 +52,13 @@ const NEAR_MISS: f32 = 0.75;
 /// relieves few of them ([`relieve_crowded_edges`]: most such quads are concave); holding
 /// what every try before crowded, a later one seldom does. With one retry carve-coast's
 /// coarse levels stayed at 12 % of the full mesh (cliff-strata's at 100 %); with two,
-/// cliff-strata's level 3 still kept level 2 (7.6 %); with four it is 3.3 %. Such retries
-/// mostly fall on coarse levels, made from small meshes.
-const CROWDED_RETRIES: u32 = 4;
+/// cliff-strata's level 3 still kept level 2 (7.6 %); with four it was 3.3 % while the flip
+/// could pair triangles of two sheets across a third. Flips that would pierce a sheet are
+/// refused now, and with four retries cliff-strata's and sea-cave-and-blowhole's level 3 kept
+/// their level 2 (7.7 % and 5.0 %); with eight they are 4.0 % and 1.8 %, in about the same
+/// time (`scripts/lod-timing`). Such retries mostly fall on coarse levels, made from small
+/// meshes.
+const CROWDED_RETRIES: u32 = 8;
 
 /// One level of detail of a mesh.
 #[derive(Clone, Debug)]

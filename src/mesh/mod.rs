@@ -8,7 +8,6 @@ mod gpu_order;
 mod grid_levels;
 mod grid_tiles;
 mod heightfield_mesh;
-#[cfg(test)]
 pub mod intersections;
 mod isosurface;
 mod lod;
