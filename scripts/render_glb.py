@@ -12,6 +12,10 @@
 # Points are glTF coordinates (metres, y up). Cycles on the CPU, 24 samples, no denoiser
 # (Debian builds Blender without OpenImageDenoise). Needs python3-numpy: Blender 3.4's glTF
 # importer still uses `numpy.bool`, which numpy removed.
+#
+# With LANDFORM_BLENDER_ADDON set to clients/blender, the `landform` add-on is enabled first
+# (levels of detail then import hidden, as its users see them).
+import os
 import sys
 
 import numpy
@@ -26,6 +30,11 @@ eye = [float(v) for v in argv[2:5]]
 target = [float(v) for v in argv[5:8]]
 outdoors = len(argv) > 8 and argv[8] == "sun"
 bpy.ops.wm.read_factory_settings(use_empty=True)
+if os.environ.get("LANDFORM_BLENDER_ADDON"):
+    import addon_utils
+
+    sys.path.insert(0, os.environ["LANDFORM_BLENDER_ADDON"])
+    addon_utils.enable("landform", default_set=True)
 for path in glb.split(","):
     bpy.ops.import_scene.gltf(filepath=path)
 
