@@ -220,15 +220,18 @@ fn every_examples_meshes_load_validate_and_are_clean_in_every_form_and_level() {
 }
 
 /// Blender (Debian's 3.4, headless: `tests/blender/import.py`) imports each default-form
-/// `mesh.glb`: it must finish, give every full node and every level node an object (Blender
-/// ignores MSFT_lod and imports the levels as objects of their own), with the triangles the
-/// result states, and every object at scale 1 with its origin at the node's pivot.
+/// `mesh.glb` with the `landform` add-on (`clients/blender`): it must finish, give every full
+/// node and every level node an object (Blender ignores MSFT_lod and imports the levels as
+/// objects of their own, which the add-on hides), with the triangles the result states, every
+/// full object shown and every level hidden, and every object at scale 1 with its origin at
+/// the node's pivot.
 fn blender_imports(files: &[BlenderFile]) -> Vec<String> {
     let output = std::process::Command::new("blender")
         .args(["-b", "--factory-startup", "-P"])
         .arg(repo().join("tests/blender/import.py"))
         .arg("--")
         .args(files.iter().map(|f| &f.0))
+        .env("LANDFORM_BLENDER_ADDON", repo().join("clients/blender"))
         .output()
         .unwrap_or_else(|e| panic!("cannot run `blender` ({e}); scripts/test installs Debian's blender"));
     let reports: Vec<Value> = String::from_utf8_lossy(&output.stdout)
@@ -264,6 +267,12 @@ fn blender_imports(files: &[BlenderFile]) -> Vec<String> {
         if full != *triangles {
             problems
                 .push(format!("Blender {name}: {full} triangles in the full objects, the result states {triangles}"));
+        }
+        for object in &meshes {
+            let level = object["name"].as_str().unwrap().contains(" lod");
+            if object["shown"] != json!(!level) {
+                problems.push(format!("Blender {name}: {} shown {}", object["name"], object["shown"]));
+            }
         }
         for object in report["objects"].as_array().unwrap() {
             if object["scale"] != json!([1.0, 1.0, 1.0]) {
