@@ -138,8 +138,8 @@ fn set(body: &mut Value, pointer: &str, value: Value) {
 }
 
 /// Levels of detail are measured on meshes of at most this many triangles by default: the
-/// levels of a larger mesh take minutes each today. `LANDFORM_LEVELS_UP_TO=100000000` measures
-/// every case.
+/// levels of carve-coast's million-triangle meshes take 8–25 s each in the debug build, three
+/// runs a case. `LANDFORM_LEVELS_UP_TO=100000000` measures every case.
 const LEVELS_MEASURED_UP_TO: u64 = 600_000;
 
 fn levels_measured_up_to() -> u64 {

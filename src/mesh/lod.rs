@@ -158,6 +158,9 @@ pub fn simplify_levels_with(
             let indices = without_paired_triangles(indices);
             let indices = relieve_crowded_edges(indices, &source.positions, sliver_m);
             if indices.len() >= source.indices.len() {
+                // Held so much that nothing goes: a reason from the tries before still holds,
+                // with this one counted.
+                missed = missed.map(|why| format!("{why}; try {tries} removed no triangle"));
                 break;
             }
             let crowded = crowded_edges(&indices);

@@ -171,9 +171,11 @@ fn tube_through(tube: &mut Tube, p: &Profile) {
     }
 }
 
+/// The tube's mesh with its normals, less any vertex no triangle uses (it would be no point
+/// of the surface, yet a level's measure or an engine's bounds would count it).
 fn finish(mut tube: Tube) -> Mesh {
     recompute_normals(&mut tube.mesh);
-    tube.mesh
+    tube.mesh.without_unused_vertices()
 }
 
 /// The closed surface of a profile: `key` seeds its roughness.
