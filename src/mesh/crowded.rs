@@ -78,7 +78,6 @@ pub(super) fn relieve_crowded_edges(mut indices: Vec<u32>, positions: &[[f32; 3]
         !zero_area(a, b, c) && least_height(a, b, c) >= f64::from(sliver_m)
     };
     let mut added: HashSet<u64> = HashSet::new();
-    let mut turned: HashSet<usize> = HashSet::new();
     for &(a, b) in &crowded {
         // Each triangle on the edge turned to start at its first end there: (a, b, c) runs it
         // forward, (b, a, d) back.
@@ -86,7 +85,7 @@ pub(super) fn relieve_crowded_edges(mut indices: Vec<u32>, positions: &[[f32; 3]
             let t = &indices[3 * n..3 * n + 3];
             (0..3).find(|&k| t[k] == first && t[(k + 1) % 3] == second).map(|k| t[(k + 2) % 3])
         };
-        let mut on_edge: Vec<usize> = on[&edge_key(a, b)].iter().copied().filter(|n| !turned.contains(n)).collect();
+        let mut on_edge: Vec<usize> = on.get(&edge_key(a, b)).cloned().unwrap_or_default();
         while on_edge.len() > 2 {
             let mut best: Option<(f64, usize, usize, u32, u32)> = None;
             for &f in &on_edge {
@@ -130,10 +129,24 @@ pub(super) fn relieve_crowded_edges(mut indices: Vec<u32>, positions: &[[f32; 3]
                 }
             }
             let Some((_, f, g, c, d)) = best else { break };
-            indices[3 * f..3 * f + 3].copy_from_slice(&[c, a, d]);
-            indices[3 * g..3 * g + 3].copy_from_slice(&[d, b, c]);
+            // The turned triangles leave their old edges' lists and join their new ones', so a
+            // crowded edge taken later sees them as they are now.
+            for (n, new) in [(f, [c, a, d]), (g, [d, b, c])] {
+                let old = [indices[3 * n], indices[3 * n + 1], indices[3 * n + 2]];
+                for k in 0..3 {
+                    if let Some(list) = on.get_mut(&edge_key(old[k], old[(k + 1) % 3])) {
+                        list.retain(|&m| m != n);
+                    }
+                }
+                for k in 0..3 {
+                    let key = edge_key(new[k], new[(k + 1) % 3]);
+                    if wanted.contains(&key) {
+                        on.entry(key).or_default().push(n);
+                    }
+                }
+                indices[3 * n..3 * n + 3].copy_from_slice(&new);
+            }
             added.insert(edge_key(c, d));
-            turned.extend([f, g]);
             on_edge.retain(|&n| n != f && n != g);
         }
     }

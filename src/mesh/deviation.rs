@@ -30,18 +30,23 @@ pub fn max_deviation_from(
     spacing_m: f32,
     stop: Stop,
 ) -> Result<f32, Stopped> {
-    Ok(deviation_and_misses(a, a_index, b, spacing_m, f32::INFINITY, stop)?.0)
+    Ok(deviation_and_misses(a, a_index, b, spacing_m, f32::INFINITY, false, stop)?.0)
 }
 
 /// [`max_deviation_from`], and the samples (of either mesh) farther than `bound_m` from the
 /// other, in no particular order: where a level of detail misses its bound. Collecting them
 /// costs an exact distance for each, so a level within its bound costs no more than measuring.
+/// `b_corners_on_a`: every vertex of `b` lies on `a` (a level of detail's vertices are the full
+/// mesh's), so a sample of `b` is no farther from `a` than from its triangle's nearest corner,
+/// and one that near cannot raise the figure or miss: it is not measured. The figure and the
+/// misses are the same either way.
 pub fn deviation_and_misses(
     a: &Mesh,
     a_index: &SurfaceIndex,
     b: &Mesh,
     spacing_m: f32,
     bound_m: f32,
+    b_corners_on_a: bool,
     stop: Stop,
 ) -> Result<(f32, Vec<[f32; 3]>), Stopped> {
     match (a.indices.is_empty(), b.indices.is_empty()) {
@@ -52,8 +57,11 @@ pub fn deviation_and_misses(
     let misses = std::sync::Mutex::new(Vec::new());
     let bound = f64::from(bound_m);
     let (ab, ba) = rayon::join(
-        || SurfaceIndex::new(b, stop).map_or(0.0, |b_index| one_sided(a, &b_index, spacing_m, bound, &misses, stop)),
-        || one_sided(b, a_index, spacing_m, bound, &misses, stop),
+        || {
+            SurfaceIndex::new(b, stop)
+                .map_or(0.0, |b_index| one_sided(a, &b_index, spacing_m, bound, &misses, false, stop))
+        },
+        || one_sided(b, a_index, spacing_m, bound, &misses, b_corners_on_a, stop),
     );
     stop.check()?;
     let misses = misses.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -65,6 +73,8 @@ pub fn deviation_and_misses(
 /// against that distance (or `bound`, if less), stopping at the first triangle close enough;
 /// the others are measured exactly, and those farther than `bound` added to `misses`. The
 /// maximum, and the set of misses, are the same whichever samples were only checked.
+/// With `corners_on`, `from`'s vertices lie on `to`: a sample no farther from its triangle's
+/// nearest corner than that distance is not even checked.
 /// A stopped search returns early with what it found (the caller looks at `stop` again).
 fn one_sided(
     from: &Mesh,
@@ -72,6 +82,7 @@ fn one_sided(
     spacing_m: f32,
     bound: f64,
     misses: &std::sync::Mutex<Vec<[f32; 3]>>,
+    corners_on: bool,
     stop: Stop,
 ) -> f64 {
     use std::sync::atomic::{AtomicU64, Ordering};
@@ -80,8 +91,11 @@ fn one_sided(
     }
     // Non-negative f64s order as their bits do.
     let found = AtomicU64::new(0f64.to_bits());
-    for_each_sample(from, spacing_m, stop, &|s, hints| {
+    for_each_sample(from, spacing_m, stop, corners_on, &|s, corner, hints| {
         let so_far = f64::from_bits(found.load(Ordering::Relaxed));
+        if corner <= so_far.min(bound) {
+            return;
+        }
         if !to.any_within(s, so_far.min(bound), hints) {
             let d = to.distance(s);
             found.fetch_max(d.to_bits(), Ordering::Relaxed);
@@ -93,10 +107,25 @@ fn one_sided(
     f64::from_bits(found.into_inner())
 }
 
-/// Every sample of `from` at most `spacing_m` apart, each given to `visit` with hints (see
-/// [`SurfaceIndex::any_within`]) shared by neighbouring samples; in parallel, returning early
-/// once `stop` is raised.
-fn for_each_sample(from: &Mesh, spacing_m: f32, stop: Stop, visit: &(dyn Fn([f64; 3], &mut Hints) + Sync)) {
+/// Every sample of `from` at most `spacing_m` apart, each given to `visit` with, when
+/// `corners_on`, its distance to the nearest corner of its triangle (else infinity), and hints
+/// (see [`SurfaceIndex::any_within`]) shared by neighbouring samples; in parallel, returning
+/// early once `stop` is raised. With `corners_on` the vertices themselves (at distance 0) are
+/// left out.
+fn for_each_sample(
+    from: &Mesh,
+    spacing_m: f32,
+    stop: Stop,
+    corners_on: bool,
+    visit: &(dyn Fn([f64; 3], f64, &mut Hints) + Sync),
+) {
+    let corner = |s: [f64; 3], corners: &[[f64; 3]; 3]| {
+        if corners_on {
+            corners.iter().map(|&c| dist(s, c)).fold(f64::INFINITY, f64::min)
+        } else {
+            f64::INFINITY
+        }
+    };
     let spacing = f64::from(spacing_m.max(1e-6));
     // Triangles' centres first: on a coarse mesh they are the points farthest from the fine
     // one, so the largest distance is found early and most later samples are only checked. A
@@ -113,7 +142,8 @@ fn for_each_sample(from: &Mesh, spacing_m: f32, stop: Stop, visit: &(dyn Fn([f64
         for t in chunk.chunks_exact(3) {
             let (side, [p, q, r]) = longest(t);
             if side > spacing {
-                visit(std::array::from_fn(|k| (p[k] + q[k] + r[k]) / 3.0), &mut hints);
+                let centre = std::array::from_fn(|k| (p[k] + q[k] + r[k]) / 3.0);
+                visit(centre, corner(centre, &[p, q, r]), &mut hints);
             }
         }
     });
@@ -124,12 +154,12 @@ fn for_each_sample(from: &Mesh, spacing_m: f32, stop: Stop, visit: &(dyn Fn([f64
         used[i as usize] = true;
     }
     from.positions.par_chunks(1024).zip(used.par_chunks(1024)).for_each(|(chunk, used)| {
-        if stop.requested() {
+        if stop.requested() || corners_on {
             return;
         }
         let mut hints = Hints::default();
         for (v, _) in chunk.iter().zip(used).filter(|(_, &u)| u) {
-            visit(v.map(f64::from), &mut hints);
+            visit(v.map(f64::from), f64::INFINITY, &mut hints);
         }
     });
     from.indices.par_chunks(3 * 64).for_each(|chunk| {
@@ -142,7 +172,7 @@ fn for_each_sample(from: &Mesh, spacing_m: f32, stop: Stop, visit: &(dyn Fn([f64
             }
             let (side, corners) = longest(t);
             if side > spacing {
-                inside_samples(corners, spacing, &mut |s| visit(s, &mut hints));
+                inside_samples(corners, spacing, &mut |s| visit(s, corner(s, &corners), &mut hints));
             }
         }
     });
@@ -510,7 +540,7 @@ mod tests {
         let half = heightfield_mesh(&Heightfield::from_fn(6, 11, 1.0, |_, _| 0.0), 4097, None).mesh;
         let one_way = |from: &Mesh, to: &Mesh| {
             let index = SurfaceIndex::new(to, Stop::NEVER).unwrap();
-            one_sided(from, &index, 0.5, f64::INFINITY, &Default::default(), Stop::NEVER)
+            one_sided(from, &index, 0.5, f64::INFINITY, &Default::default(), false, Stop::NEVER)
         };
         assert!(one_way(&half, &whole) < 1e-9);
         assert!((one_way(&whole, &half) - 5.0).abs() < 1e-9);
@@ -528,5 +558,30 @@ mod tests {
         stray.uvs.push([0.0, 0.0]);
         assert!(max_deviation(&stray, &flat, 0.5, Stop::NEVER).unwrap() < 1e-6);
         assert!(max_deviation(&flat, &stray, 0.5, Stop::NEVER).unwrap() < 1e-6);
+    }
+
+    /// A coarse grid over every fourth vertex of a fine one (its corners the fine mesh's own
+    /// vertices): the figure and the misses are the same whether its samples near a corner are
+    /// skipped or measured.
+    #[test]
+    fn samples_near_a_corner_on_the_other_surface_change_nothing() {
+        let height = |x: f32, z: f32| (x * 0.4).sin() * 2.0 + (z * 0.3).cos() * 1.5 + (x * 1.3 + z).sin() * 0.3;
+        let fine = plane(33, height);
+        let coarse = heightfield_mesh(&Heightfield::from_fn(9, 9, 4.0, height), 4097, None).mesh;
+        assert!(coarse.positions.iter().all(|p| fine.positions.contains(p)));
+        let index = SurfaceIndex::new(&fine, Stop::NEVER).unwrap();
+        for (spacing, bound) in [(0.5f32, 0.3f32), (1.0, 1.0), (0.25, 10.0)] {
+            let measured = deviation_and_misses(&fine, &index, &coarse, spacing, bound, false, Stop::NEVER).unwrap();
+            let skipped = deviation_and_misses(&fine, &index, &coarse, spacing, bound, true, Stop::NEVER).unwrap();
+            assert_eq!(measured.0, skipped.0, "spacing {spacing}, bound {bound}");
+            let sorted = |mut m: Vec<[f32; 3]>| {
+                m.sort_by(|a, b| a.partial_cmp(b).unwrap());
+                m
+            };
+            assert_eq!(sorted(measured.1.clone()), sorted(skipped.1), "spacing {spacing}, bound {bound}");
+            if bound < 1.0 {
+                assert!(!measured.1.is_empty(), "a bound the coarse grid misses");
+            }
+        }
     }
 }

@@ -6,6 +6,7 @@
 //! it may go, the line stays), no triangle is flat (each is half a square in plan) and no edge
 //! has a third triangle.
 
+use super::heightfield_mesh::grid_triangles;
 use super::lod::Lod;
 use super::rtin::vertical_deviation;
 use super::types::compact;
@@ -58,9 +59,10 @@ pub fn grid_levels(
 }
 
 /// Whether `mesh` is a grid of `cols × rows` vertices row by row, its columns and rows evenly
-/// spaced (to a thousandth of a cell), two triangles a cell.
+/// spaced (to a thousandth of a cell), its cells split as [`grid_triangles`] splits them (the
+/// measure assumes that split).
 fn is_even_grid(mesh: &Mesh, cols: usize, rows: usize) -> bool {
-    if cols < 2 || rows < 2 || mesh.vertex_count() != cols * rows || mesh.indices.len() != (cols - 1) * (rows - 1) * 6 {
+    if cols < 2 || rows < 2 || mesh.vertex_count() != cols * rows || mesh.indices != grid_triangles(cols, rows) {
         return false;
     }
     let p = &mesh.positions;
@@ -119,5 +121,11 @@ mod tests {
         let even = heightfield_mesh(&hills(9, 9), 5, None);
         assert!(grid_levels(&even.mesh, even.vertices, &[1.0], Stop::NEVER).is_some());
         assert!(grid_levels(&even.mesh, [3, 27], &[1.0], Stop::NEVER).is_none());
+        // Cells split some other way: the exact measure would not be the mesh's.
+        let mut turned = even.mesh.clone();
+        let n = even.vertices[0] as u32;
+        turned.indices[..6].copy_from_slice(&[0, n, 1, 1, n, n + 1]);
+        assert_ne!(turned.indices, even.mesh.indices);
+        assert!(grid_levels(&turned, even.vertices, &[1.0], Stop::NEVER).is_none());
     }
 }

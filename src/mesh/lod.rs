@@ -169,7 +169,8 @@ pub fn simplify_levels_with(
             // Until a try is made again for its distance, each notes where it came near the
             // bound, for the next to hold.
             let near = if retried_for_distance { f32::INFINITY } else { NEAR_MISS * bound };
-            let (deviation, mut misses) = deviation_and_misses(mesh, index, &simple, spacing, near, stop)?;
+            // A level's vertices are the full mesh's: its samples near a corner need no query.
+            let (deviation, mut misses) = deviation_and_misses(mesh, index, &simple, spacing, near, true, stop)?;
             let within = deviation <= bound;
             if within && crowded.len() <= source_crowded {
                 made = Some((simple, kept, error, deviation, crowded.len()));

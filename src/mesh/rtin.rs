@@ -76,7 +76,11 @@ impl Rtin {
                 continue; // beyond the grid
             }
             let (mx, my) = ((ax + bx) / 2, (ay + by) / 2);
-            if ax.abs_diff(cx) + ay.abs_diff(cy) > 1 && self.errors[my * self.size + mx] > bound {
+            // One across the grid's edge always splits (its error is infinite, but so may the
+            // bound be).
+            let across = ax.max(bx).max(cx) > self.cols - 1 || ay.max(by).max(cy) > self.rows - 1;
+            let split = across || !(self.errors[my * self.size + mx] <= bound);
+            if ax.abs_diff(cx) + ay.abs_diff(cy) > 1 && split {
                 stack.push([bx, by, cx, cy, mx, my]);
                 stack.push([cx, cy, ax, ay, mx, my]);
             } else {
@@ -107,6 +111,12 @@ pub fn vertical_deviation(heights: &[f32], cols: usize, rows: usize, triangles: 
         .par_chunks_exact(3)
         .map(|t| {
             let ([ax, ay], [bx, by], [cx, cy]) = (at(t[0]).into(), at(t[1]).into(), at(t[2]).into());
+            debug_assert!(
+                [(ax, ay, bx, by), (bx, by, cx, cy), (cx, cy, ax, ay)]
+                    .iter()
+                    .all(|&(x0, z0, x1, z1)| x0 == x1 || z0 == z1 || x0.abs_diff(x1) == z0.abs_diff(z1)),
+                "sides along the grid's lines and diagonals"
+            );
             grid.error([ax, ay, bx, by, cx, cy])
         })
         .collect::<Vec<f32>>()
