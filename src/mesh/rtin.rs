@@ -79,7 +79,7 @@ impl Rtin {
             // One across the grid's edge always splits (its error is infinite, but so may the
             // bound be).
             let across = ax.max(bx).max(cx) > self.cols - 1 || ay.max(by).max(cy) > self.rows - 1;
-            let split = across || !(self.errors[my * self.size + mx] <= bound);
+            let split = across || bound.is_nan() || self.errors[my * self.size + mx] > bound;
             if ax.abs_diff(cx) + ay.abs_diff(cy) > 1 && split {
                 stack.push([bx, by, cx, cy, mx, my]);
                 stack.push([cx, cy, ax, ay, mx, my]);
