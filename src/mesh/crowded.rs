@@ -5,6 +5,7 @@
 
 use std::collections::{HashMap, HashSet};
 
+use super::deviation::{cross, dot, norm, sub};
 use super::intersections::corners_meet;
 use super::types::{edge_key, least_height, sorted_edges, zero_area};
 
@@ -71,7 +72,7 @@ pub(super) fn relieve_crowded_edges(mut indices: Vec<u32>, positions: &[[f32; 3]
     let p = |v: u32| positions[v as usize].map(f64::from);
     let normal = |t: [u32; 3]| {
         let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
-        normalized(cross([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]))
+        normalized(cross(sub(b, a), sub(c, a)))
     };
     let sound = |t: [u32; 3]| {
         let [a, b, c] = t.map(|v| positions[v as usize]);
@@ -153,16 +154,8 @@ pub(super) fn relieve_crowded_edges(mut indices: Vec<u32>, positions: &[[f32; 3]
     indices
 }
 
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-
 fn normalized(v: [f64; 3]) -> [f64; 3] {
-    let len = dot(v, v).sqrt().max(f64::MIN_POSITIVE);
+    let len = norm(v).max(f64::MIN_POSITIVE);
     v.map(|x| x / len)
 }
 

@@ -431,19 +431,20 @@ fn corners(mesh: &Mesh, n: u32) -> [[f32; 3]; 3] {
     [0, 1, 2].map(|k| mesh.positions[t[k] as usize])
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+// Vector arithmetic in f64, shared with `crowded.rs`.
+pub(super) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+pub(super) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+pub(super) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
-fn norm(a: [f64; 3]) -> f64 {
+pub(super) fn norm(a: [f64; 3]) -> f64 {
     dot(a, a).sqrt()
 }
 

@@ -6,10 +6,9 @@
 //! it may go, the line stays), no triangle is flat (each is half a square in plan) and no edge
 //! has a third triangle.
 
-use super::heightfield_mesh::grid_triangles;
+use super::heightfield_mesh::quad_triangles;
 use super::lod::Lod;
 use super::rtin::vertical_deviation;
-use super::types::compact;
 use super::{Mesh, Rtin};
 use crate::stop::{Stop, Stopped};
 
@@ -45,7 +44,7 @@ pub fn grid_levels(
             (kept, kept_deviation, Some(reason))
         };
         levels.push(Lod {
-            mesh: compact(mesh, &triangles),
+            mesh: Rtin::mesh(mesh, &triangles),
             target_m: bound,
             simplifier_error_m: 0.0,
             deviation_m: deviation,
@@ -59,10 +58,19 @@ pub fn grid_levels(
 }
 
 /// Whether `mesh` is a grid of `cols × rows` vertices row by row, its columns and rows evenly
-/// spaced (to a thousandth of a cell), its cells split as [`grid_triangles`] splits them (the
+/// spaced (to a thousandth of a cell), its cells split as [`grid_triangles`](super::heightfield_mesh::grid_triangles) splits them (the
 /// measure assumes that split).
 fn is_even_grid(mesh: &Mesh, cols: usize, rows: usize) -> bool {
-    if cols < 2 || rows < 2 || mesh.vertex_count() != cols * rows || mesh.indices != grid_triangles(cols, rows) {
+    if cols < 2 || rows < 2 || mesh.vertex_count() != cols * rows || mesh.indices.len() != (cols - 1) * (rows - 1) * 6 {
+        return false;
+    }
+    // Quad by quad, as `grid_triangles` would make them, without making them.
+    let split_as_the_grid = mesh
+        .indices
+        .chunks_exact(6)
+        .enumerate()
+        .all(|(n, quad)| quad == quad_triangles(cols, n % (cols - 1), n / (cols - 1), [0, 0]));
+    if !split_as_the_grid {
         return false;
     }
     let p = &mesh.positions;

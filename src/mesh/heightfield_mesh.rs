@@ -117,22 +117,29 @@ pub(super) fn grid_triangles_at(nx: usize, nz: usize, origin: [usize; 2]) -> Vec
     if nx > 1 {
         indices.par_chunks_mut((nx - 1) * 6).enumerate().for_each(|(j, row)| {
             for (i, quad) in row.chunks_exact_mut(6).enumerate() {
-                // a b     a = (i, j), b = (i + 1, j): +X to the right, +Z downwards, so
-                // c d     a→c→b and b→c→d (or a→c→d and a→d→b) turn counter-clockwise seen
-                //         from +Y.
-                let a = (j * nx + i) as u32;
-                let b = a + 1;
-                let c = a + nx as u32;
-                let d = c + 1;
-                if (origin[0] + i + origin[1] + j) % 2 == 0 {
-                    quad.copy_from_slice(&[a, c, d, a, d, b]);
-                } else {
-                    quad.copy_from_slice(&[a, c, b, b, c, d]);
-                }
+                quad.copy_from_slice(&quad_triangles(nx, i, j, origin));
             }
         });
     }
     indices
+}
+
+/// The two triangles of quad (i, j) (its first corner vertex (i, j)) of a grid `nx` vertices
+/// wide whose first vertex is a larger grid's vertex `origin`: split along (i, j)–(i+1, j+1)
+/// when the larger grid's i + j is even, else along the other diagonal.
+pub(super) fn quad_triangles(nx: usize, i: usize, j: usize, origin: [usize; 2]) -> [u32; 6] {
+    // a b     a = (i, j), b = (i + 1, j): +X to the right, +Z downwards, so
+    // c d     a→c→b and b→c→d (or a→c→d and a→d→b) turn counter-clockwise seen
+    //         from +Y.
+    let a = (j * nx + i) as u32;
+    let b = a + 1;
+    let c = a + nx as u32;
+    let d = c + 1;
+    if (origin[0] + i + origin[1] + j) % 2 == 0 {
+        [a, c, d, a, d, b]
+    } else {
+        [a, c, b, b, c, d]
+    }
 }
 
 /// The heightfield seen through the kept rows and columns.

@@ -93,10 +93,10 @@ impl Rtin {
         out
     }
 
-    /// `grid` (the grid's mesh, its vertices row by row) triangulated within `bound`, keeping
-    /// only the vertices used.
-    pub fn mesh(&self, grid: &Mesh, bound: f32) -> Mesh {
-        super::types::compact(grid, &self.triangles(bound))
+    /// `grid` (the grid's mesh, its vertices row by row) with `triangles` (from
+    /// [`Rtin::triangles`]), keeping only the vertices used.
+    pub fn mesh(grid: &Mesh, triangles: &[u32]) -> Mesh {
+        super::types::compact(grid, triangles)
     }
 }
 
