@@ -56,41 +56,48 @@ pub fn deviation_and_misses(
     }
     let misses = std::sync::Mutex::new(Vec::new());
     let bound = f64::from(bound_m);
-    let (ab, ba) = rayon::join(
+    // One running largest distance for both sides: a sample of either within it cannot raise
+    // the two-sided figure, so each side skips more than with its own (the full mesh's side
+    // usually finds the larger distance, and the level's side then checks against it).
+    let found = std::sync::atomic::AtomicU64::new(0f64.to_bits());
+    rayon::join(
         || {
-            SurfaceIndex::new(b, stop)
-                .map_or(0.0, |b_index| one_sided(a, &b_index, spacing_m, bound, &misses, false, stop))
+            if let Ok(b_index) = SurfaceIndex::new(b, stop) {
+                one_sided(a, &b_index, spacing_m, bound, &found, &misses, false, stop);
+            }
         },
-        || one_sided(b, a_index, spacing_m, bound, &misses, b_corners_on_a, stop),
+        || one_sided(b, a_index, spacing_m, bound, &found, &misses, b_corners_on_a, stop),
     );
     stop.check()?;
     let misses = misses.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
-    Ok((ab.max(ba) as f32, misses))
+    Ok((f64::from_bits(found.into_inner()) as f32, misses))
 }
 
-/// The largest distance from a sample of `from` to the surface `to` indexes. A sample within
-/// the largest distance found so far (by any thread) cannot raise it, so it is only checked
-/// against that distance (or `bound`, if less), stopping at the first triangle close enough;
-/// the others are measured exactly, and those farther than `bound` added to `misses`. The
-/// maximum, and the set of misses, are the same whichever samples were only checked.
+/// Raises `found` (an f64's bits; non-negative f64s order as their bits do) to the largest
+/// distance from a sample of `from` to the surface `to` indexes, if larger. A sample within
+/// the largest distance found so far (by any thread, from either side) cannot raise it, so it
+/// is only checked against that distance (or `bound`, if less), stopping at the first triangle
+/// close enough; the others are measured exactly, and those farther than `bound` added to
+/// `misses`. The maximum, and the set of misses, are the same whichever samples were only
+/// checked: the sample farthest away is always measured (nothing found so far exceeds it).
 /// With `corners_on`, `from`'s vertices lie on `to`: a sample no farther from its triangle's
 /// nearest corner than that distance is not even checked.
 /// A stopped search returns early with what it found (the caller looks at `stop` again).
+#[allow(clippy::too_many_arguments)]
 fn one_sided(
     from: &Mesh,
     to: &SurfaceIndex,
     spacing_m: f32,
     bound: f64,
+    found: &std::sync::atomic::AtomicU64,
     misses: &std::sync::Mutex<Vec<[f32; 3]>>,
     corners_on: bool,
     stop: Stop,
-) -> f64 {
-    use std::sync::atomic::{AtomicU64, Ordering};
+) {
+    use std::sync::atomic::Ordering;
     if to.is_empty() {
-        return 0.0;
+        return;
     }
-    // Non-negative f64s order as their bits do.
-    let found = AtomicU64::new(0f64.to_bits());
     for_each_sample(from, spacing_m, stop, corners_on, &|s, corner, hints| {
         let so_far = f64::from_bits(found.load(Ordering::Relaxed));
         if corner <= so_far.min(bound) {
@@ -104,7 +111,6 @@ fn one_sided(
             }
         }
     });
-    f64::from_bits(found.into_inner())
 }
 
 /// Every sample of `from` at most `spacing_m` apart, each given to `visit` with, when
@@ -127,9 +133,12 @@ fn for_each_sample(
         }
     };
     let spacing = f64::from(spacing_m.max(1e-6));
-    // Triangles' centres first: on a coarse mesh they are the points farthest from the fine
-    // one, so the largest distance is found early and most later samples are only checked. A
-    // triangle no side of which is longer than the spacing has its corners for samples.
+    // The centres of triangles more than twice the spacing long first: on a coarse mesh they
+    // are the points farthest from the fine one, so the largest distance is found early and
+    // most later samples are only checked. (A smaller triangle's points all lie within the
+    // spacing of its corners and edge samples; its centre, an extra query on every triangle of
+    // a fine mesh, found nothing the rest did not.) A triangle no side of which is longer than
+    // the spacing has its corners for samples.
     let longest = |t: &[u32]| {
         let [p, q, r] = [0, 1, 2].map(|k| point(from, t[k]));
         (dist(p, q).max(dist(q, r)).max(dist(r, p)), [p, q, r])
@@ -141,7 +150,7 @@ fn for_each_sample(
         let mut hints = Hints::default();
         for t in chunk.chunks_exact(3) {
             let (side, [p, q, r]) = longest(t);
-            if side > spacing {
+            if side > 2.0 * spacing {
                 let centre = std::array::from_fn(|k| (p[k] + q[k] + r[k]) / 3.0);
                 visit(centre, corner(centre, &[p, q, r]), &mut hints);
             }
@@ -337,9 +346,14 @@ impl SurfaceIndex {
         if self.nodes.is_empty() {
             return;
         }
-        let mut stack: Vec<u32> = Vec::with_capacity(64);
-        stack.push(0);
-        while let Some(n) = stack.pop() {
+        // The tree splits at medians, so it is at most 32 levels deep (u32 triangles) and the
+        // stack holds at most two nodes a level: on the stack, not the heap (a walk is made
+        // for millions of samples).
+        let mut stack = [0u32; 2 * 33];
+        let mut depth = 1;
+        while depth > 0 {
+            depth -= 1;
+            let n = stack[depth];
             let node = self.nodes[n as usize];
             if node.gap_2(p) > reach_2 {
                 continue;
@@ -357,11 +371,9 @@ impl SurfaceIndex {
             let (a, b) = (node.first, node.first + 1);
             let (ga, gb) = (self.nodes[a as usize].gap_2(p), self.nodes[b as usize].gap_2(p));
             // The nearer child is popped first.
-            if ga <= gb {
-                stack.extend([b, a]);
-            } else {
-                stack.extend([a, b]);
-            }
+            let pair = if ga <= gb { [b, a] } else { [a, b] };
+            stack[depth..depth + 2].copy_from_slice(&pair);
+            depth += 2;
         }
     }
 }
@@ -541,7 +553,9 @@ mod tests {
         let half = heightfield_mesh(&Heightfield::from_fn(6, 11, 1.0, |_, _| 0.0), 4097, None).mesh;
         let one_way = |from: &Mesh, to: &Mesh| {
             let index = SurfaceIndex::new(to, Stop::NEVER).unwrap();
-            one_sided(from, &index, 0.5, f64::INFINITY, &Default::default(), false, Stop::NEVER)
+            let found = std::sync::atomic::AtomicU64::new(0);
+            one_sided(from, &index, 0.5, f64::INFINITY, &found, &Default::default(), false, Stop::NEVER);
+            f64::from_bits(found.into_inner())
         };
         assert!(one_way(&half, &whole) < 1e-9);
         assert!((one_way(&whole, &half) - 5.0).abs() < 1e-9);
