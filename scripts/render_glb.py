@@ -14,7 +14,8 @@
 # importer still uses `numpy.bool`, which numpy removed.
 #
 # With LANDFORM_BLENDER_ADDON set to clients/blender, the `landform` add-on is enabled first
-# (levels of detail then import hidden, as its users see them).
+# (levels of detail then import hidden, as its users see them). LANDFORM_RENDER_SIZE=WxH sets
+# the picture's size (800x600 by default).
 import os
 import sys
 
@@ -78,7 +79,9 @@ scene.render.engine = "CYCLES"
 scene.cycles.device = "CPU"
 scene.cycles.samples = 24
 scene.cycles.use_denoising = False
-scene.render.resolution_x = 800
-scene.render.resolution_y = 600
+# LANDFORM_RENDER_SIZE=WxH renders smaller (CI's smoke run of this script).
+width, height = (int(v) for v in os.environ.get("LANDFORM_RENDER_SIZE", "800x600").split("x"))
+scene.render.resolution_x = width
+scene.render.resolution_y = height
 scene.render.filepath = out
 bpy.ops.render.render(write_still=True)
