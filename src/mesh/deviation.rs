@@ -73,6 +73,51 @@ pub fn deviation_and_misses(
     Ok((f64::from_bits(found.into_inner()) as f32, misses))
 }
 
+/// An upper figure for the two-sided distance between a full mesh (`full_index` indexes it)
+/// and `level`, a mesh made from `source` by collapses (its vertices are the full mesh's)
+/// whose own figure is `source_deviation`. The level's side is measured against the full mesh
+/// as in [`deviation_and_misses`]; the full mesh's side, a query for each of its samples (the
+/// bulk of a measure: millions on a carved island), is bounded through the source instead:
+/// every point of the full mesh lies within `source_deviation` of the source, and every
+/// point of the source within `h` of the level (the source measured against the level, a
+/// mesh of a fraction of the full one's triangles), so within `source_deviation + h` of the
+/// level (the triangle inequality). The figure is at least the measured one up to the
+/// samples' spacing; where it passes a bound the caller measures directly.
+pub fn chained_deviation(
+    full_index: &SurfaceIndex,
+    source: &Mesh,
+    source_deviation: f32,
+    level: &Mesh,
+    spacing_m: f32,
+    stop: Stop,
+) -> Result<f32, Stopped> {
+    use std::sync::atomic::AtomicU64;
+    if source.indices.is_empty() || level.indices.is_empty() || full_index.is_empty() {
+        return Ok(if source.indices.is_empty() && level.indices.is_empty() {
+            source_deviation
+        } else {
+            f32::INFINITY
+        });
+    }
+    let no_misses = std::sync::Mutex::new(Vec::new());
+    let (level_side, through) = (AtomicU64::new(0f64.to_bits()), AtomicU64::new(0f64.to_bits()));
+    rayon::join(
+        || one_sided(level, full_index, spacing_m, f64::INFINITY, &level_side, &no_misses, true, stop),
+        || {
+            if let Ok(level_index) = SurfaceIndex::new(level, stop) {
+                one_sided(source, &level_index, spacing_m, f64::INFINITY, &through, &no_misses, false, stop);
+            }
+        },
+    );
+    stop.check()?;
+    let level_side = f64::from_bits(level_side.into_inner());
+    let full_side = f64::from(source_deviation) + f64::from_bits(through.into_inner());
+    // Rounded up to the next f32, so the figure never falls below what it bounds.
+    let figure = level_side.max(full_side);
+    let rounded = figure as f32;
+    Ok(if f64::from(rounded) < figure { f32::from_bits(rounded.to_bits() + 1) } else { rounded })
+}
+
 /// Raises `found` (an f64's bits; non-negative f64s order as their bits do) to the largest
 /// distance from a sample of `from` to the surface `to` indexes, if larger. A sample within
 /// the largest distance found so far (by any thread, from either side) cannot raise it, so it

@@ -24,11 +24,15 @@ const BASE_BYTES: u64 = 4 << 20;
 /// Bytes per column of the top surface for its maps, all written at once: `heightmap.r16`, the
 /// normal map's RGB and the splat map's RGBA with their PNGs, and the splat material.
 const MAP_BYTES_PER_COLUMN: u64 = 24;
-/// Bytes levels of detail add at the peak per triangle (measured 23–109 with the search grid the
-/// deviation used before; 4 on small-island-one-pass with its hierarchy, whose levels now fit
-/// under the carve's own peak, in the field's freed values; larger islands are not measured by the test, and the hierarchy
-/// and meshoptimizer's arrays take about 70 B a triangle each while both are alive).
-const LOD_BYTES_PER_TRIANGLE: u64 = 78;
+/// Bytes levels of detail add at the peak per triangle: measured 23–109 with the search grid the
+/// deviation used before; with its hierarchy, and the first level made once (its normals
+/// weighed) instead of twice, 0 on small-island-one-pass, whose levels fit under the carve's
+/// own peak in the field's freed values, and 6–18 on the islands of 1.4–3.6 M triangles
+/// (`LANDFORM_LEVELS_UP_TO=4000000 cargo test --test cost_estimates carve_coast`; the test
+/// measures only the small one by default). The hierarchy and meshoptimizer's arrays take
+/// about 70 B a triangle while both are alive, mostly in the field's place; at 78 the small
+/// island's estimate was 3.1 × its peak.
+const LOD_BYTES_PER_TRIANGLE: u64 = 40;
 
 pub fn estimate(params: &CarveCoastParams, terrain: &dyn TerrainLookup) -> Result<Cost, SimError> {
     let extent =
