@@ -73,6 +73,16 @@ pub fn deviation_and_misses(
     Ok((f64::from_bits(found.into_inner()) as f32, misses))
 }
 
+/// How much finer than a level's spacing [`chained_deviation`] samples the source.
+const THROUGH_FINER: f32 = 4.0;
+
+/// The farthest a point of a triangle lies from its nearest sample, as a share of the
+/// spacing: rows and the points along them are at most the spacing apart, so at most half of
+/// it across and half along (√2 ÷ 2); a triangle no longer than the spacing has its corners,
+/// within 1 ÷ √3 of it. (A triangle over [`MAX_SPLITS`] spacings a side is sampled more
+/// sparsely, as the direct measure samples it.)
+const SAMPLE_GAP: f64 = std::f64::consts::FRAC_1_SQRT_2;
+
 /// An upper figure for the two-sided distance between a full mesh (`full_index` indexes it)
 /// and `level`, a mesh made from `source` by collapses (its vertices are the full mesh's)
 /// whose own figure is `source_deviation`. The level's side is measured against the full mesh
@@ -81,8 +91,11 @@ pub fn deviation_and_misses(
 /// every point of the full mesh lies within `source_deviation` of the source, and every
 /// point of the source within `h` of the level (the source measured against the level, a
 /// mesh of a fraction of the full one's triangles), so within `source_deviation + h` of the
-/// level (the triangle inequality). The figure is at least the measured one up to the
-/// samples' spacing; where it passes a bound the caller measures directly.
+/// level (the triangle inequality). h is sampled [`THROUGH_FINER`] times finer than
+/// `spacing_m` and raised by the farthest a point of the source can lie from its nearest sample
+/// ([`SAMPLE_GAP`] of that spacing), so the figure is at least the direct measure's (whose full
+/// mesh's side samples the full mesh's own vertices); where it passes a bound the caller
+/// measures directly.
 pub fn chained_deviation(
     full_index: &SurfaceIndex,
     source: &Mesh,
@@ -101,17 +114,19 @@ pub fn chained_deviation(
     }
     let no_misses = std::sync::Mutex::new(Vec::new());
     let (level_side, through) = (AtomicU64::new(0f64.to_bits()), AtomicU64::new(0f64.to_bits()));
+    let fine = spacing_m / THROUGH_FINER;
     rayon::join(
         || one_sided(level, full_index, spacing_m, f64::INFINITY, &level_side, &no_misses, true, stop),
         || {
             if let Ok(level_index) = SurfaceIndex::new(level, stop) {
-                one_sided(source, &level_index, spacing_m, f64::INFINITY, &through, &no_misses, false, stop);
+                one_sided(source, &level_index, fine, f64::INFINITY, &through, &no_misses, false, stop);
             }
         },
     );
     stop.check()?;
     let level_side = f64::from_bits(level_side.into_inner());
-    let full_side = f64::from(source_deviation) + f64::from_bits(through.into_inner());
+    let gap = SAMPLE_GAP * f64::from(fine.max(1e-6));
+    let full_side = f64::from(source_deviation) + f64::from_bits(through.into_inner()) + gap;
     // Rounded up to the next f32, so the figure never falls below what it bounds.
     let figure = level_side.max(full_side);
     let rounded = figure as f32;
