@@ -30,7 +30,7 @@ pub fn max_deviation_from(
     spacing_m: f32,
     stop: Stop,
 ) -> Result<f32, Stopped> {
-    Ok(deviation_and_misses(a, a_index, b, spacing_m, f32::INFINITY, false, stop)?.0)
+    Ok(deviation_and_misses(a, a_index, b, None, spacing_m, f32::INFINITY, false, stop)?.0)
 }
 
 /// [`max_deviation_from`], and the samples (of either mesh) farther than `bound_m` from the
@@ -39,11 +39,14 @@ pub fn max_deviation_from(
 /// `b_corners_on_a`: every vertex of `b` lies on `a` (a level of detail's vertices are the full
 /// mesh's), so a sample of `b` is no farther from `a` than from its triangle's nearest corner,
 /// and one that near cannot raise the figure or miss: it is not measured. The figure and the
-/// misses are the same either way.
+/// misses are the same either way. `b_index` is `b`'s index when the caller has it (else it is
+/// built here, beside `b`'s side).
+#[allow(clippy::too_many_arguments)]
 pub fn deviation_and_misses(
     a: &Mesh,
     a_index: &SurfaceIndex,
     b: &Mesh,
+    b_index: Option<&SurfaceIndex>,
     spacing_m: f32,
     bound_m: f32,
     b_corners_on_a: bool,
@@ -61,9 +64,12 @@ pub fn deviation_and_misses(
     // usually finds the larger distance, and the level's side then checks against it).
     let found = std::sync::atomic::AtomicU64::new(0f64.to_bits());
     rayon::join(
-        || {
-            if let Ok(b_index) = SurfaceIndex::new(b, stop) {
-                one_sided(a, &b_index, spacing_m, bound, &found, &misses, false, stop);
+        || match b_index {
+            Some(b_index) => one_sided(a, b_index, spacing_m, bound, &found, &misses, false, stop),
+            None => {
+                if let Ok(b_index) = SurfaceIndex::new(b, stop) {
+                    one_sided(a, &b_index, spacing_m, bound, &found, &misses, false, stop);
+                }
             }
         },
         || one_sided(b, a_index, spacing_m, bound, &found, &misses, b_corners_on_a, stop),
@@ -76,6 +82,15 @@ pub fn deviation_and_misses(
 /// How much finer than a level's spacing [`chained_deviation`] samples the source.
 const THROUGH_FINER: f32 = 4.0;
 
+/// Whether [`chained_deviation`] at `spacing_m` samples the source more sparsely than the full
+/// mesh's own vertices lie (its triangles' typical side `full_side_m`), i.e. costs fewer
+/// queries than the full mesh's side of a direct measure (both query the level's index). Where
+/// it does not — a bound under four of the full mesh's triangle sides, as on grow-cave's
+/// pieces — the level is measured directly.
+pub fn chain_pays(spacing_m: f32, full_side_m: f32) -> bool {
+    spacing_m / THROUGH_FINER > full_side_m
+}
+
 /// The farthest a point of a triangle lies from its nearest sample, as a share of the
 /// spacing: rows and the points along them are at most the spacing apart, so at most half of
 /// it across and half along (√2 ÷ 2); a triangle no longer than the spacing has its corners,
@@ -84,7 +99,7 @@ const THROUGH_FINER: f32 = 4.0;
 const SAMPLE_GAP: f64 = std::f64::consts::FRAC_1_SQRT_2;
 
 /// An upper figure for the two-sided distance between a full mesh (`full_index` indexes it)
-/// and `level`, a mesh made from `source` by collapses (its vertices are the full mesh's)
+/// and `level` (`level_index` indexes it), a mesh made from `source` by collapses (its vertices are the full mesh's)
 /// whose own figure is `source_deviation`. The level's side is measured against the full mesh
 /// as in [`deviation_and_misses`]; the full mesh's side, a query for each of its samples (the
 /// bulk of a measure: millions on a carved island), is bounded through the source instead:
@@ -101,6 +116,7 @@ pub fn chained_deviation(
     source: &Mesh,
     source_deviation: f32,
     level: &Mesh,
+    level_index: &SurfaceIndex,
     spacing_m: f32,
     stop: Stop,
 ) -> Result<f32, Stopped> {
@@ -117,11 +133,7 @@ pub fn chained_deviation(
     let fine = spacing_m / THROUGH_FINER;
     rayon::join(
         || one_sided(level, full_index, spacing_m, f64::INFINITY, &level_side, &no_misses, true, stop),
-        || {
-            if let Ok(level_index) = SurfaceIndex::new(level, stop) {
-                one_sided(source, &level_index, fine, f64::INFINITY, &through, &no_misses, false, stop);
-            }
-        },
+        || one_sided(source, level_index, fine, f64::INFINITY, &through, &no_misses, false, stop),
     );
     stop.check()?;
     let level_side = f64::from_bits(level_side.into_inner());
@@ -646,8 +658,10 @@ mod tests {
         assert!(coarse.positions.iter().all(|p| fine.positions.contains(p)));
         let index = SurfaceIndex::new(&fine, Stop::NEVER).unwrap();
         for (spacing, bound) in [(0.5f32, 0.3f32), (1.0, 1.0), (0.25, 10.0)] {
-            let measured = deviation_and_misses(&fine, &index, &coarse, spacing, bound, false, Stop::NEVER).unwrap();
-            let skipped = deviation_and_misses(&fine, &index, &coarse, spacing, bound, true, Stop::NEVER).unwrap();
+            let measured =
+                deviation_and_misses(&fine, &index, &coarse, None, spacing, bound, false, Stop::NEVER).unwrap();
+            let skipped =
+                deviation_and_misses(&fine, &index, &coarse, None, spacing, bound, true, Stop::NEVER).unwrap();
             assert_eq!(measured.0, skipped.0, "spacing {spacing}, bound {bound}");
             let sorted = |mut m: Vec<[f32; 3]>| {
                 m.sort_by(|a, b| a.partial_cmp(b).unwrap());

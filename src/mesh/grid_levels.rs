@@ -9,6 +9,7 @@
 use super::heightfield_mesh::quad_triangles;
 use super::lod::Lod;
 use super::rtin::vertical_deviation;
+use super::types::compact;
 use super::{Mesh, Rtin};
 use crate::stop::{Stop, Stopped};
 
@@ -44,7 +45,7 @@ pub fn grid_levels(
             (kept, kept_deviation, Some(reason))
         };
         levels.push(Lod {
-            mesh: Rtin::mesh(mesh, &triangles),
+            mesh: compact(mesh, &triangles),
             target_m: bound,
             simplifier_error_m: 0.0,
             deviation_m: deviation,

@@ -25,7 +25,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use super::crowded::{crowded_edges, relieve_crowded_edges, without_paired_triangles};
-use super::deviation::{chained_deviation, deviation_and_misses, mean_triangle_side, SurfaceIndex};
+use super::deviation::{chain_pays, chained_deviation, deviation_and_misses, mean_triangle_side, SurfaceIndex};
 use super::types::{compact_keeping, least_height as height, zero_area};
 use super::Mesh;
 use crate::stop::{Stop, Stopped};
@@ -192,16 +192,20 @@ pub fn simplify_levels_with(
             // Until a try is made again for its distance, each notes where it came near the
             // bound, for the next to hold.
             let near = if retried_for_distance { f32::INFINITY } else { NEAR_MISS * bound };
-            // A level made from a level is first bounded through it (the full mesh's side, most
-            // of a measure, is then not queried); one that bound cannot show within is measured.
+            // A level made from a level is first bounded through it where that is cheaper (the
+            // full mesh's side, most of a measure, is then not queried); one that bound cannot
+            // show within is measured, with the same index of the level.
+            let simple_index = SurfaceIndex::new(&simple, stop)?;
             let chained = match &source {
-                Cow::Owned(level) => Some(chained_deviation(index, level, source_deviation, &simple, spacing, stop)?),
-                Cow::Borrowed(_) => None,
+                Cow::Owned(level) if chain_pays(spacing, full_side) => {
+                    Some(chained_deviation(index, level, source_deviation, &simple, &simple_index, spacing, stop)?)
+                }
+                _ => None,
             };
             let (deviation, mut misses) = match chained {
                 Some(figure) if figure <= bound => (figure, Vec::new()),
                 // A level's vertices are the full mesh's: its samples near a corner need no query.
-                _ => deviation_and_misses(mesh, index, &simple, spacing, near, true, stop)?,
+                _ => deviation_and_misses(mesh, index, &simple, Some(&simple_index), spacing, near, true, stop)?,
             };
             let within = deviation <= bound;
             if within && crowded.len() <= source_crowded {
@@ -717,9 +721,17 @@ mod tests {
                 let (source, level) = (&pair[0], &pair[1]);
                 // The spacing the levels use (see `simplify_levels_with`).
                 let spacing = level.sample_spacing_m;
-                let chained =
-                    chained_deviation(&index, &source.mesh, source.deviation_m, &level.mesh, spacing, Stop::NEVER)
-                        .unwrap();
+                let level_index = SurfaceIndex::new(&level.mesh, Stop::NEVER).unwrap();
+                let chained = chained_deviation(
+                    &index,
+                    &source.mesh,
+                    source.deviation_m,
+                    &level.mesh,
+                    &level_index,
+                    spacing,
+                    Stop::NEVER,
+                )
+                .unwrap();
                 let measured = max_deviation(&full, &level.mesh, spacing, Stop::NEVER).unwrap();
                 assert!(chained >= measured, "{chained} through the level before, {measured} measured");
                 let fine = spacing / 4.0;
@@ -732,6 +744,26 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// On a fine mesh with bounds of many triangle sides, where coarse levels are bounded
+    /// through the level before: every level's figure is within its bound and never below the
+    /// two-sided measure made directly at its spacing.
+    #[test]
+    fn levels_bounded_through_the_one_before_keep_their_bounds_by_the_direct_measure() {
+        use crate::mesh::max_deviation;
+        let hf = Heightfield::from_fn(129, 129, 0.25, |x, z| (x * 0.5).sin() * 1.5 + (z * 0.4).cos() * 1.0);
+        let full = heightfield_mesh(&hf, 4097, None).mesh;
+        let full_side = crate::mesh::deviation::mean_triangle_side(&full) as f32;
+        let bounds = [0.1, 1.6, 6.4];
+        let levels = simplify_levels(&full, &bounds, Stop::NEVER).unwrap();
+        assert!(chain_pays(bounds[1].max(full_side), full_side), "level 2 is bounded through level 1");
+        for (lod, bound) in levels.iter().zip(bounds) {
+            let measured = max_deviation(&full, &lod.mesh, lod.sample_spacing_m, Stop::NEVER).unwrap();
+            assert!(lod.deviation_m <= bound, "{} over {bound}", lod.deviation_m);
+            assert!(lod.deviation_m >= measured, "{} below the direct {measured} at {bound}", lod.deviation_m);
+        }
+        assert!(levels[2].mesh.triangle_count() * 20 < full.triangle_count());
     }
 
     #[test]

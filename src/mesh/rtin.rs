@@ -23,8 +23,6 @@
 
 use rayon::prelude::*;
 
-use super::Mesh;
-
 /// The error of each vertex of the square as a split point: the largest exact error of the
 /// triangles whose hypotenuse it halves and of every split below them.
 pub struct Rtin {
@@ -91,12 +89,6 @@ impl Rtin {
             }
         }
         out
-    }
-
-    /// `grid` (the grid's mesh, its vertices row by row) with `triangles` (from
-    /// [`Rtin::triangles`]), keeping only the vertices used.
-    pub fn mesh(grid: &Mesh, triangles: &[u32]) -> Mesh {
-        super::types::compact(grid, triangles)
     }
 }
 
