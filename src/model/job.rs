@@ -48,7 +48,9 @@ pub struct ArtifactMeta {
     pub bytes: u64,
     /// Hex sha256 of the bytes; also the artifact's ETag.
     pub sha256: String,
+    /// Always present in what the server sends (empty only in what it stores).
     #[serde(default)]
+    #[schema(required = true)]
     pub href: String,
 }
 
@@ -86,7 +88,7 @@ pub struct Job {
     pub result: Option<Value>,
     pub artifacts: Vec<ArtifactMeta>,
     /// A problem object (RFC 9457) when the job failed or was cancelled.
-    #[schema(value_type = Option<Object>)]
+    #[schema(schema_with = problem_or_null)]
     pub error: Option<Value>,
     /// The job this one replays, if it is a replay.
     pub replay_of: Option<String>,
@@ -165,4 +167,17 @@ pub fn json_len(value: &Value) -> usize {
     let mut count = ByteCount(0);
     let _ = serde_json::to_writer(&mut count, value);
     count.0
+}
+
+/// `Job.error`'s schema: the HTTP layer's `Problem`, named rather than imported (this layer sits
+/// below it), or null.
+fn problem_or_null() -> utoipa::openapi::schema::Schema {
+    use utoipa::openapi::schema::{OneOfBuilder, Type};
+    use utoipa::openapi::{ObjectBuilder, Ref};
+    OneOfBuilder::new()
+        .item(Ref::from_schema_name("Problem"))
+        .item(ObjectBuilder::new().schema_type(Type::Null))
+        .description(Some("A problem object (RFC 9457) when the job failed or was cancelled."))
+        .build()
+        .into()
 }

@@ -1,63 +1,50 @@
-// Talking to the service: JSON calls with the tab's API key, problem+json errors, and artifacts
-// fetched as blobs (an <img> cannot send an Authorization header).
+// Talking to the service: typed JSON calls (openapi-fetch over the types openapi-typescript
+// generates from openapi.yaml: `npm run gen:api`, checked by `npm run check:api`) with the tab's
+// API key, problem+json errors, and artifacts fetched as blobs (an <img> cannot send an
+// Authorization header).
+//
+// Left on plain fetch, through `call`: artifact and snapshot downloads (binary bodies read as a
+// blob or an ArrayBuffer, named by the `href` the server hands out rather than by a route here),
+// `/openapi.json` (not a route of the document itself), and the event stream (sse.ts: read
+// incrementally with Last-Event-ID resumption, which openapi-fetch's parse-the-whole-body model
+// does not fit).
+
+import createClient from 'openapi-fetch';
+import type { components, paths } from './generated/openapi';
+
+type Schemas = components['schemas'];
 
 const KEY = 'landform-api-key';
 
-export interface FieldError {
-  field: string;
-  message: string;
-}
+export type FieldError = Schemas['FieldError'];
+export type Problem = Schemas['Problem'];
+export type JobStatus = Schemas['JobStatus'];
+export type JobPage = Schemas['JobPage'];
+export type Artifact = Schemas['ArtifactMeta'];
+export type Job = Schemas['Job'];
 
-export interface Problem {
-  type?: string;
-  title?: string;
-  status: number;
-  detail?: string;
-  errors?: FieldError[];
-  [k: string]: unknown;
-}
+export type Progress = Schemas['Progress'];
 
-export interface Artifact {
-  name: string;
-  media_type: string;
-  bytes: number;
-  sha256: string;
-  href: string;
-}
+/** A progress event's data on the event stream: the progress, and a new live snapshot's href. */
+export type ProgressEvent = Progress & { snapshot?: string };
 
-export interface Progress {
-  fraction: number;
-  step: number;
-  steps: number;
-  stage: string;
-  message: string;
-  snapshot?: string;
-}
+/** The request path of each kind (the POST routes that take a JSON body), and the kinds' names. */
+type SubmitPath = {
+  [P in keyof paths]: paths[P]['post'] extends { requestBody: { content: { 'application/json': unknown } } } ? P : never;
+}[keyof paths];
+export type Kind = SubmitPath extends `/v1/jobs/${infer K}` ? K : never;
+/** The request body each kind takes. */
+export type SubmitBody<K extends Kind> = NonNullable<paths[`/v1/jobs/${K}`]['post']>['requestBody']['content']['application/json'];
+type ListQuery = NonNullable<paths['/v1/jobs']['get']['parameters']['query']>;
 
-export interface Job {
-  id: string;
-  kind: string;
-  status: 'queued' | 'running' | 'succeeded' | 'failed' | 'cancelled';
-  label?: string | null;
-  created_at: string;
-  started_at?: string | null;
-  finished_at?: string | null;
-  progress: Progress;
-  request: Record<string, unknown>;
-  result?: Record<string, unknown> | null;
-  artifacts: Artifact[];
-  error?: Problem | null;
-  replay_of?: string | null;
-  replay_until_step?: number | null;
-}
-
-export interface JobPage {
-  items: Job[];
-  next_cursor?: string | null;
-}
+/**
+ * A problem as the page handles it: the server's problem+json, or, for an answer that is not
+ * one (a proxy's error page, say), the status and its text.
+ */
+export type ProblemLike = Partial<Problem> & { status: number; [k: string]: unknown };
 
 export class ApiError extends Error {
-  constructor(public problem: Problem) {
+  constructor(public problem: ProblemLike) {
     super(problem.detail || problem.title || `HTTP ${problem.status}`);
   }
 }
@@ -83,21 +70,44 @@ export function authHeaders(extra: Record<string, string> = {}): Record<string, 
   return key ? { ...extra, authorization: `Bearer ${key}` } : extra;
 }
 
-async function problemOf(res: Response): Promise<Problem> {
-  try {
-    const body = await res.json();
-    if (body && typeof body === 'object') return { status: res.status, ...body };
-  } catch {
-    // not JSON: fall through
-  }
+/** A failed answer's problem: its JSON object body with the HTTP status, else the status line. */
+function problemOf(res: Response, body: unknown): ProblemLike {
+  if (body && typeof body === 'object') return { status: res.status, ...body };
   return { status: res.status, title: res.statusText || `HTTP ${res.status}` };
 }
 
+/** The typed client: the key is added to each request as it is sent (it can change any time). */
+const client = createClient<paths>();
+client.use({
+  onRequest({ request }) {
+    const key = apiKey();
+    if (key) request.headers.set('authorization', `Bearer ${key}`);
+    return request;
+  },
+});
+
+/** An openapi-fetch answer's data, or an ApiError with its problem (401 first asks for a key). */
+async function ok<D>(call: Promise<{ data?: D; error?: unknown; response: Response }>): Promise<D> {
+  const { data, error, response } = await call;
+  if (response.status === 401) onUnauthorized();
+  if (!response.ok) throw new ApiError(problemOf(response, error));
+  return data as D;
+}
+
+/** A plain fetch with the key, for what is not a typed JSON route (see the top of this file). */
 export async function call(path: string, init: RequestInit = {}): Promise<Response> {
   const headers = authHeaders((init.headers as Record<string, string>) || {});
   const res = await fetch(path, { ...init, headers });
   if (res.status === 401) onUnauthorized();
-  if (!res.ok) throw new ApiError(await problemOf(res));
+  if (!res.ok) {
+    let body: unknown;
+    try {
+      body = await res.json();
+    } catch {
+      // not JSON: the status line
+    }
+    throw new ApiError(problemOf(res, body));
+  }
   return res;
 }
 
@@ -105,31 +115,32 @@ export async function getJson<T>(path: string): Promise<T> {
   return (await call(path)).json() as Promise<T>;
 }
 
-export async function postJson<T>(path: string, body: unknown, headers: Record<string, string> = {}): Promise<T> {
-  const res = await call(path, {
-    method: 'POST',
-    headers: { 'content-type': 'application/json', ...headers },
-    body: JSON.stringify(body),
-  });
-  return res.json() as Promise<T>;
-}
-
 export const jobs = {
-  get: (id: string) => getJson<Job>(`/v1/jobs/${id}`),
-  list: (q: { kind?: string; status?: string; limit?: number; cursor?: string | null }) => {
-    const p = new URLSearchParams();
-    if (q.kind) p.set('kind', q.kind);
-    if (q.status) p.set('status', q.status);
-    p.set('limit', String(q.limit ?? 20));
-    if (q.cursor) p.set('cursor', q.cursor);
-    return getJson<JobPage>(`/v1/jobs?${p}`);
+  get: async (id: string): Promise<Job> => (await ok(client.GET('/v1/jobs/{id}', { params: { path: { id } } }))) as Job,
+  list: async (q: { kind?: string; status?: string; limit?: number; cursor?: string | null }): Promise<JobPage> => {
+    const query: ListQuery = {
+      kind: (q.kind || undefined) as ListQuery['kind'],
+      status: (q.status || undefined) as ListQuery['status'],
+      limit: q.limit ?? 20,
+      cursor: q.cursor || undefined,
+    };
+    return (await ok(client.GET('/v1/jobs', { params: { query } }))) as JobPage;
   },
-  submit: (kind: string, body: unknown) => postJson<Job>(`/v1/jobs/${kind}`, body),
-  cancel: (id: string) => call(`/v1/jobs/${id}/cancel`, { method: 'POST' }),
-  remove: (id: string) => call(`/v1/jobs/${id}`, { method: 'DELETE' }),
+  /** A new job of `kind` (a kind the server's document names; the body as the form made it). */
+  submit: async (kind: string, body: unknown): Promise<Job> =>
+    (await ok(client.POST(`/v1/jobs/${kind as Kind}`, { body: body as SubmitBody<Kind> }))) as Job,
+  cancel: async (id: string): Promise<Job> => (await ok(client.POST('/v1/jobs/{id}/cancel', { params: { path: { id } } }))) as Job,
+  remove: async (id: string): Promise<void> => {
+    await ok(client.DELETE('/v1/jobs/{id}', { params: { path: { id } } }));
+  },
   /** A replay up to `step`, held until it ends (the server waits at most 60 s). */
-  replay: (id: string, step: number) =>
-    postJson<Job>(`/v1/jobs/${id}/replay`, { until_step: step }, { prefer: 'wait=60' }),
+  replay: async (id: string, step: number): Promise<Job> =>
+    (await ok(
+      client.POST('/v1/jobs/{id}/replay', {
+        params: { path: { id }, header: { Prefer: 'wait=60' } },
+        body: { until_step: step },
+      }),
+    )) as Job,
 };
 
 const blobs = new Map<string, Promise<string>>();

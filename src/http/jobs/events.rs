@@ -22,7 +22,7 @@ pub struct SseEvent {
     #[schema(pattern = "^(progress|status|done)$")]
     event: Option<String>,
     /// The event id, to resume after with `Last-Event-ID`.
-    #[schema(pattern = "^[0-9]{1,20}$")]
+    #[schema(pattern = "^[0-9]{1,19}$")]
     id: Option<String>,
     /// JSON: the progress, the status, or (for `done`) the Job.
     data: String,

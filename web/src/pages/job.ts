@@ -1,7 +1,7 @@
 // A job: progress from its event stream with each live snapshot, cancel; once it has succeeded,
 // the mesh in 3D, the maps, the result figures, downloads, and a timeline over its sequence.
 
-import { ApiError, Job, Progress, apiKey, arrayBuffer, artifact, blobUrl, humanBytes, jobs } from '../api';
+import { ApiError, Job, JobStatus, Progress, ProgressEvent, apiKey, arrayBuffer, artifact, blobUrl, humanBytes, jobs } from '../api';
 import { followJob } from '../sse';
 import { Viewer } from '../viewer';
 import { el, flatten, hasHeightfield, statusBadge } from '../ui';
@@ -92,7 +92,7 @@ export async function jobPage(host: HTMLElement, id: string, kindNames: string[]
     onConnect: (last) => (conn.textContent = last === undefined ? 'following the event stream' : `reconnected after event ${last}`),
     onEvent: (e) => {
       if (e.event === 'progress') {
-        const p = JSON.parse(e.data) as Progress;
+        const p = JSON.parse(e.data) as ProgressEvent;
         showProgress(p);
         if (p.snapshot) {
           blobUrl(p.snapshot, false).then((u) => {
@@ -104,7 +104,7 @@ export async function jobPage(host: HTMLElement, id: string, kindNames: string[]
           }, () => {});
         }
       } else if (e.event === 'status') {
-        showStatus((JSON.parse(e.data) as { status: string }).status);
+        showStatus((JSON.parse(e.data) as { status: JobStatus }).status);
       } else if (e.event === 'done') {
         ended(JSON.parse(e.data) as Job);
       }
