@@ -8,6 +8,7 @@ mod openapi;
 mod openapi_bounds;
 mod ops;
 mod playground;
+mod presets;
 mod problem;
 mod rejections;
 pub mod server;
@@ -121,7 +122,8 @@ pub fn app(engine: Engine, config: HttpConfig) -> Router {
         .route("/v1/jobs/{id}/artifacts/{*name}", get(jobs::artifacts::get_artifact))
         .route("/v1/jobs/{id}/sequence", get(jobs::sequence::get_sequence))
         .route("/v1/jobs/{id}/replay", post(jobs::replay::replay_job))
-        .route("/v1/jobs/{id}/cancel", post(jobs::cancel::cancel_job));
+        .route("/v1/jobs/{id}/cancel", post(jobs::cancel::cancel_job))
+        .route("/v1/presets", get(presets::list_presets));
     for kind in state.engine.kind_names() {
         let submit = move |State(state): State<AppState>, caller: Caller, headers, body| {
             jobs::submit::submit_job(state, caller, kind.to_string(), headers, body)

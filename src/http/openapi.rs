@@ -29,6 +29,7 @@ use crate::jobs::JobKind;
         jobs::sequence::get_sequence,
         jobs::replay::replay_job,
         jobs::cancel::cancel_job,
+        super::presets::list_presets,
         super::ops::healthz,
         super::ops::readyz,
         super::ops::metrics,

@@ -1,5 +1,13 @@
-# Landform's Blender add-on. Today it does one thing: when a Landform glb is imported with
-# File > Import > glTF 2.0, the levels of detail `mesh.glb` carries (`MSFT_lod`, which
+# Landform's Blender add-on.
+#
+# A panel in the 3D view's sidebar (View3D > Sidebar > Landform, `panel.py`) picks a kind and one
+# of the server's presets (`GET /v1/presets`), edits its main fields, runs it against a server
+# URL and API key with its progress shown, and imports the result at the 3D cursor: the mesh,
+# its levels of detail in a hidden collection, the heightmap as an image. Its HTTP is in
+# `client.py`, on the standard library alone.
+#
+# And when a Landform glb is imported with File > Import > glTF 2.0 (or by the panel), the
+# levels of detail `mesh.glb` carries (`MSFT_lod`, which
 # Blender's importer does not read, so it makes every level a visible object on top of the full
 # one) go into a collection of their own, hidden in the viewport and in renders: the scene
 # shows each piece once, at full detail, and the collection's eye shows the levels. Each level object
@@ -7,19 +15,22 @@
 # `MSFT_screencoverage` hints, as custom properties.
 #
 # Install: zip this folder (`cd clients/blender && zip -r landform.zip landform`), then
-# Edit > Preferences > Add-ons > Install… and tick "Import-Export: Landform". Needs the glTF
+# Edit > Preferences > Add-ons > Install… and tick "3D View: Landform terrain". Needs the glTF
 # importer that ships with Blender (3.4 or later: its import hooks).
 bl_info = {
-    "name": "Landform",
+    "name": "Landform terrain",
     "author": "Landform",
-    "version": (0, 1, 0),
+    "version": (0, 2, 0),
     "blender": (3, 4, 0),
-    "location": "File > Import > glTF 2.0",
-    "description": "Imports Landform's glb files with their levels of detail in a hidden collection",
-    "category": "Import-Export",
+    "location": "View3D > Sidebar > Landform; File > Import > glTF 2.0",
+    "description": "Runs Landform terrain jobs from a panel and imports the result at the 3D cursor; "
+    "imports Landform's glb files with their levels of detail in a hidden collection",
+    "category": "3D View",
 }
 
 import bpy
+
+from . import panel
 
 # The collection the levels of detail go into.
 LEVELS = "Landform levels of detail"
@@ -62,8 +73,8 @@ class glTF2ImportUserExtension:
 
 
 def register():
-    pass
+    panel.register()
 
 
 def unregister():
-    pass
+    panel.unregister()

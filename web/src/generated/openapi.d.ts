@@ -300,6 +300,22 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/v1/presets": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get: operations["list_presets"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
 }
 export type webhooks = Record<string, never>;
 export interface components {
@@ -2652,6 +2668,21 @@ export interface components {
             /** @description At least three `[x, z]` points and at most 1024, metres from the grid's centre. */
             points_m: number[][];
         };
+        /** @description One example request. */
+        Preset: {
+            /** @description The job kind it is a request of (`POST /v1/jobs/{kind}`). */
+            kind: string;
+            /** @description Its name, unique within the kind (the example's file name). */
+            name: string;
+            /** @description The body's `label`: what the example shows. */
+            label?: string | null;
+            /** @description The whole request body, ready to post. */
+            body: Record<string, unknown>;
+        };
+        /** @description Every preset, by kind then name. */
+        PresetList: {
+            items: components["schemas"]["Preset"][];
+        };
         /** @description An RFC 9457 problem. Validation problems list each bad field by its JSON path. */
         Problem: {
             /** @description A URI naming the kind of problem */
@@ -4834,6 +4865,67 @@ export interface operations {
             };
             /** @description The range lies past the end; Content-Range gives the length */
             416: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The server failed; its log has the details */
+            500: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+        };
+    };
+    list_presets: {
+        parameters: {
+            query?: {
+                /** @description Only this kind's presets (empty: every kind's). */
+                kind?: string;
+            };
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Example requests of every kind (or one), ready to post */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["PresetList"];
+                };
+            };
+            /** @description A malformed request: its body, a query parameter or a header */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description No key, or a key this server does not know (only when it has keys) */
+            401: {
+                headers: {
+                    /** @description `Bearer realm="landform"` */
+                    "WWW-Authenticate"?: string;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description An unknown kind */
+            422: {
                 headers: {
                     [name: string]: unknown;
                 };

@@ -35,6 +35,7 @@ PATHS: dict[str, tuple[str, ...]] = {
     '/v1/jobs/{id}/live.png': ('GET',),
     '/v1/jobs/{id}/replay': ('POST',),
     '/v1/jobs/{id}/sequence': ('GET',),
+    '/v1/presets': ('GET',),
 }
 
 # Each operation id's method and path.
@@ -47,6 +48,7 @@ OPERATIONS: dict[str, tuple[str, str]] = {
     'healthz': ('GET', '/healthz'),
     'job_events': ('GET', '/v1/jobs/{id}/events'),
     'list_jobs': ('GET', '/v1/jobs'),
+    'list_presets': ('GET', '/v1/presets'),
     'live_png': ('GET', '/v1/jobs/{id}/live.png'),
     'metrics': ('GET', '/metrics'),
     'readyz': ('GET', '/readyz'),
