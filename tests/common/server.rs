@@ -1,5 +1,7 @@
 //! Starts the real `landform` binary on 127.0.0.1:0 with a fresh SQLite file, and talks to it
-//! over HTTP with reqwest.
+//! over HTTP: jobs are posted, followed and downloaded through the Rust client
+//! (`landform-client`, `lf`), and raw calls (status codes, headers, hostile bodies) go through
+//! reqwest (`client`).
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -45,6 +47,8 @@ impl Default for Options {
 pub struct TestServer {
     pub base: String,
     pub client: reqwest::Client,
+    /// The Rust client on the same connection pool.
+    pub lf: landform_client::Client,
     pub db: PathBuf,
     child: Child,
     _dir: Option<tempfile::TempDir>,
@@ -106,7 +110,8 @@ impl TestServer {
         .await
         .expect("read address");
         let client = reqwest::Client::builder().timeout(Duration::from_secs(120)).build().expect("client");
-        Self { base, client, db: db.to_path_buf(), child, _dir: None }
+        let lf = landform_client::Client::with_http(client.clone(), base.clone());
+        Self { base, client, lf, db: db.to_path_buf(), child, _dir: None }
     }
 
     /// The server process's id (to read its memory from /proc).
@@ -152,24 +157,24 @@ impl TestServer {
         (status, res.json().await.unwrap_or(Value::Null))
     }
 
-    /// Submit a job and return it (asserting 202).
+    /// Submit a job through the client and return its document.
     pub async fn submit(&self, kind: &str, body: &Value) -> Value {
-        let (status, job) = self.post(&format!("/v1/jobs/{kind}"), body).await;
-        assert_eq!(status, 202, "submit {kind}: {job}");
-        job
+        let job = self.lf.submit_json(kind, body, &Default::default()).await;
+        let job = job.unwrap_or_else(|e| panic!("submit {kind}: {e}"));
+        serde_json::to_value(job.document()).expect("a job document")
     }
 
     /// Poll until the job has ended (at most 5 minutes).
     pub async fn wait_done(&self, id: &str) -> Value {
         let start = Instant::now();
+        let mut job = self.lf.job(id).await.unwrap_or_else(|e| panic!("job {id}: {e}"));
         loop {
-            let (status, job) = self.get_json(&format!("/v1/jobs/{id}")).await;
-            assert_eq!(status, 200, "{job}");
-            if matches!(job["status"].as_str(), Some("succeeded" | "failed" | "cancelled")) {
-                return job;
+            if job.document().status.is_terminal() {
+                return serde_json::to_value(job.document()).expect("a job document");
             }
-            assert!(start.elapsed() < Duration::from_secs(300), "job {id} did not end: {job}");
+            assert!(start.elapsed() < Duration::from_secs(300), "job {id} did not end: {:?}", job.document());
             tokio::time::sleep(Duration::from_millis(50)).await;
+            job.refresh().await.unwrap_or_else(|e| panic!("job {id}: {e}"));
         }
     }
 
@@ -196,9 +201,8 @@ impl TestServer {
     }
 
     pub async fn artifact(&self, id: &str, name: &str) -> Vec<u8> {
-        let res = self.client.get(self.url(&format!("/v1/jobs/{id}/artifacts/{name}"))).send().await.expect("GET");
-        assert_eq!(res.status(), 200, "artifact {name}");
-        res.bytes().await.expect("bytes").to_vec()
+        let job = self.lf.job(id).await.unwrap_or_else(|e| panic!("job {id}: {e}"));
+        job.artifact_bytes(name).await.unwrap_or_else(|e| panic!("artifact {name}: {e}"))
     }
 }
 
