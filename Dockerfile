@@ -8,10 +8,15 @@ COPY benches ./benches
 COPY migrations ./migrations
 # The playground's built bundle (committed; no Node in the image), embedded by rust-embed.
 COPY web/dist ./web/dist
+# The examples, served as presets (GET /v1/presets), embedded by rust-embed.
+COPY api ./api
 # The load generator is a workspace member: its manifest and sources must be there for Cargo to
 # read the workspace, though only the service is built.
 COPY loadtests/Cargo.toml ./loadtests/Cargo.toml
 COPY loadtests/src ./loadtests/src
+# So is the Rust client (and a dev-dependency of the service's tests).
+COPY clients/rust/Cargo.toml ./clients/rust/Cargo.toml
+COPY clients/rust/src ./clients/rust/src
 RUN cargo build --locked --release --bin landform
 
 FROM debian:bookworm-slim
