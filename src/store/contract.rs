@@ -116,9 +116,21 @@ pub fn list_pages_newest_first_with_filters(store: &dyn JobStore) {
         before_id: Some(id(6)),
         limit: 100,
         owner: None,
+        no_replays: false,
     });
     assert_eq!(both, vec![id(0)]);
     assert!(page(ListFilter { kind: Some("nope".into()), limit: 5, ..Default::default() }).is_empty());
+
+    // Replays left out by the store, so a page of `limit` holds that many originals.
+    for n in 10..16u64 {
+        let mut r = job(n, "bulldoze", JobStatus::Succeeded);
+        r.replay_of = Some(id(n % 3));
+        store.insert(&r, None).unwrap();
+    }
+    let without = page(ListFilter { limit: 4, no_replays: true, ..Default::default() });
+    assert_eq!(without, newest[..4], "the newest four that are not replays");
+    assert_eq!(page(ListFilter { no_replays: true, ..Default::default() }), newest);
+    assert_eq!(page(ListFilter { limit: 100, ..Default::default() }).len(), 16, "replays are listed by default");
 }
 
 pub fn idempotency_key_returns_the_first_job_and_compares_the_body(store: &dyn JobStore) {

@@ -41,6 +41,8 @@ pub struct ListFilter {
     pub limit: u32,
     /// Only the jobs of this API key (by name), when set.
     pub owner: Option<String>,
+    /// Leave out replays (jobs with `replay_of`), which a timeline makes one per position.
+    pub no_replays: bool,
 }
 
 /// The uploads a new job reads: those it sent inline, `(sha256, bytes)`, and those it names by

@@ -706,11 +706,15 @@ impl JobStore for PostgresStore {
             "SELECT {}, {ARTIFACT_ARRAYS} \
              WHERE ($1::text IS NULL OR kind = $1) AND ($2::text IS NULL OR status = $2) \
              AND ($3::text IS NULL OR owner = $3) AND ($4::text IS NULL OR id < $4) \
+             AND (NOT $6 OR replay_of IS NULL) \
              ORDER BY id DESC LIMIT $5",
             summary_columns()
         );
-        let jobs =
-            load_jobs(&mut *self.client(), &sql, &[&filter.kind, &status, &filter.owner, &filter.before_id, &limit])?;
+        let jobs = load_jobs(
+            &mut *self.client(),
+            &sql,
+            &[&filter.kind, &status, &filter.owner, &filter.before_id, &limit, &filter.no_replays],
+        )?;
         Ok(jobs)
     }
 

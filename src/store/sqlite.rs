@@ -897,6 +897,9 @@ impl JobStore for SqliteStore {
             conditions.push("owner = ?");
             values.push(SqlValue::Text(owner.clone()));
         }
+        if filter.no_replays {
+            conditions.push("replay_of IS NULL");
+        }
         if let Some(before) = &filter.before_id {
             conditions.push("id < ?");
             values.push(SqlValue::Text(before.clone()));

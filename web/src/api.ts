@@ -117,12 +117,15 @@ export async function getJson<T>(path: string): Promise<T> {
 
 export const jobs = {
   get: async (id: string): Promise<Job> => (await ok(client.GET('/v1/jobs/{id}', { params: { path: { id } } }))) as Job,
-  list: async (q: { kind?: string; status?: string; limit?: number; cursor?: string | null }): Promise<JobPage> => {
+  list: async (q: { kind?: string; status?: string; limit?: number; cursor?: string | null; replays?: boolean }): Promise<JobPage> => {
     const query: ListQuery = {
       kind: (q.kind || undefined) as ListQuery['kind'],
       status: (q.status || undefined) as ListQuery['status'],
       limit: q.limit ?? 20,
       cursor: q.cursor || undefined,
+      // Replays are filtered by the server: a page filtered here after fetching could be empty
+      // while older jobs exist (a timeline makes a replay for each position).
+      ...(q.replays === false ? { replays: false } : {}),
     };
     return (await ok(client.GET('/v1/jobs', { params: { query } }))) as JobPage;
   },

@@ -207,7 +207,7 @@ export class SchemaForm {
         rm.addEventListener('click', () => this.structural(path, undefined));
         legend.append(' ', rm);
       }
-      if (s.description && path.length) box.append(el('small', { class: 'help' }, [s.description]));
+      if (s.description && path.length) box.append(el('small', { class: 'help' }, prose(s.description)));
       if (tags) this.choice(box, s, path, tags, value, name);
       else if (Array.isArray(s.oneOf)) this.untagged(box, s, path, value, name);
       else if (type === 'object') this.object(box, s, path);
@@ -374,7 +374,7 @@ export class SchemaForm {
     if (s.description) bits.push(s.description);
     const b = bounds(s);
     if (b) bits.push(b);
-    return el('small', { class: 'help', id: `${id}-help` }, [bits.join(' — ')]);
+    return el('small', { class: 'help', id: `${id}-help` }, prose(bits.join(' — ')));
   }
 
   private errorLine(id?: string): HTMLElement {
@@ -390,17 +390,34 @@ function bounds(s: Schema): string {
   const hi = num(s.maximum);
   const xlo = num(s.exclusiveMinimum);
   const xhi = num(s.exclusiveMaximum);
-  if (lo !== undefined) parts.push(`≥ ${lo}`);
-  if (xlo !== undefined) parts.push(`> ${xlo}`);
-  if (hi !== undefined) parts.push(`≤ ${hi}`);
-  if (xhi !== undefined) parts.push(`< ${xhi}`);
+  if (lo !== undefined) parts.push(`≥ ${readable(lo)}`);
+  if (xlo !== undefined) parts.push(`> ${readable(xlo)}`);
+  if (hi !== undefined) parts.push(`≤ ${readable(hi)}`);
+  if (xhi !== undefined) parts.push(`< ${readable(xhi)}`);
   if (s.maxLength !== undefined) parts.push(`at most ${s.maxLength} characters`);
   if (s.minItems !== undefined || s.maxItems !== undefined) parts.push(`${s.minItems ?? 0}–${s.maxItems ?? '∞'} items`);
   return parts.join(', ');
 }
 
+/**
+ * A bound as people read it. JSON numbers past 2⁵³ arrive rounded (u64::MAX, a seed's maximum,
+ * reads 18446744073709552000): the integer limits are named, other large numbers shortened.
+ */
+export function readable(n: number): string {
+  if (n >= 2 ** 64 - 2 ** 11) return '2⁶⁴ − 1';
+  if (n >= 2 ** 63 - 2 ** 10 && n <= 2 ** 63) return '2⁶³ − 1';
+  if (n >= 2 ** 32 - 1 && n <= 2 ** 32) return '2³² − 1';
+  if (Math.abs(n) >= 1e9) return n.toExponential().replace(/e\+?/, ' × 10^');
+  return String(n);
+}
+
+/** Help text with its Markdown `code` spans as <code> (the schema's descriptions use them). */
+export function prose(text: string): (Node | string)[] {
+  return text.split('`').map((part, k) => (k % 2 === 1 ? el('code', {}, [part]) : part)).filter((p) => p !== '');
+}
+
 function firstLine(s?: string): string | undefined {
-  return s ? s.split(/[.\n]/)[0].slice(0, 60) : undefined;
+  return s ? s.replaceAll('`', '').split(/[.\n]/)[0].slice(0, 60) : undefined;
 }
 
 export function el(tag: string, attrs: Record<string, string> = {}, children: (Node | string)[] = []): HTMLElement {

@@ -62,6 +62,11 @@ test('a bulldoze job from its preset: progress to 100 %, a drawn 3D frame, and t
   await shot(page, 'bulldoze-job');
   await page.locator('#viewer canvas').screenshot({ path: `${process.env.LANDFORM_E2E_OUT ?? '../target/playground-e2e'}/bulldoze-canvas.png` });
 
+  // The level-of-detail list names what is shown: the full mesh, listed first.
+  assert.equal(await page.locator('#lod').inputValue(), 'mesh.glb');
+  assert.match(await page.locator('#lod option').first().textContent(), /^full /);
+  assert.equal(await page.locator('#viewer').getAttribute('data-shown'), `${id}/mesh.glb`);
+
   // The timeline: step 0 of the ziggurat is the mound before the spiral is cut.
   const steps = Number(await page.locator('#timeline').getAttribute('max'));
   assert.ok(steps > 10, `steps ${steps}`);
@@ -73,6 +78,8 @@ test('a bulldoze job from its preset: progress to 100 %, a drawn 3D frame, and t
   assert.ok(moved > 1.0, `frame difference between step ${steps} and step 0: ${moved}`);
   const shown = await page.locator('#viewer').getAttribute('data-shown');
   assert.ok(!shown.startsWith(id), `the viewer shows a replay, not ${shown}`);
+  assert.ok(shown.endsWith('/mesh.glb'), `a timeline move keeps the full mesh, not ${shown}`);
+  assert.equal(await page.locator('#lod').inputValue(), 'mesh.glb');
   // The replay is the original's operations up to step 0, made by the server.
   const replay = await (await fetch(`${server.url}/v1/jobs/${shown.split('/')[0]}`)).json();
   assert.equal(replay.replay_of, id);
@@ -266,5 +273,55 @@ test('live snapshots appear as the job runs, and cancel stops it', async () => {
   const job = await (await fetch(`${server.url}/v1/jobs/${id}`)).json();
   assert.equal(job.status, 'cancelled');
   assert.ok(await page.locator('#job-error').isVisible());
+  assert.deepEqual(page.errors, []);
+});
+
+test('help text: readable bounds and code spans, no raw Markdown', async () => {
+  const page = await newPage(browser, server.url);
+  await page.goto('/#/new/bulldoze');
+  await page.selectOption('#preset', { label: 'ziggurat' });
+  const seedHelp = await page.locator('[data-path="seed"] small.help').textContent();
+  // u64::MAX arrives as 18446744073709552000 (a JSON number past 2^53): shown by its name.
+  assert.ok(!/18446744073709552000/.test(seedHelp), seedHelp);
+  assert.match(seedHelp, /≤ 2⁶⁴ − 1/);
+  const helps = await page.locator('small.help').allTextContents();
+  assert.ok(helps.length > 10, `${helps.length} help texts`);
+  assert.deepEqual(helps.filter((h) => h.includes('`')), [], 'no raw backticks');
+  assert.ok((await page.locator('small.help code').count()) > 0, 'code spans shown as <code>');
+  assert.deepEqual(page.errors, []);
+});
+
+test('the job list: replays are filtered by the server, so a page of them hides no job behind it', async () => {
+  // A job, then 25 replays of it, as a timeline makes them (one per position): newer than it.
+  const post = async (path, body) => {
+    const res = await fetch(`${server.url}${path}`, {
+      method: 'POST',
+      headers: { 'content-type': 'application/json', prefer: 'wait=60' },
+      body: JSON.stringify(body),
+    });
+    assert.ok(res.ok, `${path}: ${res.status}`);
+    return res.json();
+  };
+  const presets = await (await fetch(`${server.url}/v1/presets?kind=bulldoze`)).json();
+  const body = structuredClone(presets.items.find((p) => p.name === 'ziggurat').body);
+  body.terrain.fractal.size = 65;
+  body.lods = [];
+  body.label = 'behind its replays';
+  const job = await post('/v1/jobs/bulldoze', body);
+  assert.equal(job.status, 'succeeded');
+  for (let k = 0; k < 25; k++) await post(`/v1/jobs/${job.id}/replay`, { until_step: k });
+
+  const page = await newPage(browser, server.url);
+  await page.goto('/');
+  await page.waitForSelector('table.jobs');
+  const row = page.locator(`table.jobs a[href="#/jobs/${job.id}"]`).first();
+  await row.waitFor();
+  assert.ok(!/No jobs here yet/.test(await page.locator('main').textContent()));
+  assert.equal(await page.locator('table.jobs tbody tr', { hasText: 'replay to step' }).count(), 0);
+  // With replays shown, the newest page is the replays.
+  await page.locator('#filter-replays').check();
+  await page.waitForFunction(() => document.querySelectorAll('table.jobs tbody tr').length > 0 && /replay to step/.test(document.querySelector('table.jobs').textContent));
+  assert.ok((await page.locator('table.jobs tbody tr', { hasText: 'replay to step' }).count()) >= 10);
+  await shot(page, 'job-list-without-replays');
   assert.deepEqual(page.errors, []);
 });

@@ -24,6 +24,10 @@ pub struct ListQuery {
     /// `next_cursor` of the previous page (a job id).
     #[param(pattern = "^[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}$")]
     cursor: Option<String>,
+    /// `false`: leave out replays (jobs with `replay_of`), filtered by the server so a page
+    /// holds `limit` of the others. Default `true`.
+    #[param(value_type = Option<bool>)]
+    replays: Option<String>,
 }
 
 /// A page of jobs, newest first.
@@ -75,12 +79,18 @@ pub async fn list_jobs(
             return Err(Problem::field("cursor", "is not a cursor this server gave"));
         }
     }
+    let no_replays = match q.replays.as_deref() {
+        None | Some("true") => false,
+        Some("false") => true,
+        Some(_) => return Err(Problem::field("replays", "must be true or false")),
+    };
     let filter = ListFilter {
         kind: q.kind.filter(|k| !k.is_empty()),
         status,
         before_id: q.cursor,
         limit,
         owner: caller.owner().map(str::to_string),
+        no_replays,
     };
     let items = state.engine.list(filter).await?;
     let next_cursor = if items.len() == limit as usize { items.last().map(|j| j.id.clone()) } else { None };

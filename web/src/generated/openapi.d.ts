@@ -3156,6 +3156,11 @@ export interface operations {
                 limit?: number;
                 /** @description `next_cursor` of the previous page (a job id). */
                 cursor?: string;
+                /**
+                 * @description `false`: leave out replays (jobs with `replay_of`), filtered by the server so a page
+                 *     holds `limit` of the others. Default `true`.
+                 */
+                replays?: boolean;
             };
             header?: never;
             path?: never;

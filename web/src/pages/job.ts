@@ -129,9 +129,14 @@ async function result(host: HTMLElement, job: Job, kindNames: string[], signal: 
   const seaLevel = typeof job.request.sea_level === 'number' ? (job.request.sea_level as number) : null;
 
   // Levels of detail: the full mesh and each mesh_lodN.glb.
-  const levels = job.artifacts.filter((a) => /^mesh(_lod\d+)?\.glb$/.test(a.name)).sort((a, b) => a.name.localeCompare(b.name));
+  // Ordered by level number, the full mesh (level 0) first: a name sort puts `mesh_lod1.glb`
+  // before `mesh.glb` ('_' sorts before '.'), and the list then named lod1 while the full mesh
+  // was shown, and a timeline move loaded lod1.
+  const level = (name: string): number => Number(/_lod(\d+)\.glb$/.exec(name)?.[1] ?? 0);
+  const levels = job.artifacts.filter((a) => /^mesh(_lod\d+)?\.glb$/.test(a.name)).sort((a, b) => level(a.name) - level(b.name));
   const lodSel = el('select', { id: 'lod' }) as HTMLSelectElement;
   for (const a of levels) lodSel.append(el('option', { value: a.name }, [`${a.name === 'mesh.glb' ? 'full' : a.name.replace(/^mesh_|\.glb$/g, '')} (${humanBytes(a.bytes)})`]));
+  lodSel.value = 'mesh.glb';
   const load = async (j: Job, name: string): Promise<void> => {
     const a = artifact(j, name) ?? artifact(j, 'mesh.glb');
     if (!a) return;

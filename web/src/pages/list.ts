@@ -38,15 +38,14 @@ export function listPage(host: HTMLElement, kindNames: string[], signal: AbortSi
     const cursor = state.cursors[state.cursors.length - 1];
     let page;
     try {
-      page = await jobs.list({ kind: state.kind || undefined, status: state.status || undefined, cursor, limit: 20 });
+      page = await jobs.list({ kind: state.kind || undefined, status: state.status || undefined, cursor, limit: 20, replays: state.replays });
     } catch (e) {
       note.textContent = e instanceof ApiError ? `Could not list jobs: ${e.message}` : String(e);
       return;
     }
     if (signal.aborted) return;
-    const items = page.items.filter((j) => state.replays || !j.replay_of);
-    const hidden = page.items.length - items.length;
-    note.textContent = items.length ? (hidden ? `${hidden} replay(s) on this page hidden.` : '') : 'No jobs here yet. Start one from a kind above.';
+    const items = page.items;
+    note.textContent = items.length ? '' : 'No jobs here yet. Start one from a kind above.';
     table.replaceChildren(
       el('thead', {}, [
         el('tr', {}, ['Preview', 'Kind', 'Label', 'Status', 'Age', 'Actions'].map((h, i) => el('th', { scope: 'col' }, [i === 0 || i === 5 ? el('span', { class: 'sr-only' }, [h]) : h]))),
