@@ -70,6 +70,92 @@ async fn events_run_to_done_and_resume_after_an_id_without_repeating() {
     assert!(resumed.iter().filter_map(|e| e.id.as_deref()).all(|id| id.parse::<u64>().unwrap() > first), "{resumed:?}");
 }
 
+/// A proxy to `target` that cuts its first `cuts` event streams after `after` bytes from the
+/// server, as a dropped network does (other calls pass whole); with the count of event streams
+/// it carried.
+async fn cutting_proxy(
+    target: String,
+    cuts: usize,
+    after: usize,
+) -> (String, std::sync::Arc<std::sync::atomic::AtomicUsize>) {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::Arc;
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    let target = target.trim_start_matches("http://").to_string();
+    let cut = Arc::new(AtomicUsize::new(0));
+    let count = cut.clone();
+    tokio::spawn(async move {
+        loop {
+            let Ok((mut client, _)) = listener.accept().await else { return };
+            let mut server = tokio::net::TcpStream::connect(&target).await.unwrap();
+            let cut = cut.clone();
+            tokio::spawn(async move {
+                let (mut cr, mut cw) = client.split();
+                let (mut sr, mut sw) = server.split();
+                let mut first = [0u8; 4096];
+                let Ok(k) = cr.read(&mut first).await else { return };
+                let events = first[..k].windows(7).any(|w| w == b"/events");
+                let limit = if events && cut.fetch_add(1, Ordering::SeqCst) < cuts { after } else { usize::MAX };
+                if sw.write_all(&first[..k]).await.is_err() {
+                    return;
+                }
+                let up = tokio::io::copy(&mut cr, &mut sw);
+                let down = async {
+                    let mut sent = 0;
+                    let mut buf = [0u8; 512];
+                    while sent < limit {
+                        let k = match sr.read(&mut buf).await {
+                            Ok(0) | Err(_) => break,
+                            Ok(k) => k.min(limit - sent),
+                        };
+                        if cw.write_all(&buf[..k]).await.is_err() {
+                            break;
+                        }
+                        sent += k;
+                    }
+                };
+                tokio::select! { _ = up => {}, _ = down => {} }
+            });
+        }
+    });
+    (format!("http://{addr}"), count)
+}
+
+#[tokio::test]
+async fn a_dropped_event_stream_resumes_where_it_was_cut_without_a_repeat() {
+    let server = TestServer::start().await;
+    let job = server.lf.submit_json("bulldoze", &seconds_bulldoze(3), &Submit::default()).await.unwrap();
+    // Read as it runs, directly and through a proxy that cuts the first three streams mid-way.
+    let (proxy, cuts) = cutting_proxy(server.base.clone(), 3, 700).await;
+    // A connection a call (no pooling: the proxy looks at each connection's first request).
+    let http = reqwest::Client::builder().pool_max_idle_per_host(0).build().unwrap();
+    let proxied = Client::with_http(http, proxy).job(job.id()).await.unwrap();
+    let read = |events: landform_client::Events| async move {
+        let mut events = events;
+        let mut got = Vec::new();
+        while let Some(e) = events.next().await {
+            got.push(e.unwrap());
+        }
+        got
+    };
+    let (direct, cut) = tokio::join!(read(job.events(None)), read(proxied.events(None)));
+    assert!(cuts.load(std::sync::atomic::Ordering::SeqCst) > 3, "the proxy cut three streams");
+    let ids =
+        |v: &[landform_client::Event]| -> Vec<u64> { v.iter().filter_map(|e| e.id.as_deref()?.parse().ok()).collect() };
+    let (direct_ids, cut_ids) = (ids(&direct), ids(&cut));
+    assert_eq!(cut.last().unwrap().event, "done", "{cut:?}");
+    assert!(cut_ids.windows(2).all(|w| w[0] < w[1]), "no event twice: {cut_ids:?}");
+    assert!(cut.iter().filter(|e| e.event == "progress").count() > 1, "{cut:?}");
+    let progress = |v: &[landform_client::Event]| -> Vec<u64> {
+        v.iter().filter(|e| e.event == "progress").filter_map(|e| e.id.as_deref()?.parse().ok()).collect()
+    };
+    // Every progress event read through the cuts is one the direct reader saw.
+    assert!(progress(&cut).iter().all(|id| direct_ids.contains(id)), "{cut_ids:?} against {direct_ids:?}");
+    assert_eq!(cut.last().unwrap().json().unwrap()["status"], "succeeded");
+}
+
 #[tokio::test]
 async fn replay_cancel_and_problems_are_typed() {
     let server = TestServer::start().await;

@@ -10,7 +10,7 @@ import uuid
 
 import pytest
 
-from landform import Client, Job, JobCancelled, LandformProblem
+from landform import Client, Job, JobCancelled, LandformProblem, types
 
 from conftest import make_client
 
@@ -236,3 +236,21 @@ def test_list_jobs(client: Client, finished_job: Job) -> None:
     ids = [j.id for j in everything]
     assert ids == sorted(ids, reverse=True)
     assert client.healthy()
+
+
+def test_presets_and_replays_left_out(client: Client, finished_job: Job) -> None:
+    presets = client.presets("bulldoze")
+    assert len(presets) >= 5 and all(p["kind"] == "bulldoze" for p in presets)
+    assert {p["name"] for p in presets} >= {"ziggurat"}
+    body = client.preset("bulldoze", "ziggurat")
+    assert "operations" in body
+    every = client.presets()
+    assert {p["kind"] for p in every} == set(types.KINDS)
+    with pytest.raises(LandformProblem) as e:
+        client.presets("nope")
+    assert e.value.status == 422 and e.value.fields == ["kind"]
+    replay = finished_job.replay(until_step=0)
+    replay.wait(progress=False)
+    originals = client.jobs(replays=False, limit=100)["items"]
+    assert originals and all(j.get("replay_of") is None for j in originals)
+    assert replay.id in {j["id"] for j in client.jobs(limit=100)["items"]}

@@ -2,6 +2,7 @@
 
 use bytes::Bytes;
 use futures_util::{Stream, StreamExt};
+use sha2::{Digest, Sha256};
 use tokio::io::AsyncWriteExt;
 
 use crate::{error, Client, Error, Events, JobDocument, JobStatus};
@@ -76,18 +77,45 @@ impl Job {
         Ok(out)
     }
 
-    /// An artifact streamed into the file `path`; returns its length.
+    /// An artifact streamed into the file `path`, its sha256 checked against the `ETag` the
+    /// server sends; written beside it first and renamed, so a failure leaves no partial file.
+    /// Returns its length.
     pub async fn download(&self, name: &str, path: impl AsRef<std::path::Path>) -> Result<u64, Error> {
-        let mut file = tokio::fs::File::create(path).await?;
-        let mut stream = std::pin::pin!(self.artifact(name).await?);
-        let mut written = 0;
-        while let Some(chunk) = stream.next().await {
-            let chunk = chunk?;
-            file.write_all(&chunk).await?;
-            written += chunk.len() as u64;
+        let path = path.as_ref();
+        let url = format!("/v1/jobs/{}/artifacts/{name}", self.doc.id);
+        let res = error::checked(self.client.request(reqwest::Method::GET, &url).send().await?).await?;
+        let etag = res.headers().get("etag").and_then(|v| v.to_str().ok()).map(|v| v.trim_matches('"').to_string());
+        let file_name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let part = path.with_file_name(format!(".{file_name}.part"));
+        let written = async {
+            let mut file = tokio::fs::File::create(&part).await?;
+            let mut hash = Sha256::new();
+            let mut stream = std::pin::pin!(res.bytes_stream());
+            let mut written = 0;
+            while let Some(chunk) = stream.next().await {
+                let chunk = chunk?;
+                hash.update(&chunk);
+                file.write_all(&chunk).await?;
+                written += chunk.len() as u64;
+            }
+            file.flush().await?;
+            let sha: String = hash.finalize().iter().map(|b| format!("{b:02x}")).collect();
+            match etag {
+                Some(e) if e != sha => Err(Error::Protocol(format!("{name}: its sha256 {sha} is not its ETag {e}"))),
+                _ => Ok(written),
+            }
         }
-        file.flush().await?;
-        Ok(written)
+        .await;
+        match written {
+            Ok(n) => {
+                tokio::fs::rename(&part, path).await?;
+                Ok(n)
+            }
+            Err(e) => {
+                let _ = tokio::fs::remove_file(&part).await;
+                Err(e)
+            }
+        }
     }
 
     /// A new job rebuilding this one's result from its recorded sequence, whole or up to

@@ -140,9 +140,14 @@ pub struct Client {
 }
 
 impl Client {
-    /// A client of the server at `base` (e.g. `http://127.0.0.1:8080`), 30 s to connect.
+    /// A client of the server at `base` (e.g. `http://127.0.0.1:8080`): 30 s to connect, and
+    /// 60 s at most between two reads (an idle event stream gets a keep-alive every 15 s, so a
+    /// silent connection is a dead one, and the stream resumes on a new one).
     pub fn new(base: impl Into<String>) -> Result<Self, Error> {
-        let http = reqwest::Client::builder().connect_timeout(Duration::from_secs(30)).build()?;
+        let http = reqwest::Client::builder()
+            .connect_timeout(Duration::from_secs(30))
+            .read_timeout(Duration::from_secs(60))
+            .build()?;
         Ok(Self::with_http(http, base))
     }
 

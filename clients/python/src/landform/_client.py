@@ -32,6 +32,7 @@ ROUTES: dict[str, tuple[str, str]] = {
     "sequence": ("GET", "/v1/jobs/{id}/sequence"),
     "replay": ("POST", "/v1/jobs/{id}/replay"),
     "cancel": ("POST", "/v1/jobs/{id}/cancel"),
+    "presets": ("GET", "/v1/presets"),
     "healthz": ("GET", "/healthz"),
 }
 
@@ -175,9 +176,13 @@ class Client:
         status: Optional[str] = None,
         limit: Optional[int] = None,
         cursor: Optional[str] = None,
+        replays: Optional[bool] = None,
     ) -> JobPage:
-        """One page of jobs, newest first: `{"items": [...], "next_cursor": id or None}`."""
+        """One page of jobs, newest first: `{"items": [...], "next_cursor": id or None}`;
+        `replays=False` leaves replays out (filtered by the server)."""
         query = {"kind": kind, "status": status, "limit": limit, "cursor": cursor}
+        if replays is not None:
+            query["replays"] = "true" if replays else "false"
         return cast(JobPage, self._request("list", query=query).json())
 
     def iter_jobs(self, kind: Optional[str] = None, status: Optional[str] = None, page_size: int = 100) -> Iterator["Job"]:
@@ -190,6 +195,17 @@ class Client:
             cursor = page.get("next_cursor")
             if not cursor:
                 return
+
+    def presets(self, kind: Optional[str] = None) -> list[dict[str, Any]]:
+        """The server's example requests (`{"kind", "name", "label", "body"}`), of one kind or all."""
+        return list(self._request("presets", query={"kind": kind}).json()["items"])
+
+    def preset(self, kind: str, name: str) -> dict[str, Any]:
+        """The body of the example `name` of `kind`, ready for `submit(kind, body)`."""
+        for p in self.presets(kind):
+            if p["name"] == name:
+                return dict(p["body"])
+        raise LandformError(f"the server has no {kind} preset {name!r}")
 
     def healthy(self) -> bool:
         """Whether the server answers its health check."""
@@ -252,8 +268,10 @@ class Job:
                     if isinstance(fraction, (int, float)):
                         bar.n = max(0.0, min(100.0, round(100.0 * fraction, 1)))
                     stage, message = data.get("stage"), data.get("message")
+                    kind = self.document.get("kind", "job")
                     if stage:
-                        bar.set_description_str(f"{self.document.get('kind', 'job')} {stage}", refresh=False)
+                        # A kind's first stage is often named for the kind: not twice.
+                        bar.set_description_str(kind if stage == kind else f"{kind} {stage}", refresh=False)
                     bar.set_postfix_str(str(message or "")[:60], refresh=False)
                     bar.refresh()
                 elif bar is not None and item.event == "status" and isinstance(data, dict):
