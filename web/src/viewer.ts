@@ -54,7 +54,7 @@ export class Viewer {
     this.canvas.className = 'viewer-canvas';
     this.canvas.tabIndex = 0;
     this.canvas.setAttribute('role', 'img');
-    this.canvas.setAttribute('aria-label', '3D view of the mesh: drag to orbit, wheel to zoom, arrow keys to pan');
+    this.canvas.setAttribute('aria-label', '3D view of the mesh: drag to orbit, wheel to zoom, arrow keys to pan, F or Home to frame it all');
     host.append(this.canvas);
     try {
       // preserveDrawingBuffer: the canvas can be read back (screenshots, the tests' pixel checks).
@@ -69,8 +69,33 @@ export class Viewer {
     this.controls = new OrbitControls(this.camera, this.canvas);
     this.controls.listenToKeyEvents(this.canvas);
     this.controls.addEventListener('change', () => this.draw());
+    // Back from wherever the orbit went: F (as in Blender and Unity) or Home frames it all.
+    this.canvas.addEventListener('keydown', (e) => {
+      if ((e.key === 'f' || e.key === 'F' || e.key === 'Home') && !e.ctrlKey && !e.metaKey && !e.altKey) {
+        e.preventDefault();
+        this.frameAll();
+      }
+    });
     this.resize.observe(host);
     this.fit();
+  }
+
+  /**
+   * Keep the orbit above the ground (for a terrain seen from outside: under it the terrain
+   * vanishes, back faces culled); a cave or a column is free to be looked at from below.
+   */
+  aboveGround(on: boolean): void {
+    if (!this.controls) return;
+    // Just short of horizontal: the camera never passes under the target's level.
+    this.controls.maxPolarAngle = on ? Math.PI / 2 - 0.02 : Math.PI;
+    this.controls.update();
+  }
+
+  /** Frame the whole model again, as when it was first shown. */
+  frameAll(): void {
+    if (!this.renderer || !this.model) return;
+    this.frameCamera();
+    this.draw();
   }
 
   /** Show a glb (replacing what was shown); the camera is framed on the first one only. */
@@ -189,6 +214,8 @@ export class Viewer {
     this.frame = requestAnimationFrame(() => {
       this.renderer!.render(this.scene, this.camera);
       this.canvas.dataset.frames = String(Number(this.canvas.dataset.frames ?? 0) + 1);
+      // The camera's angle from straight up (radians), for tests and tools reading the page.
+      this.canvas.dataset.polar = this.controls ? this.controls.getPolarAngle().toFixed(3) : '';
     });
   }
 }

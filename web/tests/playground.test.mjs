@@ -325,3 +325,50 @@ test('the job list: replays are filtered by the server, so a page of them hides 
   await shot(page, 'job-list-without-replays');
   assert.deepEqual(page.errors, []);
 });
+
+test('the viewer: a terrain cannot be orbited under, and Frame all (button, F) brings it back', async () => {
+  const presets = await (await fetch(`${server.url}/v1/presets?kind=bulldoze`)).json();
+  const body = structuredClone(presets.items.find((p) => p.name === 'ziggurat').body);
+  body.terrain.fractal.size = 65;
+  body.lods = [];
+  const res = await fetch(`${server.url}/v1/jobs/bulldoze`, {
+    method: 'POST',
+    headers: { 'content-type': 'application/json', prefer: 'wait=60' },
+    body: JSON.stringify(body),
+  });
+  const job = await res.json();
+  assert.equal(job.status, 'succeeded');
+  const page = await newPage(browser, server.url);
+  await page.goto(`/#/jobs/${job.id}`);
+  await waitForResult(page);
+  const canvas = page.locator('#viewer canvas');
+  const polar = async () => {
+    await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+    return Number(await canvas.getAttribute('data-polar'));
+  };
+  const framed = await polar();
+  assert.ok(framed > 0.3 && framed < 1.4, `framed at ${framed} rad from straight up`);
+  // Drag upwards far: an unlimited orbit swings the camera under the terrain (polar near π).
+  const drag = async (dy) => {
+    const box = await canvas.boundingBox();
+    const [x, y] = [box.x + box.width / 2, box.y + box.height / 2];
+    await page.mouse.move(x, y);
+    await page.mouse.down();
+    for (let k = 1; k <= 20; k++) await page.mouse.move(x, y + (dy * k) / 20);
+    await page.mouse.up();
+  };
+  await drag(-400);
+  await drag(-400);
+  const under = await polar();
+  assert.ok(under <= Math.PI / 2, `the camera went ${under} rad from straight up: under the ground`);
+  assert.ok(under > framed + 0.1, `the drag moved the camera (${framed} → ${under})`);
+  await shot(page, 'viewer-orbit-limited');
+  await page.click('#frame-all');
+  assert.ok(Math.abs((await polar()) - framed) < 0.01, 'Frame all puts the camera back');
+  await drag(300);
+  assert.ok(Math.abs((await polar()) - framed) > 0.1, 'dragged away again');
+  await canvas.focus();
+  await page.keyboard.press('f');
+  assert.ok(Math.abs((await polar()) - framed) < 0.01, 'F frames it all');
+  assert.deepEqual(page.errors, []);
+});

@@ -124,6 +124,7 @@ async function result(host: HTMLElement, job: Job, kindNames: string[], signal: 
   host.append(viewSection, timeline, maps, figures, downloads);
 
   const viewer = new Viewer(viewerHost);
+  viewer.aboveGround(hasHeightfield(job));
   signal.addEventListener('abort', () => viewer.dispose());
   if (viewer.failure) viewerHost.append(el('p', { class: 'muted' }, [viewer.failure]));
   const seaLevel = typeof job.request.sea_level === 'number' ? (job.request.sea_level as number) : null;
@@ -162,7 +163,10 @@ async function result(host: HTMLElement, job: Job, kindNames: string[], signal: 
     s.addEventListener('input', () => f(Number(s.value)));
     return [el('label', { for: id }, [label]), s];
   };
+  const home = el('button', { type: 'button', id: 'frame-all', title: 'Frame the whole result (F or Home in the view)' }, ['Frame all']);
+  home.addEventListener('click', () => viewer.frameAll());
   controls.append(
+    home,
     check('wireframe', 'wireframe', false, (v) => viewer.set({ wireframe: v })),
     check('vertex-colors', 'vertex colours', true, (v) => viewer.set({ vertexColors: v })),
     ...(seaLevel !== null ? [check('sea', `sea plane (${seaLevel} m)`, true, (v) => viewer.set({ sea: v }))] : []),
