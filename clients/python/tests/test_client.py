@@ -8,6 +8,7 @@ import threading
 import time
 import uuid
 
+import httpx
 import pytest
 
 from landform import Client, Job, JobCancelled, LandformProblem, types
@@ -254,3 +255,34 @@ def test_presets_and_replays_left_out(client: Client, finished_job: Job) -> None
     originals = client.jobs(replays=False, limit=100)["items"]
     assert originals and all(j.get("replay_of") is None for j in originals)
     assert replay.id in {j["id"] for j in client.jobs(limit=100)["items"]}
+
+
+def test_events_wait_out_a_busy_server_while_reconnecting() -> None:
+    # A stand-in server: the event stream is refused twice (503 with Retry-After: 0, then a
+    # proxy's 502 page), then sent; the client waits both out and resumes after the last id.
+    seen: list = []
+
+    def handler(request: httpx.Request) -> httpx.Response:
+        seen.append((request.url.path, request.headers.get("last-event-id")))
+        if request.url.path.endswith("/events"):
+            n = sum(1 for p, _ in seen if p.endswith("/events"))
+            if n == 1:
+                return httpx.Response(200, headers={"content-type": "text/event-stream"}, content=b"id: 4\nevent: progress\ndata: {}\n\n")
+            if n == 2:
+                return httpx.Response(503, headers={"retry-after": "0", "content-type": "application/problem+json"}, json={"type": "about:blank", "title": "Busy", "status": 503, "detail": "busy"})
+            if n == 3:
+                return httpx.Response(502, headers={"content-type": "text/html"}, content=b"<html>bad gateway</html>")
+            return httpx.Response(200, headers={"content-type": "text/event-stream"}, content=b'id: 5\nevent: done\ndata: {"id": "j", "status": "succeeded"}\n\n')
+        return httpx.Response(404, json={"type": "about:blank", "title": "Not found", "status": 404, "detail": "no"})
+
+    client = Client("http://stand-in", transport=httpx.MockTransport(handler))
+    job = Job(client, {"id": "j", "kind": "bulldoze", "status": "running"})
+    events = [e for e in job.events() if hasattr(e, "event")]
+    assert [(e.event, e.id) for e in events] == [("progress", "4"), ("done", "5")]
+    assert [h for p, h in seen if p.endswith("/events")] == [None, "4", "4", "4"]
+    # Anything else is the caller's to see at once.
+    def refusing(request: httpx.Request) -> httpx.Response:
+        return httpx.Response(404, json={"type": "about:blank", "title": "Not found", "status": 404, "detail": "no"})
+    gone = Job(Client("http://stand-in", transport=httpx.MockTransport(refusing)), {"id": "j", "status": "running"})
+    with pytest.raises(LandformProblem):
+        list(gone.events())

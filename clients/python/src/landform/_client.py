@@ -38,6 +38,10 @@ ROUTES: dict[str, tuple[str, str]] = {
 
 TERMINAL = ("succeeded", "failed", "cancelled")
 
+# Statuses an event stream's reconnection waits out rather than ends on: rate limits and a busy
+# or restarting server or proxy.
+_PASSING = (429, 502, 503, 504)
+
 # The server sends a keep-alive comment every 15 s on an idle event stream.
 _STREAM_READ_TIMEOUT = 60.0
 
@@ -329,6 +333,7 @@ class Job:
             if last is not None:
                 headers["Last-Event-ID"] = last
             error: Optional[BaseException] = None
+            wait_for: Optional[float] = None
             try:
                 with self.client._stream("events", {"id": self.id}, headers=headers, read_timeout=_STREAM_READ_TIMEOUT) as response:
                     for item in parse(response.iter_lines()):
@@ -345,12 +350,18 @@ class Job:
                         yield item
             except httpx.TransportError as e:  # dropped, refused, timed out: resume
                 error = e
+            except LandformProblem as e:  # busy, or a proxy between: wait it out and resume
+                if e.status not in _PASSING:
+                    raise
+                error = e
+                if e.retry_after is not None:
+                    wait_for = float(min(e.retry_after, 60))
             if not reconnect or failures >= max_reconnects:
                 if error is not None:
                     raise error
                 raise LandformError(f"the event stream of job {self.id} ended before its `done` event")
             failures += 1
-            time.sleep(min(delay * failures, 5.0))
+            time.sleep(wait_for if wait_for is not None else min(delay * failures, 5.0))
 
     def artifact(self, name: str, path: Union[str, "os.PathLike[str]", None] = None, *, verify: bool = True) -> Union[bytes, Path]:
         """Download an artifact (`mesh.glb`, `heightmap.png`, `tiles/0/0_0.glb`, …), streamed.
