@@ -363,6 +363,28 @@ test('the viewer: a terrain cannot be orbited under, and Frame all (button, F) b
   assert.ok(under <= Math.PI / 2, `the camera went ${under} rad from straight up: under the ground`);
   assert.ok(under > framed + 0.1, `the drag moved the camera (${framed} → ${under})`);
   await shot(page, 'viewer-orbit-limited');
+  // The splat map's picture is not a blank tile: its weights mixed into opaque colours.
+  const splat = page.locator('img[data-name="splatmap.png"]');
+  await page.waitForFunction(() => document.querySelector('img[data-name="splatmap.png"]')?.src.startsWith('data:'));
+  await page.waitForFunction(() => document.querySelector('img[data-name="splatmap.png"]')?.complete);
+  const stats = await splat.evaluate((img) => {
+    const c = document.createElement('canvas');
+    c.width = img.naturalWidth;
+    c.height = img.naturalHeight;
+    const ctx = c.getContext('2d');
+    ctx.drawImage(img, 0, 0);
+    const d = ctx.getImageData(0, 0, c.width, c.height).data;
+    let opaque = 0;
+    let coloured = 0;
+    for (let k = 0; k < d.length; k += 4) {
+      opaque += d[k + 3] === 255;
+      coloured += d[k] + d[k + 1] + d[k + 2] > 30;
+    }
+    return { pixels: d.length / 4, opaque, coloured };
+  });
+  assert.equal(stats.opaque, stats.pixels, JSON.stringify(stats));
+  assert.ok(stats.coloured > stats.pixels / 2, JSON.stringify(stats));
+  assert.match(await page.locator('figure', { has: splat }).locator('figcaption').textContent(), /false colour/);
   await page.click('#frame-all');
   assert.ok(Math.abs((await polar()) - framed) < 0.01, 'Frame all puts the camera back');
   await drag(300);

@@ -4,6 +4,7 @@
 import { ApiError, Job, JobStatus, Progress, ProgressEvent, apiKey, arrayBuffer, artifact, blobUrl, humanBytes, jobs } from '../api';
 import { followJob } from '../sse';
 import { Viewer } from '../viewer';
+import { decodeRgbaPng } from '../rgba_png';
 import { el, flatten, hasHeightfield, statusBadge } from '../ui';
 import { button } from './list';
 
@@ -183,8 +184,11 @@ async function result(host: HTMLElement, job: Job, kindNames: string[], signal: 
     grid.replaceChildren();
     for (const a of j.artifacts.filter((a) => a.media_type === 'image/png' && !a.name.includes('/'))) {
       const img = el('img', { alt: `${a.name} of job ${j.label || j.id}`, 'data-name': a.name }) as HTMLImageElement;
-      blobUrl(a.href).then((u) => (img.src = u), () => {});
-      grid.append(el('figure', {}, [img, el('figcaption', {}, [`${a.name} · ${humanBytes(a.bytes)}`])]));
+      const splat = /^splatmap/.test(a.name);
+      if (splat) splatPicture(a.href).then((u) => (img.src = u), () => blobUrl(a.href).then((u) => (img.src = u), () => {}));
+      else blobUrl(a.href).then((u) => (img.src = u), () => {});
+      const caption = splat ? ' · shown in false colour: ground green, rock grey, deposit sand, the kind\'s own (alpha) orange' : '';
+      grid.append(el('figure', {}, [img, el('figcaption', {}, [`${a.name} · ${humanBytes(a.bytes)}${caption}`])]));
     }
   };
   pictures(job);
@@ -283,4 +287,34 @@ function timelineSection(host: HTMLElement, job: Job, steps: number, show: (j: J
       }
     }, 350);
   });
+}
+
+/**
+ * A splat map as a picture: its four channels are layer weights summing to 255 (R ground,
+ * G rock, B deposit, A the kind's own material), so shown as they are the fourth layer is
+ * transparency — a blank tile where it is absent, a black one where it is everything. Each
+ * pixel here is the layers' colours mixed by their weights.
+ */
+const SPLAT_COLOURS = [
+  [96, 138, 70], // ground
+  [140, 140, 140], // rock
+  [196, 170, 120], // deposit
+  [224, 122, 40], // the kind's own
+];
+async function splatPicture(href: string): Promise<string> {
+  const png = await decodeRgbaPng(await arrayBuffer(href));
+  if (!png) throw new Error('not an 8-bit RGBA PNG');
+  const canvas = document.createElement('canvas');
+  canvas.width = png.width;
+  canvas.height = png.height;
+  const ctx = canvas.getContext('2d');
+  if (!ctx) throw new Error('no 2D canvas');
+  const image = ctx.createImageData(png.width, png.height);
+  const [d, w] = [image.data, png.data];
+  for (let k = 0; k < w.length; k += 4) {
+    for (let c = 0; c < 3; c++) d[k + c] = Math.round(SPLAT_COLOURS.reduce((s, colour, i) => s + w[k + i] * colour[c], 0) / 255);
+    d[k + 3] = 255;
+  }
+  ctx.putImageData(image, 0, 0);
+  return canvas.toDataURL('image/png');
 }
