@@ -103,6 +103,16 @@ impl std::ops::Deref for AppState {
     }
 }
 
+impl App {
+    /// `kind` as a filter: a registered kind, else a 422 naming the `kind` parameter.
+    pub(crate) fn check_kind(&self, kind: &str) -> Result<(), Problem> {
+        if self.engine.has_kind(kind) {
+            return Ok(());
+        }
+        Err(Problem::field("kind", format!("must be one of {}", self.engine.kind_names().join(", "))))
+    }
+}
+
 /// The whole service as one router.
 pub fn app(engine: Engine, config: HttpConfig) -> Router {
     let cors = cors_layer(&config.cors_origins);

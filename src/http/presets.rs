@@ -57,9 +57,7 @@ pub async fn list_presets(
     let Query(q) = query.map_err(|e| Problem::bad_request(e.body_text()))?;
     let only = q.kind.filter(|k| !k.is_empty());
     if let Some(k) = only.as_deref() {
-        if !state.engine.has_kind(k) {
-            return Err(Problem::field("kind", format!("must be one of {}", state.engine.kind_names().join(", "))));
-        }
+        state.check_kind(k)?;
     }
     Ok(Json(PresetList {
         items: presets(|kind| state.engine.has_kind(kind) && only.as_deref().is_none_or(|k| k == kind)),

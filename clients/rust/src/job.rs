@@ -60,11 +60,15 @@ impl Job {
         }
     }
 
+    /// The answer to an artifact's download, checked.
+    async fn artifact_response(&self, name: &str) -> Result<reqwest::Response, Error> {
+        let path = format!("/v1/jobs/{}/artifacts/{name}", self.doc.id);
+        error::checked(self.client.request(reqwest::Method::GET, &path).send().await?).await
+    }
+
     /// An artifact's bytes as they arrive.
     pub async fn artifact(&self, name: &str) -> Result<impl Stream<Item = Result<Bytes, Error>>, Error> {
-        let path = format!("/v1/jobs/{}/artifacts/{name}", self.doc.id);
-        let res = error::checked(self.client.request(reqwest::Method::GET, &path).send().await?).await?;
-        Ok(res.bytes_stream().map(|chunk| chunk.map_err(Error::from)))
+        Ok(self.artifact_response(name).await?.bytes_stream().map(|chunk| chunk.map_err(Error::from)))
     }
 
     /// An artifact's bytes, whole.
@@ -82,8 +86,7 @@ impl Job {
     /// Returns its length.
     pub async fn download(&self, name: &str, path: impl AsRef<std::path::Path>) -> Result<u64, Error> {
         let path = path.as_ref();
-        let url = format!("/v1/jobs/{}/artifacts/{name}", self.doc.id);
-        let res = error::checked(self.client.request(reqwest::Method::GET, &url).send().await?).await?;
+        let res = self.artifact_response(name).await?;
         let etag = res.headers().get("etag").and_then(|v| v.to_str().ok()).map(|v| v.trim_matches('"').to_string());
         let file_name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let part = path.with_file_name(format!(".{file_name}.part"));

@@ -60,10 +60,8 @@ pub async fn list_jobs(
                 Problem::field("status", "must be one of queued, running, succeeded, failed, cancelled")
             })?),
         };
-    if let Some(k) = q.kind.as_deref() {
-        if !k.is_empty() && !state.engine.has_kind(k) {
-            return Err(Problem::field("kind", format!("must be one of {}", state.engine.kind_names().join(", "))));
-        }
+    if let Some(k) = q.kind.as_deref().filter(|k| !k.is_empty()) {
+        state.check_kind(k)?;
     }
     let limit = match q.limit.as_deref() {
         // An empty `limit=` is not a number: the schema says integer, so it is refused too.
