@@ -72,6 +72,7 @@ fn carved_coast() -> Mesh {
         support::with_limits(&limits, |ctx| {
             let ctx = landform::jobs::RunContext {
                 mesh: landform::export::MeshSettings { form: GlbForm::None, lods: Vec::new() },
+                draft: false,
                 ..*ctx
             };
             CarveCoast::run(&params, 1, &ctx).expect("runs")

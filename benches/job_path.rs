@@ -119,6 +119,7 @@ fn alone(kind: &dyn JobKind, params: &Value, seed: u64, limits: &Limits) -> f64 
         terrain: &support::NoStore,
         limits,
         mesh: MeshSettings::default(),
+        draft: false,
     };
     let started = Instant::now();
     std::hint::black_box(kind.run(params, seed, &ctx).expect("runs"));
@@ -135,7 +136,7 @@ fn live(kind: &dyn JobKind, params: &Value, seed: u64, limits: &Limits) -> (f64,
         snapshots: Mutex::new(Vec::new()),
     };
     let ctx =
-        RunContext { cancel: &cancel, sink: &sink, terrain: &support::NoStore, limits, mesh: MeshSettings::default() };
+        RunContext { cancel: &cancel, sink: &sink, terrain: &support::NoStore, limits, mesh: MeshSettings::default(), draft: false };
     let started = Instant::now();
     std::hint::black_box(kind.run(params, seed, &ctx).expect("runs"));
     let seconds = started.elapsed().as_secs_f64();

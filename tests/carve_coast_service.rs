@@ -150,3 +150,50 @@ fn an_islands_mesh_is_clean_and_closed_in_every_compression_form() {
         }
     }
 }
+
+/// The heights of a `heightfield.npy` (`<f4`, C order), read here from the file's own header.
+fn npy_heights(bytes: &[u8]) -> Vec<f32> {
+    assert_eq!(&bytes[..6], b"\x93NUMPY");
+    let (start, header) = match bytes[6] {
+        1 => (10 + u16::from_le_bytes([bytes[8], bytes[9]]) as usize, &bytes[10..]),
+        _ => (12 + u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize, &bytes[12..]),
+    };
+    assert!(String::from_utf8_lossy(&header[..start.min(header.len())]).contains("'<f4'"));
+    bytes[start..].chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect()
+}
+
+/// Without `sea_level`, the coast is carved at the height a quarter of the terrain lies below:
+/// on a terrain from another job whose heights do not reach 0 m (the old default), it runs.
+#[tokio::test]
+async fn without_a_sea_level_the_coast_is_a_quarter_of_the_way_up_its_terrain() {
+    let server = TestServer::start().await;
+    let raised = json!({
+        "terrain": {"fractal": {"size": 65, "cell_size": 1.0, "relief": 30.0, "seed": 5, "island": false}},
+        "operations": [{"primitive": {
+            "shape": {"box": {"center": {"x": 32.0, "z": 32.0}, "size_x_m": 200.0, "size_z_m": 200.0, "height_m": 60.0}},
+            "operator": "add"
+        }}],
+    });
+    let raised = match server.submit_waiting("bulldoze", &raised, 60).await {
+        (200, job) => job,
+        other => panic!("{other:?}"),
+    };
+    let id = raised["id"].as_str().unwrap();
+    let mut heights = npy_heights(&server.artifact(id, "heightfield.npy").await);
+    heights.sort_by(f32::total_cmp);
+    assert!(heights[0] > 0.0, "the terrain is above 0 m: {}", heights[0]);
+    let expected = heights[heights.len() / 4];
+
+    let carve = json!({"seed": 2, "terrain": {"job": id}, "passes": 1});
+    let job = server.run("carve-coast", &carve).await;
+    assert_eq!(job["result"]["sea_level_m"].as_f64().unwrap() as f32, expected, "{}", job["result"]);
+    // The stored request keeps the field absent (the level is the terrain's), and the old
+    // default, 0 m, is refused on this terrain as before.
+    assert!(job["request"].get("sea_level").is_none(), "{}", job["request"]);
+    let mut at_zero = carve.clone();
+    at_zero["sea_level"] = json!(0.0);
+    let failed = server.submit("carve-coast", &at_zero).await;
+    let failed = server.wait_done(failed["id"].as_str().unwrap()).await;
+    assert_eq!(failed["status"], "failed", "{failed}");
+    assert_eq!(failed["error"]["errors"][0]["field"], "sea_level", "{failed}");
+}

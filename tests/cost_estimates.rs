@@ -79,6 +79,7 @@ fn measure(kind: &dyn JobKind, body: &Value, lods: &[f64]) -> Measured {
         terrain: &lookup,
         limits: &limits,
         mesh: MeshSettings { lods: lods.to_vec(), ..MeshSettings::default() },
+        draft: false,
     };
     // The counter is the process's: a run measured beside another would reset its peak (and
     // count its bytes), so measured runs take turns.

@@ -116,6 +116,10 @@ class Generator:
         if t == "boolean":
             return "bool"
         if t == "array":
+            if "prefixItems" in schema:
+                # A fixed pair or triple, each item with its own schema: a tuple.
+                parts = [self.annotation(s, f"{context}Item{i}") for i, s in enumerate(schema["prefixItems"])]
+                return f"tuple[{', '.join(parts)}]"
             items = schema.get("items")
             return f"list[{self.annotation(items, context + 'Item')}]" if items is not None else "list[Any]"
         if t == "object":

@@ -2,6 +2,7 @@
 
 pub mod auth;
 mod body;
+mod drafts;
 mod guard;
 mod jobs;
 mod openapi;
@@ -67,6 +68,8 @@ pub struct App {
     /// (tens of times a body while its JSON is parsed and stored) stays that of about one
     /// large body however many arrive together, while small ones go past a large one.
     pub preparing: tokio::sync::Semaphore,
+    /// Drafts running (see `drafts::DRAFTS_AT_ONCE`).
+    pub drafts: tokio::sync::Semaphore,
 }
 
 /// Bytes of a submitted body per permit of [`App::preparing`].
@@ -77,7 +80,7 @@ const PREPARING_HEADROOM: usize = 8 << 20;
 impl App {
     pub fn new(engine: Engine, config: HttpConfig) -> Self {
         let preparing = tokio::sync::Semaphore::new(Self::preparing_capacity(&config) as usize);
-        Self { engine, config, preparing }
+        Self { engine, config, preparing, drafts: tokio::sync::Semaphore::new(drafts::DRAFTS_AT_ONCE) }
     }
 
     fn preparing_capacity(config: &HttpConfig) -> u32 {
@@ -139,6 +142,10 @@ pub fn app(engine: Engine, config: HttpConfig) -> Router {
             jobs::submit::submit_job(state, caller, kind.to_string(), headers, body)
         };
         v1 = v1.route(&format!("/v1/jobs/{kind}"), post(submit));
+        let draft = move |State(state): State<AppState>, caller: Caller, body| {
+            drafts::run_draft(state, caller, kind.to_string(), body)
+        };
+        v1 = v1.route(&format!("/v1/drafts/{kind}"), post(draft));
     }
     let v1 = v1.route_layer(needs_key.clone());
     let mut metrics = Router::new().route("/metrics", get(ops::metrics));
@@ -200,6 +207,8 @@ fn cors_layer(origins: &[String]) -> CorsLayer {
             header::RETRY_AFTER,
             header::WWW_AUTHENTICATE,
             HeaderName::from_static("preference-applied"),
+            HeaderName::from_static("landform-draft-seconds"),
+            HeaderName::from_static("landform-draft-result"),
         ])
         .max_age(Duration::from_secs(3600))
 }

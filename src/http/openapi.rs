@@ -37,6 +37,7 @@ use crate::jobs::JobKind;
     components(schemas(crate::jobs::Job, crate::jobs::JobStatus, crate::jobs::Progress, crate::jobs::ArtifactMeta, crate::validate::FieldError, super::Problem)),
     tags(
         (name = "jobs", description = "Submit, follow, download, replay"),
+        (name = "drafts", description = "A request run at once at reduced resolution, answered with its mesh"),
         (name = "operations", description = "Health, readiness, metrics"),
     )
 )]
@@ -172,6 +173,7 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>], keys_required: bool) -> Open
             .response("503", problem_response("The queue is full; see Retry-After"))
             .build();
         doc.paths.add_path_operation(format!("/v1/jobs/{}", kind.name()), vec![HttpMethod::Post], op);
+        doc.paths.add_path_operation(format!("/v1/drafts/{}", kind.name()), vec![HttpMethod::Post], draft_operation(kind.as_ref(), &body_name));
     }
     // The list's filters take the kinds this server runs and the statuses; empty is no filter.
     let kind_names: Vec<&'static str> = std::iter::once("").chain(kinds.iter().map(|k| k.name())).collect();
@@ -191,6 +193,44 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>], keys_required: bool) -> Open
     }
     super::openapi_bounds::complete(&mut doc, keys_required);
     doc
+}
+
+/// `POST /v1/drafts/{kind}`: the same body as the kind's submission, answered with a mesh.
+fn draft_operation(kind: &dyn JobKind, body_name: &str) -> utoipa::openapi::path::Operation {
+    OperationBuilder::new()
+        .tag("drafts")
+        .operation_id(Some(format!("draft_{}", kind.name().replace('-', "_"))))
+        .summary(Some(format!("Run a {} draft and answer with its mesh", kind.name())))
+        .description(Some(format!(
+            "The body of `POST /v1/jobs/{name}`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: {rule}. Terrain sources are read at most {side} samples a side (bilinear, same extent). At most {at_once} drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after {timeout} s (504), or when its client goes away. `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/{name}` for the full job.",
+            name = kind.name(),
+            rule = kind.draft_rule(),
+            side = crate::jobs::DRAFT_MAX_SIDE,
+            at_once = super::drafts::DRAFTS_AT_ONCE,
+            timeout = crate::jobs::DRAFT_TIMEOUT.as_secs(),
+        )))
+        .request_body(Some(
+            RequestBodyBuilder::new()
+                .required(Some(Required::True))
+                .content("application/json", Content::new(Some(Ref::from_schema_name(body_name))))
+                .build(),
+        ))
+        .response(
+            "200",
+            ResponseBuilder::new()
+                .description("The draft's mesh")
+                .content(
+                    "model/gltf-binary",
+                    Content::new(Some(ObjectBuilder::new().schema_type(SchemaType::new(Type::String)).format(Some(utoipa::openapi::SchemaFormat::KnownFormat(utoipa::openapi::KnownFormat::Binary))))),
+                )
+                .build(),
+        )
+        .response("400", problem_response("The body is not JSON"))
+        .response("413", problem_response("The body, the grid it asks for, or the memory the draft would need is too large"))
+        .response("422", problem_response("Invalid fields (`errors` names each by its JSON path), or the draft failed"))
+        .response("503", problem_response("Too many drafts or jobs running; see Retry-After"))
+        .response("504", problem_response("The draft ran past its time limit"))
+        .build()
 }
 
 /// The document as YAML: what `landform openapi` prints and `openapi.yaml` holds.

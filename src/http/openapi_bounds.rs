@@ -188,7 +188,7 @@ fn complete_operation(path: &str, op: &mut Operation, v1: bool, keys_required: b
         complete_parameter(p);
     }
     let id = op.operation_id.clone().unwrap_or_default();
-    let submits = id.starts_with("submit_") || id == "replay_job";
+    let submits = id.starts_with("submit_") || id.starts_with("draft_") || id == "replay_job";
     if v1 {
         add(op, "400", problem_response("A malformed request: its body, a query parameter or a header"));
         add(op, "401", {

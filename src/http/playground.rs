@@ -28,15 +28,38 @@ pub async fn asset(Path(path): Path<String>, headers: HeaderMap) -> Response {
     serve(&format!("assets/{path}"), "public, max-age=31536000, immutable", &headers)
 }
 
+/// For working on the page: `LANDFORM_PLAYGROUND_DIR` names a built bundle (`web/dist`) served
+/// from disk instead of the embedded one, so a changed page needs `npm run build` and a reload,
+/// not a recompile of the server. Read once, when the first page is asked for.
+fn override_dir() -> Option<&'static std::path::Path> {
+    static DIR: std::sync::OnceLock<Option<std::path::PathBuf>> = std::sync::OnceLock::new();
+    DIR.get_or_init(|| std::env::var_os("LANDFORM_PLAYGROUND_DIR").map(Into::into)).as_deref()
+}
+
+/// A file of the bundle: from the override folder when one is set (a name with anything but
+/// plain components is refused there), else embedded.
+fn file(name: &str) -> Option<(Vec<u8>, [u8; 32])> {
+    let Some(dir) = override_dir() else {
+        return Bundle::get(name).map(|f| (f.data.into_owned(), f.metadata.sha256_hash()));
+    };
+    let relative = std::path::Path::new(name);
+    if !relative.components().all(|c| matches!(c, std::path::Component::Normal(_))) {
+        return None;
+    }
+    let data = std::fs::read(dir.join(relative)).ok()?;
+    let hash = <sha2::Sha256 as sha2::Digest>::digest(&data).into();
+    Some((data, hash))
+}
+
 fn serve(name: &str, cache: &'static str, headers: &HeaderMap) -> Response {
-    let Some(file) = Bundle::get(name) else {
+    let Some((data, sha256)) = file(name) else {
         return Problem::not_found(format!("no file {name} in the playground")).into_response();
     };
-    let etag = format!("\"{}\"", hex(&file.metadata.sha256_hash()));
+    let etag = format!("\"{}\"", hex(&sha256));
     let mut response = if headers.get(header::IF_NONE_MATCH).is_some_and(|v| v.as_bytes() == etag.as_bytes()) {
         StatusCode::NOT_MODIFIED.into_response()
     } else {
-        ([(header::CONTENT_TYPE, content_type(name))], file.data.into_owned()).into_response()
+        ([(header::CONTENT_TYPE, content_type(name))], data).into_response()
     };
     let h = response.headers_mut();
     h.insert(header::CACHE_CONTROL, HeaderValue::from_static(cache));

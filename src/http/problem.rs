@@ -242,6 +242,16 @@ impl From<EngineError> for Problem {
                 tracing::error!(error = %err, "internal failure");
                 internal()
             }
+            EngineError::Busy(m) => Problem {
+                retry_after_s: Some(1),
+                ..Problem::new(StatusCode::SERVICE_UNAVAILABLE, "busy", "Too busy for a draft", m)
+            },
+            EngineError::DraftFailed { message, timed_out: true } => {
+                Problem::new(StatusCode::GATEWAY_TIMEOUT, "draft-timeout", "Draft time limit exceeded", message)
+            }
+            EngineError::DraftFailed { message, timed_out: false } => {
+                Problem::new(StatusCode::UNPROCESSABLE_ENTITY, "draft-failed", "Draft failed", message)
+            }
         }
     }
 }

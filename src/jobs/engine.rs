@@ -127,6 +127,12 @@ pub enum EngineError {
     Store(#[from] StoreError),
     #[error("internal error: {0}")]
     Internal(String),
+    /// Too much running to start a draft now (503, try again in a moment).
+    #[error("{0}")]
+    Busy(String),
+    /// A draft ran and failed, or ran past its time limit (422 / 504).
+    #[error("{message}")]
+    DraftFailed { message: String, timed_out: bool },
 }
 
 impl EngineError {
@@ -525,7 +531,7 @@ impl Engine {
     /// Uploads sent with the request (not stored yet) are sized from `uploads`. The request and
     /// the uploads are handed back: moved, not copied, as a copy of a request of many
     /// megabytes would be its size many times over in memory.
-    async fn estimate(
+    pub(super) async fn estimate(
         &self,
         kind: &str,
         params: Value,
@@ -638,7 +644,7 @@ impl Engine {
     }
 
     /// Every earlier job and upload the request names must be there.
-    async fn check_references(&self, refs: &super::References, owner: Option<String>) -> Result<(), EngineError> {
+    pub(super) async fn check_references(&self, refs: &super::References, owner: Option<String>) -> Result<(), EngineError> {
         if refs.jobs.is_empty() && refs.inputs.is_empty() {
             return Ok(());
         }
@@ -923,7 +929,7 @@ pub fn stored_size_allowed(body_bytes: usize) -> usize {
     (body_bytes + body_bytes / 2).max(body_bytes + (64 << 10))
 }
 
-fn take_common_fields(body: &mut Map<String, Value>) -> Result<(u64, Option<String>, MeshSettings), EngineError> {
+pub(super) fn take_common_fields(body: &mut Map<String, Value>) -> Result<(u64, Option<String>, MeshSettings), EngineError> {
     let seed = match body.remove("seed") {
         None | Some(Value::Null) => 0,
         Some(v) => v.as_u64().ok_or_else(|| EngineError::field("seed", "must be an unsigned 64-bit integer"))?,
@@ -976,9 +982,9 @@ fn new_job(kind: &str, label: Option<String>, request: Value, replay_of: Option<
 }
 
 /// The store's terrain, with the uploads a request sent inline (not stored yet) in front.
-struct PendingUploads<'a> {
-    uploads: &'a [(String, Vec<u8>)],
-    store: StoreTerrain,
+pub(super) struct PendingUploads<'a> {
+    pub uploads: &'a [(String, Vec<u8>)],
+    pub store: StoreTerrain,
 }
 
 impl crate::terrain::TerrainLookup for PendingUploads<'_> {

@@ -68,7 +68,14 @@ pub struct RunContext<'a> {
     pub limits: &'a Limits,
     /// How glb artifacts are written (the request's `compression` and `lods`).
     pub mesh: crate::export::MeshSettings,
+    /// A draft (`POST /v1/drafts/{kind}`): terrain sources are read at a coarser grid (see
+    /// [`DRAFT_MAX_SIDE`]), on top of the kind's own [`Simulation::draft`] rule.
+    pub draft: bool,
 }
+
+/// Most samples along a draft terrain's longer side: a source with more is resampled (bilinear,
+/// over the same extent) to this, so a draft of a 257² fractal works on 129² samples.
+pub const DRAFT_MAX_SIDE: usize = 129;
 
 impl RunContext<'_> {
     /// Err(Cancelled) once the job was cancelled or ran past its time limit; call between steps.
@@ -111,8 +118,24 @@ impl RunContext<'_> {
     }
 
     pub fn resolve_terrain(&self, source: &TerrainSource) -> Result<Heightfield, SimError> {
-        Ok(crate::terrain::resolve(source, self.terrain, self.limits)?)
+        let terrain = crate::terrain::resolve(source, self.terrain, self.limits)?;
+        if !self.draft {
+            return Ok(terrain);
+        }
+        Ok(draft_terrain(terrain))
     }
+}
+
+/// A terrain as a draft reads it: at most [`DRAFT_MAX_SIDE`] samples a side, same extent.
+pub fn draft_terrain(terrain: Heightfield) -> Heightfield {
+    let longest = terrain.cols.max(terrain.rows);
+    if longest <= DRAFT_MAX_SIDE {
+        return terrain;
+    }
+    let extent = terrain.width_m().max(terrain.depth_m());
+    // A hair over the exact spacing so that rounding never leaves one sample too many.
+    let cell = (extent / (DRAFT_MAX_SIDE - 1) as f32).max(terrain.cell_size_m) * (1.0 + 1e-6);
+    terrain.resampled(cell)
 }
 
 fn progress(stage: &str, step: u64, steps: u64, message: String) -> Progress {
@@ -161,6 +184,15 @@ pub trait Simulation: Send + Sync + 'static {
     fn estimate(params: &Self::Params, seed: u64, terrain: &dyn TerrainLookup) -> Result<Cost, SimError>;
 
     fn run(params: &Self::Params, seed: u64, ctx: &RunContext) -> Result<Outcome<Self::Sequence>, SimError>;
+
+    /// The kind's draft rule (`POST /v1/drafts/{kind}`): lower what sets the kind's work (a
+    /// grid, iterations, samples) so that the draft of its defaults answers in about a second,
+    /// keeping the shapes the request asks for. Terrain sources are coarsened by the run
+    /// context (`RunContext::draft`). The drafted parameters must still validate.
+    fn draft(_params: &mut Self::Params) {}
+
+    /// What [`Simulation::draft`] does, in a sentence for the API document.
+    const DRAFT_RULE: &'static str = "the terrain is read at most 129 samples a side";
 
     /// Rebuild from a recorded sequence without searching or sampling; `until_step` keeps the
     /// first k steps.
@@ -241,6 +273,10 @@ pub trait JobKind: Send + Sync {
     /// The cost of a prepared request (see [`Simulation::estimate`]).
     fn estimate(&self, params: &Value, seed: u64, terrain: &dyn TerrainLookup) -> Result<Cost, SimError>;
     fn run(&self, params: &Value, seed: u64, ctx: &RunContext) -> Result<JobOutput, SimError>;
+    /// Prepared parameters with the kind's draft rule applied (still valid under `limits`).
+    fn draft(&self, params: &Value, limits: &Limits) -> Result<Value, SimError>;
+    /// The kind's draft rule in a sentence.
+    fn draft_rule(&self) -> &'static str;
     /// Number of steps in a stored `sequence.json`; `Invalid` when another version of the
     /// kind's generator recorded it.
     fn sequence_steps(&self, sequence_json: &[u8]) -> Result<u64, SimError>;
@@ -279,9 +315,41 @@ pub fn parse_params<T: DeserializeOwned>(value: Value) -> Result<T, RequestError
     serde_path_to_error::deserialize(value).map_err(|e| {
         // serde_path_to_error's path already ends at an unknown field's own name.
         let field = path_string(e.path());
-        let message = e.inner().to_string();
+        let mut message = e.inner().to_string();
+        if let Some(near) = did_you_mean(&message) {
+            message.push_str(&format!(" — did you mean `{near}`?"));
+        }
         RequestError::Invalid { errors: vec![FieldError { field, message }], too_large: false }
     })
+}
+
+/// For serde's "unknown field `x`, expected one of `a`, `b`" (or "unknown variant"): the expected
+/// name nearest to `x`, when one is near (an edit distance of at most a third of its length, and
+/// at most 3) — a typo named where it was made.
+fn did_you_mean(message: &str) -> Option<String> {
+    let rest = message.strip_prefix("unknown field `").or_else(|| message.strip_prefix("unknown variant `"))?;
+    let (word, expected) = rest.split_once('`')?;
+    let names = expected.split('`').skip(1).step_by(2);
+    let limit = (word.chars().count() / 3).clamp(1, 3);
+    names
+        .map(|n| (edit_distance(&word.to_lowercase(), &n.to_lowercase()), n))
+        .filter(|(d, _)| *d <= limit)
+        .min_by_key(|(d, _)| *d)
+        .map(|(_, n)| n.to_string())
+}
+
+/// Levenshtein distance in characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut row = vec![i + 1];
+        for (j, cb) in b.iter().enumerate() {
+            row.push((prev[j + 1] + 1).min(row[j] + 1).min(prev[j] + usize::from(ca != *cb)));
+        }
+        prev = row;
+    }
+    prev[b.len()]
 }
 
 /// Typed parameters as the job keeps them: written as JSON text and read back, so an `f32` is
@@ -421,6 +489,22 @@ impl<S: Simulation> JobKind for Kind<S> {
         finish::<S>(S::run(&stored_params(params)?, seed, ctx)?)
     }
 
+    fn draft(&self, params: &Value, limits: &Limits) -> Result<Value, SimError> {
+        let mut typed: S::Params = stored_params(params)?;
+        S::draft(&mut typed);
+        let mut v = Validator::new();
+        typed.validate(&mut v, limits);
+        if let Some(e) = v.errors.into_iter().next() {
+            // A rule that breaks a bound is the server's fault, not the request's.
+            return Err(SimError::Failed(format!("the draft rule of {} broke {}: {}", S::KIND, e.field, e.message)));
+        }
+        stored_form(&typed).map_err(|e| SimError::Failed(e.to_string()))
+    }
+
+    fn draft_rule(&self) -> &'static str {
+        S::DRAFT_RULE
+    }
+
     fn sequence_steps(&self, sequence_json: &[u8]) -> Result<u64, SimError> {
         Ok(stored_sequence::<S>(sequence_json)?.steps())
     }
@@ -440,5 +524,22 @@ impl<S: Simulation> JobKind for Kind<S> {
         let mut refs = Vec::new();
         <S::Params as ToSchema>::schemas(&mut refs);
         (<S::Params as ToSchema>::name().into_owned(), <S::Params as utoipa::PartialSchema>::schema(), refs)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{did_you_mean, edit_distance};
+
+    #[test]
+    fn a_near_name_is_suggested_and_a_far_one_is_not() {
+        let m = "unknown field `stepz`, expected one of `grid`, `steps`, `rate`";
+        assert_eq!(did_you_mean(m).as_deref(), Some("steps"));
+        let m = "unknown variant `sphre`, expected one of `sphere`, `ellipsoid`, `gumdrop`";
+        assert_eq!(did_you_mean(m).as_deref(), Some("sphere"));
+        assert_eq!(did_you_mean("unknown field `colour`, expected one of `grid`, `steps`"), None);
+        assert_eq!(did_you_mean("invalid type: string, expected u32"), None);
+        assert_eq!(edit_distance("kitten", "sitting"), 3);
+        assert_eq!(edit_distance("", "abc"), 3);
     }
 }

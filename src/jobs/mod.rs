@@ -9,6 +9,7 @@ pub use kind::{
     References, RequestError, RunContext, Sequence, SilentProgress, SimError, Simulation,
 };
 
+mod draft;
 mod engine;
 mod live;
 mod metrics;
@@ -21,6 +22,8 @@ pub use engine::{
     build_pool, default_memory_budget, Engine, EngineConfig, EngineError, EventFeed, Submitted, Submitter,
     DEFAULT_CONCURRENT_JOBS, DEFAULT_JOB_TIMEOUT_S, DEFAULT_QUEUE_CAPACITY, MAX_ATTEMPTS,
 };
+pub use draft::{Draft, DRAFT_TIMEOUT};
+pub use kind::{draft_terrain, DRAFT_MAX_SIDE};
 pub use live::{JobEvent, LiveJob, StopReason};
 pub use remote::{until_changed, STORE_POLL};
 pub use runner::{problem, PROBLEM_TYPE_BASE};

@@ -230,7 +230,7 @@ pub(super) fn compute(
     let kind =
         kinds.get(job.kind.as_str()).ok_or_else(|| SimError::Failed(format!("no job kind named {}", job.kind)))?;
     let lookup = StoreTerrain { store: store.clone(), owner: job.owner.clone() };
-    let ctx = RunContext { cancel, sink, terrain: &lookup, limits, mesh: mesh_settings(job) };
+    let ctx = RunContext { cancel, sink, terrain: &lookup, limits, mesh: mesh_settings(job), draft: false };
     let params = job.params();
     match job.replay_spec() {
         None => kind.run(&params, job.seed(), &ctx),

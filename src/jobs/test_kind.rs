@@ -41,6 +41,12 @@ impl JobKind for StandIn {
             artifacts: vec![Artifact::new("n.txt", "text/plain", bytes)],
         })
     }
+    fn draft(&self, params: &Value, _: &crate::validate::Limits) -> Result<Value, SimError> {
+        Ok(params.clone())
+    }
+    fn draft_rule(&self) -> &'static str {
+        "none"
+    }
     fn sequence_steps(&self, _: &[u8]) -> Result<u64, SimError> {
         Ok(0)
     }

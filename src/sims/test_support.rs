@@ -45,6 +45,7 @@ impl TestContext {
             terrain: &self.terrain,
             limits: &self.limits,
             mesh: MeshSettings::default(),
+            draft: false,
         }
     }
 }

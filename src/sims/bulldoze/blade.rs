@@ -34,8 +34,7 @@ pub struct Blade {
     /// between points. At least 2 points and at most 64; each point is exactly 2 numbers, u in
     /// [−1, 1] and height_m within ±1 000 000 m.
     #[serde(default = "default_profile")]
-    // 64 = MAX_PROFILE_POINTS; the items' ±1e6 (MAX_METRES) bounds both u and height_m
-    #[schema(default = json!([[-1.0, 0.0], [1.0, 0.0]]), min_items = 2, max_items = 64, minimum = -1e6, maximum = 1e6)]
+    #[schema(schema_with = profile_schema)]
     pub profile: Vec<[f32; 2]>,
     /// Sideways shift of the blade's centre from the path, metres; positive to the right of
     /// travel.
@@ -67,6 +66,34 @@ impl Validate for Blade {
 
 /// Check a profile: 2 to 64 points `[u, height_m]`, u strictly increasing from exactly −1 to
 /// exactly +1, heights in range. Errors go under `profile`.
+/// A profile's schema: 2 to 64 points, each `[u, height_m]` with its own bounds (an array of
+/// pairs whose items share one range would state ±1e6 for u, whose rule is [−1, 1]).
+pub fn profile_schema() -> utoipa::openapi::schema::Schema {
+    use utoipa::openapi::schema::{ArrayBuilder, ObjectBuilder, Type};
+    let number = |lo: f64, hi: f64, what: &str| {
+        ObjectBuilder::new().schema_type(Type::Number).format(Some(utoipa::openapi::SchemaFormat::KnownFormat(utoipa::openapi::KnownFormat::Float))).minimum(Some(lo)).maximum(Some(hi)).description(Some(what))
+    };
+    let point = ArrayBuilder::new()
+        .prefix_items([
+            number(-1.0, 1.0, "u: −1 the blade's left edge, +1 its right edge"),
+            // 1e6 = MAX_METRES
+            number(-1e6, 1e6, "height_m: metres relative to the path's height"),
+        ])
+        .items(utoipa::openapi::schema::ArrayItems::False)
+        .min_items(Some(2))
+        .max_items(Some(2));
+    ArrayBuilder::new()
+        .items(point)
+        // 64 = MAX_PROFILE_POINTS
+        .min_items(Some(2))
+        .max_items(Some(64))
+        .default(Some(serde_json::json!([[-1.0, 0.0], [1.0, 0.0]])))
+        .description(Some(
+            "The profile: points `[u, height_m]`, u strictly increasing from exactly −1 (left edge) to exactly +1 (right edge), height in metres relative to the path's height, linear between points. At least 2 points and at most 64.",
+        ))
+        .into()
+}
+
 pub fn validate_profile(v: &mut Validator, p: &[[f32; 2]]) {
     if p.len() < 2 {
         v.error("profile", format!("needs at least 2 points (got {})", p.len()));

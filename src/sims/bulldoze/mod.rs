@@ -55,6 +55,13 @@ impl Simulation for Bulldoze {
     type Params = BulldozeParams;
     type Sequence = BulldozeSequence;
 
+    const DRAFT_RULE: &'static str = "the output grid is the draft terrain's (`resolution` is not used) and no tiles are cut";
+
+    fn draft(params: &mut Self::Params) {
+        params.resolution = None;
+        params.tiles = None;
+    }
+
     fn terrain_sources(params: &mut BulldozeParams) -> Vec<(String, &mut TerrainSource)> {
         vec![("terrain".to_string(), &mut params.terrain)]
     }

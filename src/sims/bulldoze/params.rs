@@ -180,8 +180,7 @@ pub struct ProfileKeyframe {
     /// Index of the path vertex (0-based).
     pub vertex: u32,
     /// As the blade's `profile`: 2 to 64 points `[u, height_m]`, u from −1 to +1.
-    // 64 = MAX_PROFILE_POINTS; the items' ±1e6 (MAX_METRES) bounds both u and height_m
-    #[schema(min_items = 2, max_items = 64, minimum = -1e6, maximum = 1e6)]
+    #[schema(schema_with = super::blade::profile_schema)]
     pub profile: Vec<[f32; 2]>,
 }
 

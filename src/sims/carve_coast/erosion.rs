@@ -43,7 +43,7 @@ pub fn seeds(
 ) -> Result<Vec<SeedPoint>, Stopped> {
     let e = &params.erosion;
     let hf = implicit.hf;
-    let (lo, hi) = (params.sea_level + e.seed_elevation_range[0], params.sea_level + e.seed_elevation_range[1]);
+    let (lo, hi) = (params.sea_level() + e.seed_elevation_range[0], params.sea_level() + e.seed_elevation_range[1]);
     let reach = e.radius_range[1] * 2.0 + implicit.warp_reach();
     let min_slope_cos = e.seed_min_slope.to_radians().cos();
     let per_row: Vec<Vec<SeedPoint>> = (0..hf.rows)
@@ -158,7 +158,7 @@ pub fn erosion_pass(
 ) -> Result<Vec<Sphere>, Stopped> {
     let e = &params.erosion;
     let found = seeds(implicit, params, seed, pass, step_m, stop)?;
-    let y_range = (params.sea_level + e.seed_elevation_range[0], params.sea_level + e.seed_elevation_range[1]);
+    let y_range = (params.sea_level() + e.seed_elevation_range[0], params.sea_level() + e.seed_elevation_range[1]);
     let mut out: Vec<Sphere> = Vec::new();
     for (c, chunk) in found.chunks(SEEDS_PER_CHUNK).enumerate() {
         if out.len() >= room {

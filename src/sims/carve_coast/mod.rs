@@ -17,7 +17,6 @@ mod tests;
 
 use crate::jobs::{Outcome, RunContext, SimError, Simulation};
 use crate::terrain::{Heightfield, TerrainSource};
-use crate::validate::Limits;
 
 use crate::stop::Stop;
 use implicit::{Capsule, Carving, Implicit, Sphere};
@@ -41,6 +40,14 @@ impl Simulation for CarveCoast {
     type Params = CarveCoastParams;
     type Sequence = CoastSequence;
 
+    const DRAFT_RULE: &'static str =
+        "`voxel_size_m` is doubled (absent, it is twice the draft terrain's cell), and at most 2 erosion passes run";
+
+    fn draft(params: &mut Self::Params) {
+        params.voxel_size_m = params.voxel_size_m.map(|v| v * 2.0);
+        params.passes = params.passes.min(2);
+    }
+
     fn terrain_sources(params: &mut Self::Params) -> Vec<(String, &mut TerrainSource)> {
         vec![("terrain".to_string(), &mut params.terrain)]
     }
@@ -55,7 +62,8 @@ impl Simulation for CarveCoast {
 
     fn run(params: &Self::Params, seed: u64, ctx: &RunContext) -> Result<Outcome<Self::Sequence>, SimError> {
         let hf = ctx.resolve_terrain(&params.terrain)?;
-        let voxel_m = checked_voxel(params, &hf, ctx.limits)?;
+        let params = &*params.with_sea_level(&hf);
+        let voxel_m = checked_voxel(params, &hf, ctx)?;
         let total = params.passes as u64 + 1;
         let spheres = carve(params, &hf, seed, voxel_m, ctx.stop(), &mut |pass, spheres| {
             ctx.check_cancelled()?;
@@ -77,21 +85,25 @@ impl Simulation for CarveCoast {
         ctx: &RunContext,
     ) -> Result<Outcome<Self::Sequence>, SimError> {
         let hf = ctx.resolve_terrain(&params.terrain)?;
-        let voxel_m = checked_voxel(params, &hf, ctx.limits)?;
+        let params = &*params.with_sea_level(&hf);
+        let voxel_m = checked_voxel(params, &hf, ctx)?;
         finish(params, &hf, sequence.until(until_step), voxel_m, ctx)
     }
 }
 
 /// The voxel size, after checking the sea level and the voxel cap against the resolved terrain.
-fn checked_voxel(params: &CarveCoastParams, hf: &Heightfield, limits: &Limits) -> Result<f32, SimError> {
+/// A draft's default voxel is twice the (draft) terrain's cell: the meshing is most of the work.
+fn checked_voxel(params: &CarveCoastParams, hf: &Heightfield, ctx: &RunContext) -> Result<f32, SimError> {
+    let limits = ctx.limits;
     let (lo, hi) = hf.min_max();
-    if !(lo..=hi).contains(&params.sea_level) {
+    if !(lo..=hi).contains(&params.sea_level()) {
         return Err(SimError::Invalid {
             field: "sea_level".into(),
-            message: format!("must lie within the terrain's heights ({lo} to {hi} m), got {}", params.sea_level),
+            message: format!("must lie within the terrain's heights ({lo} to {hi} m), got {}", params.sea_level()),
         });
     }
-    let voxel_m = params.voxel_size_m.unwrap_or(hf.cell_size_m);
+    let draft_scale = if ctx.draft { 2.0 } else { 1.0 };
+    let voxel_m = params.voxel_size_m.unwrap_or(hf.cell_size_m * draft_scale);
     let voxels = estimate_voxels(
         hf.cols as u64,
         hf.rows as u64,

@@ -244,7 +244,7 @@ pub fn snapshot_png(
     let scene = Scene {
         nodes: vec![
             SceneNode::new("terrain", terrain, MaterialKind::Matte { srgb: [170, 150, 120] }),
-            SceneNode::new("sea", sea_plane(implicit.hf, params.sea_level), MaterialKind::Water),
+            SceneNode::new("sea", sea_plane(implicit.hf, params.sea_level()), MaterialKind::Water),
         ],
     };
     render_png(&scene, &SNAPSHOT, stop)
@@ -269,9 +269,9 @@ pub fn build(
     let (crossings, mut top) = columns(&sampled.values, &sampled.grid);
     surface_at_walls(implicit, &sampled.grid, &mut top);
     let mut mesh = surface(&sampled, stop)?;
-    let caves = caves::count(&sampled.values, &sampled.grid, &top, params.sea_level);
+    let caves = caves::count(&sampled.values, &sampled.grid, &top, params.sea_level());
     drop(sampled.values);
-    colour(&mut mesh, implicit, params.sea_level, voxel_m, stop)?;
+    colour(&mut mesh, implicit, params.sea_level(), voxel_m, stop)?;
     let closed = mesh.is_closed();
     stop.check()?;
     let (pieces, genus) = topology(&mesh);
@@ -279,7 +279,7 @@ pub fn build(
     let triangles = mesh.triangle_count();
     // Shoreline columns: the original ground within the seed elevation range.
     let e = &params.erosion;
-    let (lo, hi) = (params.sea_level + e.seed_elevation_range[0], params.sea_level + e.seed_elevation_range[1]);
+    let (lo, hi) = (params.sea_level() + e.seed_elevation_range[0], params.sea_level() + e.seed_elevation_range[1]);
     let g = &sampled.grid;
     let (mut shore, mut overhung) = (0u64, 0u64);
     for (k, &c) in crossings.iter().enumerate() {
@@ -298,14 +298,14 @@ pub fn build(
             p => per_pass[p as usize - 1] += 1,
         }
     }
-    let (view, focus) = match close_up(&mesh, params.sea_level, voxel_m) {
+    let (view, focus) = match close_up(&mesh, params.sea_level(), voxel_m) {
         Some((view, focus)) => (view, Some(focus)),
-        None => (PREVIEW, coastline_bounds(&mesh, params.sea_level, voxel_m)),
+        None => (PREVIEW, coastline_bounds(&mesh, params.sea_level(), voxel_m)),
     };
     let scene = Scene {
         nodes: vec![
             SceneNode::new("terrain", mesh, MaterialKind::VertexColors),
-            SceneNode::new("sea", sea_plane(implicit.hf, params.sea_level), MaterialKind::Water),
+            SceneNode::new("sea", sea_plane(implicit.hf, params.sea_level()), MaterialKind::Water),
         ],
     };
     on_stage(if mesh_settings.lods.is_empty() {
@@ -325,7 +325,7 @@ pub fn build(
                         || {
                             rayon::join(
                                 || normalmap_png(&top),
-                                || splatmap_png(&top, Some(&carved), None, params.sea_level),
+                                || splatmap_png(&top, Some(&carved), None, params.sea_level()),
                             )
                         },
                     )
@@ -337,6 +337,7 @@ pub fn build(
     let preview = preview?;
     let (z_min, z_max) = top.min_max();
     let result = json!({
+        "sea_level_m": params.sea_level(),
         "spheres": { "total": spheres.len(), "per_pass": per_pass },
         "authored": { "before": authored_before, "after": authored_after },
         "overhangs": { "shoreline_columns": shore, "with_overhang": overhung,

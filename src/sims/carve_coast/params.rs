@@ -156,9 +156,11 @@ impl AuthoredCarving {
 #[serde(deny_unknown_fields)]
 pub struct CarveCoastParams {
     pub terrain: TerrainSource,
-    /// Metres; must lie within the terrain's heights.
-    #[serde(default)]
-    pub sea_level: f32,
+    /// Metres; must lie within the terrain's heights. Absent: the height a quarter of the
+    /// terrain's samples lie below (so a terrain from another job has a coast); the result's
+    /// `sea_level_m` says which.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sea_level: Option<f32>,
     /// Edge of a meshing voxel, metres; default the terrain's cell size. The meshing box (the
     /// terrain's footprint by its relief plus margins) must hold at most the server's voxel cap
     /// (192 × 1024 × 1024 = 201 326 592 voxels by default; more is answered with 413).
@@ -204,7 +206,9 @@ fn count_range_ok(v: &mut Validator, leaf: &str, r: [u32; 2]) {
 impl Validate for CarveCoastParams {
     fn validate(&self, v: &mut Validator, limits: &Limits) {
         v.field("terrain", |v| self.terrain.validate(v, limits));
-        v.finite("sea_level", self.sea_level as f64);
+        if let Some(level) = self.sea_level {
+            v.finite("sea_level", level as f64);
+        }
         if let Some(size) = self.voxel_size_m {
             v.positive("voxel_size_m", size as f64);
         }
@@ -276,6 +280,28 @@ impl Validate for CarveCoastParams {
 }
 
 impl CarveCoastParams {
+    /// The sea level the run uses: after [`CarveCoastParams::with_sea_level`], the request's or
+    /// the terrain's default.
+    pub fn sea_level(&self) -> f32 {
+        self.sea_level.unwrap_or(0.0)
+    }
+
+    /// These parameters with the sea level set: the request's, else the height a quarter of
+    /// `terrain`'s samples lie below.
+    pub fn with_sea_level(&self, terrain: &crate::terrain::Heightfield) -> std::borrow::Cow<'_, Self> {
+        if self.sea_level.is_some() {
+            return std::borrow::Cow::Borrowed(self);
+        }
+        let mut heights: Vec<f32> = terrain.heights_m.iter().copied().filter(|h| h.is_finite()).collect();
+        let level = if heights.is_empty() {
+            0.0
+        } else {
+            let k = heights.len() / 4;
+            *heights.select_nth_unstable_by(k, f32::total_cmp).1
+        };
+        std::borrow::Cow::Owned(Self { sea_level: Some(level), ..self.clone() })
+    }
+
     /// The fractal's relief, when the terrain is one.
     fn known_relief(&self) -> Option<f32> {
         match &self.terrain {

@@ -119,7 +119,7 @@ fn floating_fragments_are_removed() {
         );
     let spheres = [Carving::Sphere(Sphere([16.0, 6.0, 16.0, 4.5], 1))];
     let mut p = island(33, 0.0);
-    p.sea_level = 1.0;
+    p.sea_level = Some(1.0);
     let implicit = Implicit::new(&hf, &spheres, None, 1, 2.0);
     let (kept, _) = build(
         &implicit,
@@ -301,7 +301,7 @@ fn later_passes_seed_caves_under_ground_higher_than_the_range_and_deepen_them() 
     let p = cliff_params(4, None);
     let spheres = carve(&p, &hf, 9, 1.0, Stop::NEVER, &mut |_, _| Ok(())).unwrap();
     let e = &p.erosion;
-    let (hi, reach) = (p.sea_level + e.seed_elevation_range[1], e.radius_range[1] * 2.0);
+    let (hi, reach) = (p.sea_level() + e.seed_elevation_range[1], e.radius_range[1] * 2.0);
     // Seeds of passes 2 and later on columns whose original ground stands above the range by
     // more than the old scan's reach: only a scan of the carved surface finds them.
     let mut under_high_ground = 0;
@@ -544,7 +544,7 @@ fn the_coast_writes_heightfield_maps_and_its_splat_material_is_the_rock_the_sea_
             cut += 1;
         } else if !near_a_sphere(x, z) {
             assert_eq!(px[3], 0, "({x}, {z}) untouched, {depth} m");
-            if top.heights_m[k] < p.sea_level && px[1] == 0 {
+            if top.heights_m[k] < p.sea_level() && px[1] == 0 {
                 assert_eq!(px[..3], [0, 0, 255], "({x}, {z}): the sea bed");
                 bed += 1;
             }

@@ -60,6 +60,14 @@ impl Simulation for DeformTerrain {
     type Params = DeformTerrainParams;
     type Sequence = DeformSequence;
 
+    const DRAFT_RULE: &'static str =
+        "at most 150 iterations of the search on the draft terrain (radii in cells span twice or more the metres), and no tiles are cut";
+
+    fn draft(params: &mut Self::Params) {
+        params.max_iterations = params.max_iterations.min(150);
+        params.tiles = None;
+    }
+
     fn terrain_sources(params: &mut DeformTerrainParams) -> Vec<(String, &mut TerrainSource)> {
         let mut out = vec![("terrain".to_string(), &mut params.terrain)];
         for (i, c) in params.constraints.iter_mut().enumerate() {

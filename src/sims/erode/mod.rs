@@ -55,6 +55,12 @@ impl Simulation for Erode {
     type Params = ErodeParams;
     type Sequence = ErodeSequence;
 
+    const DRAFT_RULE: &'static str = "no tiles are cut; every iteration runs, on the draft terrain";
+
+    fn draft(params: &mut Self::Params) {
+        params.tiles = None;
+    }
+
     fn terrain_sources(params: &mut ErodeParams) -> Vec<(String, &mut TerrainSource)> {
         vec![("terrain".to_string(), &mut params.terrain)]
     }

@@ -40,6 +40,15 @@ impl Simulation for GrowCave {
     type Params = GrowCaveParams;
     type Sequence = CaveSequence;
 
+    const DRAFT_RULE: &'static str =
+        "the roof and floor have half the samples a side (at least 9) and each ring half the vertices (at least 6)";
+
+    fn draft(params: &mut Self::Params) {
+        let samples = params.chamber.samples;
+        params.chamber.samples = samples.div_ceil(2).max(9).min(samples);
+        params.segments = params.segments.div_ceil(2).max(6).min(params.segments);
+    }
+
     fn estimate(
         params: &GrowCaveParams,
         seed: u64,

@@ -48,6 +48,12 @@ impl Simulation for WeatherColumn {
     type Params = WeatherColumnParams;
     type Sequence = WeatherSequence;
 
+    const DRAFT_RULE: &'static str = "the grid has half the voxels along each axis, each twice as large, with bubbles half as many voxels across and half the steps: the same rock in metres, an eighth of the voxels";
+
+    fn draft(params: &mut Self::Params) {
+        params::draft(params);
+    }
+
     fn image_uploads(params: &mut Self::Params) -> Vec<(String, &mut ImageUpload)> {
         match &mut params.column.profile {
             Profile::JointMap(image) => vec![("column.profile.joint_map".to_string(), image)],

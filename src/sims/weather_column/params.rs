@@ -538,3 +538,20 @@ fn validate_profile(profile: &Profile, v: &mut Validator, limits: &Limits, width
         }),
     }
 }
+
+/// The draft rule (see `Simulation::draft`): half the voxels each way, each twice the size, and
+/// what is counted in voxels or steps halved with them, so the column keeps its metres.
+pub fn draft(p: &mut WeatherColumnParams) {
+    let half = |n: u32| n.div_ceil(2).max(1);
+    p.grid = GridSize { x: half(p.grid.x), y: half(p.grid.y), z: half(p.grid.z) };
+    p.voxel_size_m = (p.voxel_size_m * 2.0).min(100.0);
+    p.steps = half(p.steps);
+    let radius = |r: f32| (r / 2.0).max(1.0);
+    for layer in &mut p.layers {
+        layer.bubble = match std::mem::take(&mut layer.bubble) {
+            Bubble::Sphere { radius: r } => Bubble::Sphere { radius: radius(r) },
+            Bubble::Gumdrop { radius: r } => Bubble::Gumdrop { radius: radius(r) },
+            Bubble::Ellipsoid { radii } => Bubble::Ellipsoid { radii: radii.map(radius) },
+        };
+    }
+}

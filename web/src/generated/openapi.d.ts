@@ -52,6 +52,126 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/v1/drafts/bulldoze": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Run a bulldoze draft and answer with its mesh
+         * @description The body of `POST /v1/jobs/bulldoze`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: the output grid is the draft terrain's (`resolution` is not used) and no tiles are cut. Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away. `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/bulldoze` for the full job.
+         */
+        post: operations["draft_bulldoze"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/v1/drafts/carve-coast": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Run a carve-coast draft and answer with its mesh
+         * @description The body of `POST /v1/jobs/carve-coast`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: `voxel_size_m` is doubled (absent, it is twice the draft terrain's cell), and at most 2 erosion passes run. Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away. `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/carve-coast` for the full job.
+         */
+        post: operations["draft_carve_coast"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/v1/drafts/deform-terrain": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Run a deform-terrain draft and answer with its mesh
+         * @description The body of `POST /v1/jobs/deform-terrain`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: at most 150 iterations of the search on the draft terrain (radii in cells span twice or more the metres), and no tiles are cut. Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away. `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/deform-terrain` for the full job.
+         */
+        post: operations["draft_deform_terrain"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/v1/drafts/erode": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Run a erode draft and answer with its mesh
+         * @description The body of `POST /v1/jobs/erode`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: no tiles are cut; every iteration runs, on the draft terrain. Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away. `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/erode` for the full job.
+         */
+        post: operations["draft_erode"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/v1/drafts/grow-cave": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Run a grow-cave draft and answer with its mesh
+         * @description The body of `POST /v1/jobs/grow-cave`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: the roof and floor have half the samples a side (at least 9) and each ring half the vertices (at least 6). Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away. `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/grow-cave` for the full job.
+         */
+        post: operations["draft_grow_cave"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/v1/drafts/weather-column": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Run a weather-column draft and answer with its mesh
+         * @description The body of `POST /v1/jobs/weather-column`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: the grid has half the voxels along each axis, each twice as large, with bubbles half as many voxels across and half the steps: the same rock in metres, an eighth of the voxels. Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away. `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/weather-column` for the full job.
+         */
+        post: operations["draft_weather_column"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/v1/jobs": {
         parameters: {
             query?: never;
@@ -483,10 +603,7 @@ export interface components {
              */
             width_m: number;
             /**
-             * @description The profile: points `[u, height_m]`, u strictly increasing from exactly −1 (left edge)
-             *     to exactly +1 (right edge), height in metres relative to the path's height, linear
-             *     between points. At least 2 points and at most 64; each point is exactly 2 numbers, u in
-             *     [−1, 1] and height_m within ±1 000 000 m.
+             * @description The profile: points `[u, height_m]`, u strictly increasing from exactly −1 (left edge) to exactly +1 (right edge), height in metres relative to the path's height, linear between points. At least 2 points and at most 64.
              * @default [
              *       [
              *         -1,
@@ -498,7 +615,10 @@ export interface components {
              *       ]
              *     ]
              */
-            profile?: number[][];
+            profile?: [
+                number,
+                number
+            ][];
             /**
              * Format: float
              * @description Sideways shift of the blade's centre from the path, metres; positive to the right of
@@ -946,8 +1066,23 @@ export interface components {
              * @description Index of the path vertex (0-based).
              */
             vertex: number;
-            /** @description As the blade's `profile`: 2 to 64 points `[u, height_m]`, u from −1 to +1. */
-            profile: number[][];
+            /**
+             * @description The profile: points `[u, height_m]`, u strictly increasing from exactly −1 (left edge) to exactly +1 (right edge), height in metres relative to the path's height, linear between points. At least 2 points and at most 64.
+             * @default [
+             *       [
+             *         -1,
+             *         0
+             *       ],
+             *       [
+             *         1,
+             *         0
+             *       ]
+             *     ]
+             */
+            profile: [
+                number,
+                number
+            ][];
         };
         /**
          * @description A ramp: a planar top `start_height_m` high at `start`, rising (or falling) linearly to
@@ -1098,9 +1233,11 @@ export interface components {
             terrain: components["schemas"]["TerrainSource"];
             /**
              * Format: float
-             * @description Metres; must lie within the terrain's heights.
+             * @description Metres; must lie within the terrain's heights. Absent: the height a quarter of the
+             *     terrain's samples lie below (so a terrain from another job has a coast); the result's
+             *     `sea_level_m` says which.
              */
-            sea_level?: number;
+            sea_level?: number | null;
             /**
              * Format: float
              * @description Edge of a meshing voxel, metres; default the terrain's cell size. The meshing box (the
@@ -1128,9 +1265,11 @@ export interface components {
             terrain: components["schemas"]["TerrainSource"];
             /**
              * Format: float
-             * @description Metres; must lie within the terrain's heights.
+             * @description Metres; must lie within the terrain's heights. Absent: the height a quarter of the
+             *     terrain's samples lie below (so a terrain from another job has a coast); the result's
+             *     `sea_level_m` says which.
              */
-            sea_level?: number;
+            sea_level?: number | null;
             /**
              * Format: float
              * @description Edge of a meshing voxel, metres; default the terrain's cell size. The meshing box (the
@@ -3136,6 +3275,780 @@ export interface operations {
             };
             /** @description The store does not answer */
             503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+        };
+    };
+    draft_bulldoze: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["BulldozeParamsBody"];
+            };
+        };
+        responses: {
+            /** @description The draft's mesh */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "model/gltf-binary": string;
+                };
+            };
+            /** @description The body is not JSON */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description No key, or a key this server does not know (only when it has keys) */
+            401: {
+                headers: {
+                    /** @description `Bearer realm="landform"` */
+                    "WWW-Authenticate"?: string;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description From a page of another origin than the server's own or those `--cors-origins` allows */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The body did not arrive whole within the server's body timeout */
+            408: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The body, the grid it asks for, or the memory the draft would need is too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description A body that is not `application/json` */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Invalid fields (`errors` names each by its JSON path), or the draft failed */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Over the key's quota: submissions per minute, jobs or memory at once */
+            429: {
+                headers: {
+                    /** @description Seconds to wait before trying again */
+                    "Retry-After"?: number;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The server failed; its log has the details */
+            500: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Too many drafts or jobs running; see Retry-After */
+            503: {
+                headers: {
+                    /** @description Seconds to wait before trying again */
+                    "Retry-After"?: number;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The draft ran past its time limit */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+        };
+    };
+    draft_carve_coast: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["CarveCoastParamsBody"];
+            };
+        };
+        responses: {
+            /** @description The draft's mesh */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "model/gltf-binary": string;
+                };
+            };
+            /** @description The body is not JSON */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description No key, or a key this server does not know (only when it has keys) */
+            401: {
+                headers: {
+                    /** @description `Bearer realm="landform"` */
+                    "WWW-Authenticate"?: string;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description From a page of another origin than the server's own or those `--cors-origins` allows */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The body did not arrive whole within the server's body timeout */
+            408: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The body, the grid it asks for, or the memory the draft would need is too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description A body that is not `application/json` */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Invalid fields (`errors` names each by its JSON path), or the draft failed */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Over the key's quota: submissions per minute, jobs or memory at once */
+            429: {
+                headers: {
+                    /** @description Seconds to wait before trying again */
+                    "Retry-After"?: number;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The server failed; its log has the details */
+            500: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Too many drafts or jobs running; see Retry-After */
+            503: {
+                headers: {
+                    /** @description Seconds to wait before trying again */
+                    "Retry-After"?: number;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The draft ran past its time limit */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+        };
+    };
+    draft_deform_terrain: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["DeformTerrainParamsBody"];
+            };
+        };
+        responses: {
+            /** @description The draft's mesh */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "model/gltf-binary": string;
+                };
+            };
+            /** @description The body is not JSON */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description No key, or a key this server does not know (only when it has keys) */
+            401: {
+                headers: {
+                    /** @description `Bearer realm="landform"` */
+                    "WWW-Authenticate"?: string;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description From a page of another origin than the server's own or those `--cors-origins` allows */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The body did not arrive whole within the server's body timeout */
+            408: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The body, the grid it asks for, or the memory the draft would need is too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description A body that is not `application/json` */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Invalid fields (`errors` names each by its JSON path), or the draft failed */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Over the key's quota: submissions per minute, jobs or memory at once */
+            429: {
+                headers: {
+                    /** @description Seconds to wait before trying again */
+                    "Retry-After"?: number;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The server failed; its log has the details */
+            500: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Too many drafts or jobs running; see Retry-After */
+            503: {
+                headers: {
+                    /** @description Seconds to wait before trying again */
+                    "Retry-After"?: number;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The draft ran past its time limit */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+        };
+    };
+    draft_erode: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["ErodeParamsBody"];
+            };
+        };
+        responses: {
+            /** @description The draft's mesh */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "model/gltf-binary": string;
+                };
+            };
+            /** @description The body is not JSON */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description No key, or a key this server does not know (only when it has keys) */
+            401: {
+                headers: {
+                    /** @description `Bearer realm="landform"` */
+                    "WWW-Authenticate"?: string;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description From a page of another origin than the server's own or those `--cors-origins` allows */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The body did not arrive whole within the server's body timeout */
+            408: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The body, the grid it asks for, or the memory the draft would need is too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description A body that is not `application/json` */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Invalid fields (`errors` names each by its JSON path), or the draft failed */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Over the key's quota: submissions per minute, jobs or memory at once */
+            429: {
+                headers: {
+                    /** @description Seconds to wait before trying again */
+                    "Retry-After"?: number;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The server failed; its log has the details */
+            500: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Too many drafts or jobs running; see Retry-After */
+            503: {
+                headers: {
+                    /** @description Seconds to wait before trying again */
+                    "Retry-After"?: number;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The draft ran past its time limit */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+        };
+    };
+    draft_grow_cave: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["GrowCaveParamsBody"];
+            };
+        };
+        responses: {
+            /** @description The draft's mesh */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "model/gltf-binary": string;
+                };
+            };
+            /** @description The body is not JSON */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description No key, or a key this server does not know (only when it has keys) */
+            401: {
+                headers: {
+                    /** @description `Bearer realm="landform"` */
+                    "WWW-Authenticate"?: string;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description From a page of another origin than the server's own or those `--cors-origins` allows */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The body did not arrive whole within the server's body timeout */
+            408: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The body, the grid it asks for, or the memory the draft would need is too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description A body that is not `application/json` */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Invalid fields (`errors` names each by its JSON path), or the draft failed */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Over the key's quota: submissions per minute, jobs or memory at once */
+            429: {
+                headers: {
+                    /** @description Seconds to wait before trying again */
+                    "Retry-After"?: number;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The server failed; its log has the details */
+            500: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Too many drafts or jobs running; see Retry-After */
+            503: {
+                headers: {
+                    /** @description Seconds to wait before trying again */
+                    "Retry-After"?: number;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The draft ran past its time limit */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+        };
+    };
+    draft_weather_column: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["WeatherColumnParamsBody"];
+            };
+        };
+        responses: {
+            /** @description The draft's mesh */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "model/gltf-binary": string;
+                };
+            };
+            /** @description The body is not JSON */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description No key, or a key this server does not know (only when it has keys) */
+            401: {
+                headers: {
+                    /** @description `Bearer realm="landform"` */
+                    "WWW-Authenticate"?: string;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description From a page of another origin than the server's own or those `--cors-origins` allows */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The body did not arrive whole within the server's body timeout */
+            408: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The body, the grid it asks for, or the memory the draft would need is too large */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description A body that is not `application/json` */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Invalid fields (`errors` names each by its JSON path), or the draft failed */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Over the key's quota: submissions per minute, jobs or memory at once */
+            429: {
+                headers: {
+                    /** @description Seconds to wait before trying again */
+                    "Retry-After"?: number;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The server failed; its log has the details */
+            500: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description Too many drafts or jobs running; see Retry-After */
+            503: {
+                headers: {
+                    /** @description Seconds to wait before trying again */
+                    "Retry-After"?: number;
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/problem+json": components["schemas"]["Problem"];
+                };
+            };
+            /** @description The draft ran past its time limit */
+            504: {
                 headers: {
                     [name: string]: unknown;
                 };

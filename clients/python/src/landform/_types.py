@@ -21,6 +21,12 @@ PATHS: dict[str, tuple[str, ...]] = {
     '/healthz': ('GET',),
     '/metrics': ('GET',),
     '/readyz': ('GET',),
+    '/v1/drafts/bulldoze': ('POST',),
+    '/v1/drafts/carve-coast': ('POST',),
+    '/v1/drafts/deform-terrain': ('POST',),
+    '/v1/drafts/erode': ('POST',),
+    '/v1/drafts/grow-cave': ('POST',),
+    '/v1/drafts/weather-column': ('POST',),
     '/v1/jobs': ('GET',),
     '/v1/jobs/bulldoze': ('POST',),
     '/v1/jobs/carve-coast': ('POST',),
@@ -42,6 +48,12 @@ PATHS: dict[str, tuple[str, ...]] = {
 OPERATIONS: dict[str, tuple[str, str]] = {
     'cancel_job': ('POST', '/v1/jobs/{id}/cancel'),
     'delete_job': ('DELETE', '/v1/jobs/{id}'),
+    'draft_bulldoze': ('POST', '/v1/drafts/bulldoze'),
+    'draft_carve_coast': ('POST', '/v1/drafts/carve-coast'),
+    'draft_deform_terrain': ('POST', '/v1/drafts/deform-terrain'),
+    'draft_erode': ('POST', '/v1/drafts/erode'),
+    'draft_grow_cave': ('POST', '/v1/drafts/grow-cave'),
+    'draft_weather_column': ('POST', '/v1/drafts/weather-column'),
     'get_artifact': ('GET', '/v1/jobs/{id}/artifacts/{name}'),
     'get_job': ('GET', '/v1/jobs/{id}'),
     'get_sequence': ('GET', '/v1/jobs/{id}/sequence'),
@@ -180,7 +192,7 @@ BulldozeBlade = TypedDict(
     'BulldozeBlade',
     {
         'width_m': float,
-        'profile': NotRequired[list[list[float]]],
+        'profile': NotRequired[list[tuple[float, float]]],
         'offset_m': NotRequired[float],
         'angle_deg': NotRequired[float],
     },
@@ -402,7 +414,7 @@ BulldozeProfileKeyframe = TypedDict(
     'BulldozeProfileKeyframe',
     {
         'vertex': int,
-        'profile': list[list[float]],
+        'profile': list[tuple[float, float]],
     },
 )
 
@@ -513,7 +525,7 @@ CarveCoastParamsBody = TypedDict(
     'CarveCoastParamsBody',
     {
         'terrain': 'TerrainSource',
-        'sea_level': NotRequired[float],
+        'sea_level': NotRequired[Union[float, None]],
         'voxel_size_m': NotRequired[Union[float, None]],
         'erosion': NotRequired['Erosion'],
         'passes': NotRequired[int],
