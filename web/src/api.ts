@@ -32,7 +32,9 @@ export type ProgressEvent = Progress & { snapshot?: string };
 type SubmitPath = {
   [P in keyof paths]: paths[P]['post'] extends { requestBody: { content: { 'application/json': unknown } } } ? P : never;
 }[keyof paths];
-export type Kind = SubmitPath extends `/v1/jobs/${infer K}` ? K : never;
+// Distributed over the paths (a type parameter): the drafts' `/v1/drafts/…` are not kinds' submissions.
+type KindOf<P> = P extends `/v1/jobs/${infer K}` ? K : never;
+export type Kind = KindOf<SubmitPath>;
 /** The request body each kind takes. */
 export type SubmitBody<K extends Kind> = NonNullable<paths[`/v1/jobs/${K}`]['post']>['requestBody']['content']['application/json'];
 type ListQuery = NonNullable<paths['/v1/jobs']['get']['parameters']['query']>;
@@ -59,11 +61,15 @@ export function setApiKey(key: string | null): void {
   else sessionStorage.removeItem(KEY);
 }
 
-/** Called when the server answers 401: the page asks for a key. */
-let onUnauthorized: () => void = () => {};
-export function whenUnauthorized(f: () => void): void {
+/**
+ * Called when the server refuses a call for its key (401, or 403): the page asks for a key,
+ * saying why from the server's problem.
+ */
+let onUnauthorized: (problem: ProblemLike) => void = () => {};
+export function whenUnauthorized(f: (problem: ProblemLike) => void): void {
   onUnauthorized = f;
 }
+const refused = (status: number): boolean => status === 401 || status === 403;
 
 export function authHeaders(extra: Record<string, string> = {}): Record<string, string> {
   const key = apiKey();
@@ -89,8 +95,11 @@ client.use({
 /** An openapi-fetch answer's data, or an ApiError with its problem (401 first asks for a key). */
 async function ok<D>(call: Promise<{ data?: D; error?: unknown; response: Response }>): Promise<D> {
   const { data, error, response } = await call;
-  if (response.status === 401) onUnauthorized();
-  if (!response.ok) throw new ApiError(problemOf(response, error));
+  if (!response.ok) {
+    const problem = problemOf(response, error);
+    if (refused(response.status)) onUnauthorized(problem);
+    throw new ApiError(problem);
+  }
   return data as D;
 }
 
@@ -98,7 +107,6 @@ async function ok<D>(call: Promise<{ data?: D; error?: unknown; response: Respon
 export async function call(path: string, init: RequestInit = {}): Promise<Response> {
   const headers = authHeaders((init.headers as Record<string, string>) || {});
   const res = await fetch(path, { ...init, headers });
-  if (res.status === 401) onUnauthorized();
   if (!res.ok) {
     let body: unknown;
     try {
@@ -106,7 +114,9 @@ export async function call(path: string, init: RequestInit = {}): Promise<Respon
     } catch {
       // not JSON: the status line
     }
-    throw new ApiError(problemOf(res, body));
+    const problem = problemOf(res, body);
+    if (refused(res.status)) onUnauthorized(problem);
+    throw new ApiError(problem);
   }
   return res;
 }
@@ -144,6 +154,35 @@ export const jobs = {
         body: { until_step: step },
       }),
     )) as Job,
+};
+
+/** A draft's answer: the mesh, the server's time for it, and the kind's result figures. */
+export interface DraftAnswer {
+  glb: ArrayBuffer;
+  seconds: number;
+  result: Record<string, unknown> | null;
+}
+
+export const drafts = {
+  /**
+   * A draft of `kind` (`POST /v1/drafts/{kind}`): the body run at once at reduced resolution,
+   * answered with its mesh, nothing stored. On plain fetch: the answer is a glb, not JSON.
+   */
+  run: async (kind: string, body: unknown, signal: AbortSignal): Promise<DraftAnswer> => {
+    const res = await call(`/v1/drafts/${encodeURIComponent(kind)}`, {
+      method: 'POST',
+      headers: { 'content-type': 'application/json' },
+      body: JSON.stringify(body),
+      signal,
+    });
+    let result: Record<string, unknown> | null = null;
+    try {
+      result = JSON.parse(res.headers.get('landform-draft-result') ?? 'null');
+    } catch {
+      // a result too large for a header is left out
+    }
+    return { glb: await res.arrayBuffer(), seconds: Number(res.headers.get('landform-draft-seconds') ?? NaN), result };
+  },
 };
 
 const blobs = new Map<string, Promise<string>>();

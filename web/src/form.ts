@@ -9,6 +9,8 @@ import { Path, Resolver, Schema, isObject, num, pathString } from './schema';
 export interface FormHooks {
   /** Extra controls under a one-of field that can name an earlier job (terrain sources). */
   jobPicker?: (field: string, current: unknown, pick: (id: string) => void) => HTMLElement;
+  /** After every change of the value (a field, a structural change, the raw JSON). */
+  onChange?: (value: unknown) => void;
 }
 
 let ids = 0;
@@ -27,6 +29,9 @@ export class SchemaForm {
   private rawError = el('div', { class: 'error', role: 'alert', hidden: '' });
   private general = el('div', { class: 'error general', role: 'alert', hidden: '' });
   private rerenderTimer = 0;
+  /** The "more settings" boxes the user opened, by their object's path (kept over re-renders). */
+  private openMore = new Set<string>();
+  private rawBox: HTMLDetailsElement;
 
   constructor(
     private r: Resolver,
@@ -36,8 +41,8 @@ export class SchemaForm {
     private hooks: FormHooks = {},
   ) {
     this.root = structuredClone(initial);
-    const rawBox = el('details', { class: 'raw-box' }, [el('summary', {}, ['Raw JSON (kept in sync with the form)']), this.raw, this.rawError]);
-    host.append(this.general, this.formHost, rawBox);
+    this.rawBox = el('details', { class: 'raw-box' }, [el('summary', {}, ['Raw JSON (kept in sync with the form)']), this.raw, this.rawError]) as HTMLDetailsElement;
+    host.append(this.general, this.formHost, this.rawBox);
     this.raw.addEventListener('input', () => this.fromRaw());
     this.render();
   }
@@ -49,6 +54,7 @@ export class SchemaForm {
   setValue(v: unknown): void {
     this.root = structuredClone(v);
     this.render();
+    this.hooks.onChange?.(this.value());
   }
 
   /** The schema's checks, shown beside their fields; the problems found. */
@@ -63,29 +69,44 @@ export class SchemaForm {
   showErrors(errors: FieldError[], detail?: string): void {
     this.clearErrors();
     const general: string[] = [];
+    const raw: string[] = [];
     if (detail && !errors.length) general.push(detail);
     for (const e of errors) {
       const box = this.nearest(e.field);
+      // A field the form has no box for (an unknown key typed in the raw JSON): said under the
+      // raw JSON, where it was typed, as well as at the top.
+      if (!box || (box.dataset.path === '' && e.field !== '')) raw.push(`${e.field}: ${e.message}`);
       if (!box) {
         general.push(`${e.field}: ${e.message}`);
         continue;
       }
+      for (let d = box.closest('details.more'); d; d = d.parentElement?.closest('details.more') ?? null) (d as HTMLDetailsElement).open = true;
       const err = box.querySelector(':scope > .error') as HTMLElement;
       const own = box.dataset.path === e.field;
       err.textContent = (err.textContent ? `${err.textContent}; ` : '') + (own ? e.message : `${e.field}: ${e.message}`);
       err.hidden = false;
       box.classList.add('invalid');
-      box.querySelector(':scope > input, :scope > select, :scope > textarea')?.setAttribute('aria-invalid', 'true');
+      box.querySelector(':scope > input, :scope > select, :scope > textarea, :scope > span > input:not([type=range])')?.setAttribute('aria-invalid', 'true');
     }
     if (general.length) {
       this.general.textContent = general.join('\n');
       this.general.hidden = false;
+    }
+    if (raw.length) {
+      this.rawError.textContent = raw.join('\n');
+      this.rawError.hidden = false;
+      this.rawBox.open = true;
+      this.raw.setAttribute('aria-invalid', 'true');
+      this.raw.focus();
+      return;
     }
     const first = this.formHost.querySelector('.invalid');
     (first?.querySelector('input, select, textarea, button') as HTMLElement | null)?.focus();
   }
 
   clearErrors(): void {
+    this.rawError.hidden = true;
+    this.raw.removeAttribute('aria-invalid');
     this.general.hidden = true;
     this.general.textContent = '';
     for (const box of this.fields.values()) {
@@ -115,6 +136,8 @@ export class SchemaForm {
       const v = JSON.parse(this.raw.value);
       this.rawError.hidden = true;
       this.root = v;
+      this.rawProblems();
+      this.hooks.onChange?.(this.value());
       clearTimeout(this.rerenderTimer);
       this.rerenderTimer = window.setTimeout(() => this.renderFields(), 250);
     } catch (e) {
@@ -129,6 +152,7 @@ export class SchemaForm {
 
   private changed(): void {
     this.syncRaw();
+    this.hooks.onChange?.(this.value());
   }
 
   private render(): void {
@@ -176,6 +200,22 @@ export class SchemaForm {
     this.syncRaw();
   }
 
+  /**
+   * The raw JSON's problems shown under it, where the user is typing (an unknown key is named
+   * with the nearest field the object has): the form's own boxes may be far up the page.
+   */
+  private rawProblems(): void {
+    const errors: FieldError[] = [];
+    this.r.check(this.schema, this.root, [], errors);
+    const unknown = errors.filter((e) => e.message.startsWith('is not a field'));
+    if (!unknown.length) {
+      this.rawError.hidden = true;
+      return;
+    }
+    this.rawError.textContent = unknown.map((e) => `${e.field}: ${e.message}`).join('\n');
+    this.rawError.hidden = false;
+  }
+
   /** One field: a box with a label, the control, help text and an error line. */
   private node(raw: Schema, path: Path, name: string, required: boolean): HTMLElement {
     const { schema: s, nullable } = this.r.unwrapNullable(raw);
@@ -218,11 +258,43 @@ export class SchemaForm {
     return this.leaf(s, path, name, required && !nullable, en);
   }
 
+  /**
+   * An object's fields: those required or set to something other than their default shown,
+   * the rest (optional, at their defaults) in a "more settings" box, closed until opened.
+   */
   private object(box: HTMLElement, s: Schema, path: Path): void {
     const req: string[] = s.required ?? [];
-    for (const [k, ps] of Object.entries<Schema>(s.properties ?? {})) {
-      box.append(this.node(ps, [...path, k], k, req.includes(k)));
+    const entries = Object.entries<Schema>(s.properties ?? {});
+    if (path.length && entries.length <= 4 && entries.every(([, ps]) => this.isLeaf(ps))) box.classList.add('compact');
+    const more: HTMLElement[] = [];
+    for (const [k, ps] of entries) {
+      const node = this.node(ps, [...path, k], k, req.includes(k));
+      if (this.atDefault(ps, [...path, k], req.includes(k))) more.push(node);
+      else box.append(node);
     }
+    if (!more.length) return;
+    const key = pathString(path);
+    const details = el('details', { class: 'more', 'data-more': key }) as HTMLDetailsElement;
+    details.open = this.openMore.has(key);
+    details.addEventListener('toggle', () => (details.open ? this.openMore.add(key) : this.openMore.delete(key)));
+    details.append(el('summary', {}, [`More settings (${more.length}, at their defaults)`]), ...more);
+    box.append(details);
+  }
+
+  /** An optional field that is unset or holds its default. */
+  private atDefault(raw: Schema, path: Path, required: boolean): boolean {
+    if (required) return false;
+    const v = this.get(path);
+    if (v === undefined || v === null) return true;
+    const d = this.r.unwrapNullable(raw).schema.default;
+    return d !== undefined && JSON.stringify(d) === JSON.stringify(v);
+  }
+
+  /** A number, text, boolean or enumeration: no fields of its own. */
+  private isLeaf(raw: Schema): boolean {
+    const s = this.r.unwrapNullable(raw).schema;
+    const t = this.r.typeOf(s);
+    return Boolean(this.r.enumOf(s)) || t === 'number' || t === 'integer' || t === 'string' || t === 'boolean';
   }
 
   private choice(box: HTMLElement, s: Schema, path: Path, tags: string[], value: unknown, name: string): void {
@@ -263,12 +335,13 @@ export class SchemaForm {
 
   private list(box: HTMLElement, s: Schema, path: Path, name: string): void {
     const items = (this.get(path) as unknown[]) ?? [];
-    const itemSchema = this.r.deref(s.items ?? {});
     const fixed = s.minItems !== undefined && s.minItems === s.maxItems;
     const ol = el('ol', { class: fixed ? 'list inline' : 'list' });
     items.forEach((_, i) => {
       const li = el('li');
-      li.append(this.node(itemSchema, [...path, i], `${name}[${i}]`, true));
+      // A pair's items are named by their own schema (`u`, `height_m`), a list's by their place.
+      const own = Array.isArray(s.prefixItems) ? /^(\w+):/.exec(this.r.itemSchema(s, i).description ?? '')?.[1] : undefined;
+      li.append(this.node(this.r.itemSchema(s, i), [...path, i], own ?? `${name}[${i}]`, true));
       if (!fixed && (s.minItems === undefined || items.length > s.minItems)) {
         const rm = el('button', { type: 'button', class: 'remove', 'data-focus': `${pathString(path)}[${i}]#rm`, 'aria-label': `Remove ${name} ${i + 1}` }, ['Remove']);
         rm.addEventListener('click', () => {
@@ -283,7 +356,7 @@ export class SchemaForm {
     box.append(ol);
     if (!fixed && (s.maxItems === undefined || items.length < s.maxItems)) {
       const add = el('button', { type: 'button', class: 'add', 'data-focus': `${pathString(path)}#add` }, [`Add to ${name}`]);
-      add.addEventListener('click', () => this.structural(path, [...items, this.r.initial(itemSchema)]));
+      add.addEventListener('click', () => this.structural(path, [...items, this.r.initial(this.r.itemSchema(s, items.length))]));
       box.append(add);
     }
   }
@@ -329,6 +402,8 @@ export class SchemaForm {
         this.set(path, t === '' ? (required ? null : undefined) : Number(t));
       });
       control = input;
+      const range = slider(s, type, input, name);
+      if (range) control = el('span', { class: 'number-slider', id: `${id}-wrap` }, [input, range]);
     } else {
       const input = el('input', { id, type: 'text', 'data-focus': field, autocomplete: 'off' }) as HTMLInputElement;
       if (s.maxLength !== undefined) input.maxLength = s.maxLength;
@@ -339,11 +414,13 @@ export class SchemaForm {
       if (/png_base64$/.test(field)) control = this.upload(input, path, id);
     }
     const helpId = `${id}-help`;
-    control.setAttribute('aria-describedby', `${helpId} ${id}-err`);
+    // The labelled control itself, inside a wrapper (a slider, a file picker) if there is one.
+    const own = (control.id === id ? control : control.querySelector(`#${CSS.escape(id)}`)) ?? control;
+    own.setAttribute('aria-describedby', `${helpId} ${id}-err`);
     if (labelled) {
       box.append(el('label', { for: id }, [name, required ? el('span', { class: 'req', 'aria-hidden': 'true' }, [' *']) : '']));
-      if (required) control.setAttribute('aria-required', 'true');
-    } else control.setAttribute('aria-label', name);
+      if (required) own.setAttribute('aria-required', 'true');
+    } else own.setAttribute('aria-label', name);
     box.append(control, this.help(s, id), this.errorLine(`${id}-err`));
     return box;
   }
@@ -382,6 +459,30 @@ export class SchemaForm {
   }
 }
 
+/**
+ * A slider beside a bounded number's box (both ends stated, a span a slider can step through):
+ * the two kept together, typing in the box moving the slider and dragging it writing the box.
+ */
+function slider(s: Schema, type: string | undefined, input: HTMLInputElement, name: string): HTMLInputElement | null {
+  const lo = num(s.minimum) ?? num(s.exclusiveMinimum);
+  const hi = num(s.maximum) ?? num(s.exclusiveMaximum);
+  if (lo === undefined || hi === undefined || !(hi > lo) || hi - lo > 1e4) return null;
+  if (type === 'integer' && hi - lo < 2) return null;
+  const step = type === 'integer' ? 1 : Number(((hi - lo) / 200).toPrecision(1));
+  const range = el('input', { type: 'range', min: String(lo), max: String(hi), step: String(step), 'aria-label': `${name} (slider)`, tabindex: '-1' }) as HTMLInputElement;
+  const fromBox = () => {
+    const v = input.value === '' ? Number(input.placeholder) : Number(input.value);
+    if (Number.isFinite(v)) range.value = String(v);
+  };
+  fromBox();
+  input.addEventListener('input', fromBox);
+  range.addEventListener('input', () => {
+    input.value = range.value;
+    input.dispatchEvent(new Event('input'));
+  });
+  return range;
+}
+
 /** What the schema states about a value's range, for the help text. */
 function bounds(s: Schema): string {
   const parts: string[] = [];
@@ -390,7 +491,8 @@ function bounds(s: Schema): string {
   const hi = num(s.maximum);
   const xlo = num(s.exclusiveMinimum);
   const xhi = num(s.exclusiveMaximum);
-  if (lo !== undefined) parts.push(`≥ ${readable(lo)}`);
+  // The smallest positive f32 as a minimum is how the schema says "above 0" for an f32.
+  if (lo !== undefined) parts.push(lo > 0 && lo < 1e-30 ? '> 0' : `≥ ${readable(lo)}`);
   if (xlo !== undefined) parts.push(`> ${readable(xlo)}`);
   if (hi !== undefined) parts.push(`≤ ${readable(hi)}`);
   if (xhi !== undefined) parts.push(`< ${readable(xhi)}`);

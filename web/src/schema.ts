@@ -98,10 +98,16 @@ export class Resolver {
     return out;
   }
 
+  /** The schema of a list's item `i`: its own (`prefixItems`, a pair's u and height), else the list's. */
+  itemSchema(s: Schema, i: number): Schema {
+    const own = Array.isArray(s.prefixItems) ? s.prefixItems[i] : undefined;
+    return this.deref(own ?? (s.items && typeof s.items === 'object' ? s.items : {}));
+  }
+
   typeOf(s: Schema): string | undefined {
     if (typeof s.type === 'string') return s.type;
     if (s.properties) return 'object';
-    if (s.items) return 'array';
+    if (s.items || s.prefixItems) return 'array';
     return undefined;
   }
 
@@ -123,7 +129,7 @@ export class Resolver {
       }
       case 'array': {
         const n = s.minItems ?? 0;
-        return Array.from({ length: n }, () => this.initial(s.items ?? {}));
+        return Array.from({ length: n }, (_, i) => this.initial(this.itemSchema(s, i)));
       }
       case 'integer':
       case 'number': {
@@ -226,7 +232,7 @@ export class Resolver {
       else {
         if (s.minItems !== undefined && value.length < s.minItems) out.push({ field, message: `must have at least ${s.minItems} items` });
         if (s.maxItems !== undefined && value.length > s.maxItems) out.push({ field, message: `must have at most ${s.maxItems} items` });
-        value.forEach((v, i) => this.check(s.items ?? {}, v, [...path, i], out));
+        value.forEach((v, i) => this.check(this.itemSchema(s, i), v, [...path, i], out));
       }
     } else if (type === 'object') {
       if (!isObject(value)) out.push({ field, message: 'must be an object' });
@@ -237,12 +243,39 @@ export class Resolver {
         for (const [k, v] of Object.entries(value)) {
           const ps = s.properties?.[k];
           if (ps) this.check(ps, v, [...path, k], out);
-          else if (s.additionalProperties === false) out.push({ field: pathString([...path, k]), message: 'is not a field of this object' });
+          else if (s.additionalProperties === false) {
+            const near = nearest(k, Object.keys(s.properties ?? {}));
+            out.push({ field: pathString([...path, k]), message: `is not a field of this object${near ? ` — did you mean “${near}”?` : ''}` });
+          }
         }
       }
     }
     return out.length - before;
   }
+}
+
+/** The name among `names` closest to `word` (edit distance at most a third of its length, and 3). */
+export function nearest(word: string, names: string[]): string | undefined {
+  let best: string | undefined;
+  let bestD = Math.min(3, Math.max(1, Math.floor(word.length / 3)));
+  for (const n of names) {
+    const d = editDistance(word.toLowerCase(), n.toLowerCase());
+    if (d <= bestD) {
+      best = n;
+      bestD = d - 1;
+    }
+  }
+  return best;
+}
+
+function editDistance(a: string, b: string): number {
+  let prev = Array.from({ length: b.length + 1 }, (_, j) => j);
+  for (let i = 1; i <= a.length; i++) {
+    const row = [i];
+    for (let j = 1; j <= b.length; j++) row[j] = Math.min(prev[j] + 1, row[j - 1] + 1, prev[j - 1] + (a[i - 1] === b[j - 1] ? 0 : 1));
+    prev = row;
+  }
+  return prev[b.length];
 }
 
 export function num(v: unknown): number | undefined {

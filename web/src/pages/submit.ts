@@ -1,14 +1,17 @@
-// A kind's page: presets from api/, a form built from the kind's schema, a raw-JSON view, and
-// the terrain-source picker that lets a job start from an earlier one's result.
+// A kind's page: presets from api/, a form built from the kind's schema, a raw-JSON view, the
+// terrain-source picker that lets a job start from an earlier one's result, a live draft of
+// the request beside the form, and the request as a curl command.
 
 import { ApiError, Job, jobs } from '../api';
+import { copyBlock, curlCommand } from '../curl';
 import { SchemaForm } from '../form';
 import { presets } from '../presets';
 import { Doc, Resolver, kinds, requestSchema } from '../schema';
 import { el, hasHeightfield, thumbnail } from '../ui';
+import { DraftPreview } from './draft_preview';
 import { button } from './list';
 
-export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URLSearchParams): void {
+export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URLSearchParams, signal: AbortSignal): void {
   const info = kinds(doc).find((k) => k.kind === kind);
   if (!info) {
     host.append(el('h1', {}, ['No such kind']), el('p', {}, [`The server runs no kind named “${kind}”.`]));
@@ -18,9 +21,20 @@ export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URL
   const schema = requestSchema(doc, kind);
   const list = presets(kind);
   const startTerrain = query.get('terrain');
+  const fields = r.deref(schema).properties ?? {};
+  const required: string[] = r.deref(schema).required ?? [];
   const initial = (p: number): unknown => {
-    const body = p >= 0 ? structuredClone(list[p].body) : (r.initial(schema) as Record<string, unknown>);
-    if (startTerrain && 'terrain' in (r.deref(schema).properties ?? {})) body.terrain = { job: startTerrain };
+    // "Defaults only": what the kind cannot do without (a terrain, a cave's sites, a column's
+    // layers) from its first preset, every other field at its default — the schema's least
+    // values alone do not run (a layer top of 0 m, a cave without a site).
+    const preset = list.length ? structuredClone(list[0].body) : (r.initial(schema) as Record<string, unknown>);
+    const body = p >= 0 ? structuredClone(list[p].body) : Object.fromEntries(Object.entries(preset).filter(([k]) => required.includes(k)));
+    if (startTerrain && 'terrain' in fields) {
+      body.terrain = { job: startTerrain };
+      // A preset's sea level belongs to its own terrain: on another job's terrain it is left to
+      // the server's default, a level within that terrain's heights.
+      delete body.sea_level;
+    }
     return body;
   };
 
@@ -28,8 +42,20 @@ export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URL
   list.forEach((p, i) => presetSel.append(el('option', { value: String(i) }, [p.name])));
   presetSel.append(el('option', { value: '-1' }, ['defaults only']));
   const formHost = el('div', { class: 'form' });
-  const status = el('p', { class: 'muted', role: 'status', 'aria-live': 'polite' });
-  const form = new SchemaForm(r, schema, initial(list.length ? 0 : -1), formHost, { jobPicker: (_f, current, pick) => picker(current, pick) });
+  const status = el('p', { class: 'muted', role: 'status', 'aria-live': 'polite', id: 'submit-status' });
+  const preview = new DraftPreview(kind, 'terrain' in fields, signal);
+  // Declared before the curl block that reads it (its first text is made as it is built).
+  let form: SchemaForm | undefined = undefined;
+  const request = copyBlock('request-curl', 'as curl', () => curlCommand('POST', `/v1/jobs/${kind}`, form?.value()));
+  form = new SchemaForm(r, schema, initial(list.length ? 0 : -1), formHost, {
+    jobPicker: (_f, current, pick) => picker(current, pick),
+    onChange: (v) => {
+      preview.edited(v);
+      request.refresh();
+    },
+  });
+  preview.edited(form.value());
+  request.refresh();
   presetSel.addEventListener('change', () => form.setValue(initial(Number(presetSel.value))));
   // "Edit as a new job": the form starts from an earlier job's request (defaults filled in).
   const from = query.get('from');
@@ -48,10 +74,13 @@ export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URL
   const f = el('form', { novalidate: '', 'aria-label': `New ${kind} job` }, [
     el('div', { class: 'preset-row' }, [el('label', { for: 'preset' }, ['Preset (from api/)']), presetSel]),
     formHost,
-    el('div', { class: 'actions' }, [submit, status]),
+    el('details', { class: 'request-box' }, [el('summary', {}, ['The request as curl']), request.box]),
+    // Kept in view at the bottom of the window (CSS sticky), however long the form.
+    el('div', { class: 'actions sticky-actions' }, [submit, status]),
   ]);
   f.addEventListener('submit', async (ev) => {
     ev.preventDefault();
+    if (!form) return;
     const body = form.value();
     if (form.validate().length) {
       status.textContent = 'Some fields are out of bounds: see the messages beside them.';
@@ -72,7 +101,11 @@ export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URL
       submit.disabled = false;
     }
   });
-  host.append(el('h1', {}, [kind]), el('p', { class: 'lead' }, [info.description || info.summary]), f);
+  host.append(
+    el('h1', {}, [kind]),
+    el('p', { class: 'lead' }, [info.description || info.summary]),
+    el('div', { class: 'submit-layout' }, [f, preview.box]),
+  );
 }
 
 /** Thumbnails of earlier results that a terrain source can name; one click picks one. */

@@ -1,0 +1,248 @@
+// End-to-end: the kind pages as people edit them — a live draft beside the form, forms that fit
+// (more settings folded, sliders, pairs, Run in view), defaults that run, typos named where
+// they are typed, phone width, and the request as a curl command that works.
+import assert from 'node:assert/strict';
+import { execFileSync } from 'node:child_process';
+import { after, before, test } from 'node:test';
+import { canvasStats, launch, newPage, record, shot, startServer } from './harness.mjs';
+
+let server;
+let browser;
+const KINDS = ['bulldoze', 'carve-coast', 'deform-terrain', 'erode', 'grow-cave', 'weather-column'];
+
+before(async () => {
+  server = await startServer();
+  browser = await launch();
+});
+
+after(async () => {
+  await browser?.close();
+  server?.stop();
+});
+
+/** Wait until the preview has drawn more than `n` drafts; the last one's timing. */
+async function draftsAfter(page, n, timeout = 60000) {
+  await page.waitForFunction((k) => Number(document.querySelector('#draft-viewer')?.dataset.drafts ?? 0) > k, n, { timeout });
+  return page.evaluate(() => {
+    const d = document.querySelector('#draft-viewer').dataset;
+    return { drafts: Number(d.drafts), edit_to_frame_ms: Number(d.editToFrameMs), server_s: Number(d.serverSeconds) };
+  });
+}
+
+/** The draft viewer's canvas: luminance variance (a lit mesh, not a blank background). */
+async function draftVariance(page) {
+  return page.evaluate(() => {
+    const src = document.querySelector('#draft-viewer canvas');
+    const c = document.createElement('canvas');
+    [c.width, c.height] = [src.width, src.height];
+    const ctx = c.getContext('2d');
+    ctx.drawImage(src, 0, 0);
+    const px = ctx.getImageData(0, 0, c.width, c.height).data;
+    let [s, q] = [0, 0];
+    for (let i = 0; i < px.length; i += 4) {
+      const l = 0.2126 * px[i] + 0.7152 * px[i + 1] + 0.0722 * px[i + 2];
+      s += l;
+      q += l * l;
+    }
+    const n = px.length / 4;
+    return q / n - (s / n) ** 2;
+  });
+}
+
+test('live preview: every kind draws its draft, and again after an edit; the times from edit to frame', async () => {
+  const page = await newPage(browser, server.url);
+  const posts = [];
+  page.on('request', (r) => r.method() === 'POST' && posts.push(new URL(r.url()).pathname));
+  const timing = {};
+  for (const kind of KINDS) {
+    await page.goto(`/#/new/${kind}`);
+    const first = await draftsAfter(page, 0);
+    const variance = await draftVariance(page);
+    assert.ok(variance > 20, `${kind}: the draft is drawn (variance ${variance})`);
+    // An edit: the seed, in the raw JSON (every kind has one); a new draft is drawn.
+    await page.locator('.raw-box summary').click();
+    const raw = JSON.parse(await page.locator('textarea.raw').inputValue());
+    raw.seed = (raw.seed ?? 0) + 1;
+    await page.locator('textarea.raw').fill(JSON.stringify(raw, null, 2));
+    const edited = await draftsAfter(page, first.drafts);
+    timing[kind] = { first_draft: first, after_edit: edited };
+    assert.ok(edited.edit_to_frame_ms > 0 && edited.server_s > 0, JSON.stringify(edited));
+    await shot(page, `draft-${kind}`);
+  }
+  record('draft-timing', timing);
+  // Drafts only: a preview stores no job.
+  assert.ok(posts.length >= 2 * KINDS.length && posts.every((p) => p.startsWith('/v1/drafts/')), posts.join(' '));
+  const list = await (await fetch(`${server.url}/v1/jobs`)).json();
+  assert.equal(list.items.length, 0);
+  assert.deepEqual(page.errors, []);
+});
+
+test('a live-edited bulldoze road: moving the road redraws the draft, the draft before is dropped', async () => {
+  const page = await newPage(browser, server.url);
+  const aborted = [];
+  page.on('requestfailed', (r) => r.url().includes('/v1/drafts/') && aborted.push(r.url()));
+  await page.goto('/#/new/bulldoze');
+  await page.selectOption('#preset', { label: 'contour-road' });
+  const before = await draftsAfter(page, 0);
+  const frame0 = await page.locator('#draft-viewer canvas').screenshot();
+  await page.locator('#draft-viewer').screenshot({ path: `${process.env.LANDFORM_E2E_OUT ?? 'target/playground-e2e'}/live-edited-road-before.png` });
+  // The road follows the 20 m contour round the hill; it is moved up to 32 m, typed key by key
+  // as a person would: one draft for the lot (debounced), any draft under way cancelled.
+  const height = page.locator('[data-path="operations[1].pass.contour.height_m"] input[type=number]');
+  assert.equal(await height.inputValue(), '20');
+  await height.fill('');
+  await height.pressSequentially('32', { delay: 30 });
+  const after1 = await draftsAfter(page, before.drafts);
+  const frame1 = await page.locator('#draft-viewer canvas').screenshot();
+  assert.ok(!frame0.equals(frame1), 'the draft changed with the road');
+  const raw = JSON.parse(await page.locator('textarea.raw').inputValue());
+  assert.equal(raw.operations[1].pass.contour.height_m, 32);
+  await page.locator('#draft-viewer').screenshot({ path: `${process.env.LANDFORM_E2E_OUT ?? 'target/playground-e2e'}/live-edited-road-after.png` });
+  await shot(page, 'live-edited-bulldoze-road', { fullPage: false });
+  record('draft-road-edit', { ...after1, aborted: aborted.length });
+  assert.deepEqual(page.errors, []);
+});
+
+test('forms that fit: more settings folded, Run always in view, sliders, pairs with their own bounds', async () => {
+  const page = await newPage(browser, server.url);
+  const heights = {};
+  for (const kind of KINDS) {
+    await page.goto(`/#/new/${kind}`);
+    await page.waitForSelector('form[aria-label] .form-fields');
+    heights[kind] = await page.evaluate(() => document.querySelector('form[aria-label]').scrollHeight);
+    assert.ok((await page.locator('details.more:not([open])').count()) > 0, `${kind}: settings at their defaults are folded`);
+    // Run is in the window at the top of the form and at its end.
+    for (const where of ['top', 'bottom']) {
+      await page.evaluate((w) => window.scrollTo(0, w === 'top' ? 0 : document.body.scrollHeight), where);
+      const box = await page.locator('button[type=submit].primary').boundingBox();
+      const vh = page.viewportSize().height;
+      assert.ok(box && box.y >= 0 && box.y + box.height <= vh, `${kind}: Run in view at the ${where}: ${JSON.stringify(box)}`);
+    }
+  }
+  record('form-heights', heights);
+  for (const [kind, h] of Object.entries(heights)) assert.ok(h < 6000, `${kind}: form ${h} px tall`);
+
+  // A bounded number has a slider kept with its box and the request.
+  await page.goto('/#/new/weather-column');
+  await page.waitForSelector('form[aria-label] .form-fields');
+  await page.evaluate(() => document.querySelectorAll('details.more').forEach((d) => (d.open = true)));
+  const rate = page.locator('[data-path="rate"]');
+  await rate.locator('input[type=range]').fill('2');
+  assert.equal(await rate.locator('input[type=number]').inputValue(), '2');
+  await page.locator('.raw-box summary').click();
+  assert.equal(JSON.parse(await page.locator('textarea.raw').inputValue()).rate, 2);
+  await rate.locator('input[type=number]').fill('0.5');
+  assert.equal(await rate.locator('input[type=range]').inputValue(), '0.5');
+
+  // A blade's profile: points as pairs, u bounded by [-1, 1] and the height by metres.
+  await page.goto('/#/new/bulldoze');
+  await page.selectOption('#preset', { label: 'mound-box-add' });
+  await page.evaluate(() => document.querySelectorAll('details.more').forEach((d) => (d.open = true)));
+  const u = page.locator('[data-path="operations[1].pass.blade.profile[0][0]"] input[type=number]');
+  const h = page.locator('[data-path="operations[1].pass.blade.profile[0][1]"] input[type=number]');
+  assert.equal(await u.getAttribute('min'), '-1');
+  assert.equal(await u.getAttribute('max'), '1');
+  assert.equal(await h.getAttribute('min'), '-1000000');
+  assert.match(await page.locator('[data-path="operations[1].pass.blade.profile[0][0]"] label').textContent(), /^u/);
+  await shot(page, 'form-blade-profile-pairs');
+  assert.deepEqual(page.errors, []);
+});
+
+test('defaults that run: "defaults only" drafts for every kind, and carve-coast on another job runs', async () => {
+  const page = await newPage(browser, server.url);
+  for (const kind of KINDS) {
+    await page.goto(`/#/new/${kind}`);
+    const first = await draftsAfter(page, 0);
+    await page.selectOption('#preset', { label: 'defaults only' });
+    await draftsAfter(page, first.drafts);
+    assert.doesNotMatch(await page.locator('#draft-status').textContent(), /No draft/, kind);
+  }
+  // A full job from defaults only (weather-column's own default layer top failed before).
+  await page.goto('/#/new/weather-column');
+  await page.selectOption('#preset', { label: 'defaults only' });
+  await page.click('button[type=submit].primary');
+  await page.waitForURL(/#\/jobs\/[0-9a-f-]{36}$/);
+  const id = page.url().split('/').pop();
+  let job;
+  for (let k = 0; k < 600; k++) {
+    job = await (await fetch(`${server.url}/v1/jobs/${id}`)).json();
+    if (['succeeded', 'failed', 'cancelled'].includes(job.status)) break;
+    await new Promise((r) => setTimeout(r, 200));
+  }
+  assert.equal(job.status, 'succeeded', JSON.stringify(job.error));
+
+  // carve-coast on a terrain whose heights do not reach the preset's sea level of 0 m.
+  const res = await fetch(`${server.url}/v1/jobs/bulldoze`, {
+    method: 'POST',
+    headers: { 'content-type': 'application/json', prefer: 'wait=60' },
+    body: JSON.stringify({
+      terrain: { fractal: { size: 65, cell_size: 1.0, relief: 30.0, seed: 5 } },
+      operations: [{ primitive: { shape: { box: { center: { x: 32, z: 32 }, size_x_m: 200, size_z_m: 200, height_m: 60 } }, operator: 'add' } }],
+    }),
+  });
+  const raised = await res.json();
+  assert.equal(raised.status, 'succeeded');
+  await page.goto(`/#/new/carve-coast?terrain=${raised.id}`);
+  await draftsAfter(page, 0);
+  assert.match(await page.locator('#draft-status').textContent(), /Draft drawn/);
+  await page.locator('.raw-box summary').click();
+  const body = JSON.parse(await page.locator('textarea.raw').inputValue());
+  assert.deepEqual(body.terrain, { job: raised.id });
+  assert.equal(body.sea_level, undefined, 'the preset’s sea level is not carried onto another terrain');
+  await shot(page, 'carve-coast-on-a-raised-terrain');
+  assert.deepEqual(page.errors, []);
+});
+
+test('a typo in the raw JSON is named under it, with the field meant', async () => {
+  const page = await newPage(browser, server.url);
+  await page.goto('/#/new/weather-column');
+  await page.locator('.raw-box summary').click();
+  const raw = JSON.parse(await page.locator('textarea.raw').inputValue());
+  raw.stepz = 3;
+  const area = page.locator('textarea.raw');
+  await area.fill(JSON.stringify(raw, null, 2));
+  const said = page.locator('.raw-box .error');
+  await said.waitFor();
+  assert.match(await said.textContent(), /stepz: is not a field of this object — did you mean “steps”\?/);
+  const a = await area.boundingBox();
+  const s = await said.boundingBox();
+  assert.ok(s.y - (a.y + a.height) < 80, `said right under the JSON: ${JSON.stringify({ a, s })}`);
+  // The server says the same when the request is sent anyway (the form checks first: bypass it).
+  const res = await fetch(`${server.url}/v1/jobs/weather-column`, { method: 'POST', headers: { 'content-type': 'application/json' }, body: JSON.stringify(raw) });
+  const problem = await res.json();
+  assert.equal(problem.errors[0].field, 'stepz');
+  assert.match(problem.errors[0].message, /did you mean `steps`\?/);
+  await shot(page, 'raw-json-typo');
+});
+
+test('copy as curl: the command shown runs, and makes the job the form would', async () => {
+  const page = await newPage(browser, server.url);
+  await page.goto('/#/new/grow-cave');
+  await page.selectOption('#preset', { label: 'soda-straws' });
+  await page.locator('details.request-box summary').click();
+  const command = await page.locator('#request-curl').textContent();
+  assert.match(command, new RegExp(`^curl -sS -X POST '${server.url}/v1/jobs/grow-cave'`));
+  const answer = JSON.parse(execFileSync('bash', ['-c', command], { encoding: 'utf8', timeout: 30000 }));
+  assert.equal(answer.kind, 'grow-cave');
+  assert.match(answer.id, /^[0-9a-f-]{36}$/);
+  const form = JSON.parse(await page.locator('textarea.raw').inputValue());
+  const job = await (await fetch(`${server.url}/v1/jobs/${answer.id}`)).json();
+  assert.equal(job.request.seed, form.seed ?? 0);
+  assert.deepEqual(job.request.sites, form.sites);
+  await shot(page, 'copy-as-curl');
+});
+
+test('phone width: every kind’s form at 390 px scrolls only downwards', async () => {
+  const page = await newPage(browser, server.url, { viewport: { width: 390, height: 844 }, isMobile: true, hasTouch: true });
+  const widths = {};
+  for (const kind of KINDS) {
+    await page.goto(`/#/new/${kind}`);
+    await page.waitForSelector('form[aria-label] .form-fields');
+    await page.evaluate(() => document.querySelectorAll('details').forEach((d) => (d.open = true)));
+    widths[kind] = await page.evaluate(() => document.scrollingElement.scrollWidth);
+    if (kind === 'bulldoze') await shot(page, 'phone-form-bulldoze', { fullPage: false });
+  }
+  record('phone-form-widths', widths);
+  for (const [kind, w] of Object.entries(widths)) assert.ok(w <= 390, `${kind}: ${w} px wide`);
+  assert.deepEqual(page.errors, []);
+});
