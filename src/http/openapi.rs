@@ -173,7 +173,11 @@ pub fn openapi_document(kinds: &[Arc<dyn JobKind>], keys_required: bool) -> Open
             .response("503", problem_response("The queue is full; see Retry-After"))
             .build();
         doc.paths.add_path_operation(format!("/v1/jobs/{}", kind.name()), vec![HttpMethod::Post], op);
-        doc.paths.add_path_operation(format!("/v1/drafts/{}", kind.name()), vec![HttpMethod::Post], draft_operation(kind.as_ref(), &body_name));
+        doc.paths.add_path_operation(
+            format!("/v1/drafts/{}", kind.name()),
+            vec![HttpMethod::Post],
+            draft_operation(kind.as_ref(), &body_name),
+        );
     }
     // The list's filters take the kinds this server runs and the statuses; empty is no filter.
     let kind_names: Vec<&'static str> = std::iter::once("").chain(kinds.iter().map(|k| k.name())).collect();

@@ -60,7 +60,10 @@ impl Engine {
             self.inner.kinds.get(kind).cloned().ok_or_else(|| EngineError::UnknownKind(kind.to_string()))?;
         let Value::Object(mut body) = body else {
             return Err(EngineError::Invalid {
-                errors: vec![crate::validate::FieldError { field: String::new(), message: "the body must be a JSON object".into() }],
+                errors: vec![crate::validate::FieldError {
+                    field: String::new(),
+                    message: "the body must be a JSON object".into(),
+                }],
                 too_large: false,
             });
         };
@@ -108,10 +111,9 @@ impl Engine {
             Ok(joined) => joined.map_err(|e| EngineError::Internal(e.to_string()))?,
         };
         let output = output.map_err(|e| match e {
-            SimError::Invalid { field, message } => EngineError::Invalid {
-                errors: vec![crate::validate::FieldError { field, message }],
-                too_large: false,
-            },
+            SimError::Invalid { field, message } => {
+                EngineError::Invalid { errors: vec![crate::validate::FieldError { field, message }], too_large: false }
+            }
             SimError::Terrain(t) => EngineError::Invalid {
                 errors: vec![crate::validate::FieldError { field: "terrain".into(), message: t.to_string() }],
                 too_large: false,

@@ -644,7 +644,11 @@ impl Engine {
     }
 
     /// Every earlier job and upload the request names must be there.
-    pub(super) async fn check_references(&self, refs: &super::References, owner: Option<String>) -> Result<(), EngineError> {
+    pub(super) async fn check_references(
+        &self,
+        refs: &super::References,
+        owner: Option<String>,
+    ) -> Result<(), EngineError> {
         if refs.jobs.is_empty() && refs.inputs.is_empty() {
             return Ok(());
         }
@@ -929,7 +933,9 @@ pub fn stored_size_allowed(body_bytes: usize) -> usize {
     (body_bytes + body_bytes / 2).max(body_bytes + (64 << 10))
 }
 
-pub(super) fn take_common_fields(body: &mut Map<String, Value>) -> Result<(u64, Option<String>, MeshSettings), EngineError> {
+pub(super) fn take_common_fields(
+    body: &mut Map<String, Value>,
+) -> Result<(u64, Option<String>, MeshSettings), EngineError> {
     let seed = match body.remove("seed") {
         None | Some(Value::Null) => 0,
         Some(v) => v.as_u64().ok_or_else(|| EngineError::field("seed", "must be an unsigned 64-bit integer"))?,

@@ -18,11 +18,11 @@ mod runner;
 mod store_terrain;
 mod worker;
 
+pub use draft::{Draft, DRAFT_TIMEOUT};
 pub use engine::{
     build_pool, default_memory_budget, Engine, EngineConfig, EngineError, EventFeed, Submitted, Submitter,
     DEFAULT_CONCURRENT_JOBS, DEFAULT_JOB_TIMEOUT_S, DEFAULT_QUEUE_CAPACITY, MAX_ATTEMPTS,
 };
-pub use draft::{Draft, DRAFT_TIMEOUT};
 pub use kind::{draft_terrain, DRAFT_MAX_SIDE};
 pub use live::{JobEvent, LiveJob, StopReason};
 pub use remote::{until_changed, STORE_POLL};

@@ -1,7 +1,9 @@
-// The playground's shell: the header, the key dialog and a hash router over the three pages.
+// The playground's shell: the header, the key dialog and a hash router over the pages.
 
 import './style.css';
-import { apiKey, setApiKey, whenUnauthorized } from './api';
+import { ProblemLike, apiKey, setApiKey, whenUnauthorized } from './api';
+import { prose } from './form';
+import { homePage } from './pages/home';
 import { jobPage } from './pages/job';
 import { listPage } from './pages/list';
 import { submitPage } from './pages/submit';
@@ -12,15 +14,28 @@ const main = document.getElementById('main')!;
 const nav = document.getElementById('nav')!;
 const dialog = document.getElementById('key-dialog') as HTMLDialogElement;
 const keyInput = document.getElementById('key-input') as HTMLInputElement;
+const keyReason = document.getElementById('key-reason')!;
 let current = new AbortController();
 
-function askForKey(): void {
+/**
+ * The key dialog, saying why it opened: the server refused the key given, or wants one and none
+ * was given (its problem's detail after), or the user opened it.
+ */
+function askForKey(problem?: ProblemLike): void {
+  const detail = problem ? prose(problem.detail || problem.title || `HTTP ${problem.status}`) : [];
+  const why = !problem
+    ? [apiKey() ? 'This tab has a key; change it or forget it here.' : 'This tab has no key; give one if this server asks for it.']
+    : apiKey()
+      ? ['The server refused the key you gave: ', ...detail]
+      : ['This server needs a key: ', ...detail];
+  keyReason.replaceChildren(...why);
+  keyReason.dataset.reason = !problem ? 'asked' : apiKey() ? 'refused' : 'needed';
   if (dialog.open) return;
   keyInput.value = apiKey() ?? '';
   dialog.showModal();
 }
 whenUnauthorized(askForKey);
-document.getElementById('key-button')!.addEventListener('click', askForKey);
+document.getElementById('key-button')!.addEventListener('click', () => askForKey());
 dialog.addEventListener('close', () => {
   if (dialog.returnValue === 'save') setApiKey(keyInput.value.trim() || null);
   if (dialog.returnValue === 'forget') setApiKey(null);
@@ -44,20 +59,23 @@ async function show(): Promise<void> {
   const [path, q] = location.hash.replace(/^#/, '').split('?');
   const parts = path.split('/').filter(Boolean);
   nav.replaceChildren(
-    navLink('#/jobs', 'Jobs', parts[0] !== 'new' && parts[0] !== 'jobs' ? true : parts[0] === 'jobs' && !parts[1]),
+    navLink('#/jobs', 'Jobs', parts[0] === 'jobs' && !parts[1]),
     ...names.map((k) => navLink(`#/new/${k}`, k, parts[0] === 'new' && parts[1] === k)),
     el('a', { href: '/docs/' }, ['API docs']),
   );
   main.replaceChildren();
   if (parts[0] === 'new' && parts[1]) {
     document.title = `New ${parts[1]} job — Landform`;
-    submitPage(main, doc, parts[1], new URLSearchParams(q ?? ''));
+    submitPage(main, doc, parts[1], new URLSearchParams(q ?? ''), signal);
   } else if (parts[0] === 'jobs' && parts[1]) {
     document.title = `Job ${parts[1]} — Landform`;
     await jobPage(main, parts[1], names, signal);
-  } else {
+  } else if (parts[0] === 'jobs') {
     document.title = 'Jobs — Landform';
     listPage(main, names, signal);
+  } else {
+    document.title = 'Landform playground';
+    homePage(main, kinds(doc), signal);
   }
 }
 

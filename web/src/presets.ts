@@ -16,3 +16,22 @@ export function presets(kind: string): Preset[] {
     .filter((p): p is Preset => p !== null)
     .sort((a, b) => a.name.localeCompare(b.name));
 }
+
+/**
+ * The preset a first look runs ("Try it" on the landing page): one that finishes within seconds
+ * here and shows what the kind does, rather than the first by name (carve-coast's cliff-strata
+ * took over two minutes on two cores beside another job).
+ */
+const QUICK: Record<string, string> = {
+  bulldoze: 'ziggurat',
+  'carve-coast': 'small-island-one-pass',
+  'deform-terrain': 'tileable',
+  erode: 'eroded-island',
+  'grow-cave': 'columns',
+  'weather-column': 'goblin-cap',
+};
+
+export function quickPreset(kind: string): Preset | undefined {
+  const all = presets(kind);
+  return all.find((p) => p.name === QUICK[kind]) ?? all[0];
+}

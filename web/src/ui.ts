@@ -24,6 +24,24 @@ export function hasHeightfield(job: Job): boolean {
   return job.status === 'succeeded' && job.artifacts.some((a) => a.name === 'heightfield.npy');
 }
 
+/**
+ * The water level a result has, in metres: the level the server used as its result reports it
+ * (carve-coast's `sea_level_m`, which the request may leave out), else the request's `sea_level`
+ * (erode), else the level a shape mask held the land above (deform-terrain; optional in the
+ * request, the server's choice is in the constraint's figures as `water_level_m`).
+ */
+export function waterLevel(job: Job): number | null {
+  if (typeof job.result?.sea_level_m === 'number') return job.result.sea_level_m;
+  if (typeof job.request.sea_level === 'number') return job.request.sea_level;
+  const figures = job.result?.constraints;
+  if (Array.isArray(figures)) {
+    for (const f of figures) {
+      if (f && typeof f === 'object' && typeof (f as Record<string, unknown>).water_level_m === 'number') return (f as Record<string, number>).water_level_m;
+    }
+  }
+  return null;
+}
+
 export function statusBadge(status: string): HTMLElement {
   const s = document.createElement('span');
   s.className = `badge ${status}`;

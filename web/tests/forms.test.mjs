@@ -230,6 +230,22 @@ test('copy as curl: the command shown runs, and makes the job the form would', a
   assert.equal(job.request.seed, form.seed ?? 0);
   assert.deepEqual(job.request.sites, form.sites);
   await shot(page, 'copy-as-curl');
+
+  // The job's page shows the request and the answer, each with commands that do the same.
+  await page.goto(`/#/jobs/${answer.id}`);
+  await page.locator('#job-request summary').click();
+  const shownRequest = JSON.parse(await page.locator('#job-request pre.json').textContent());
+  assert.deepEqual(shownRequest, job.request);
+  await page.locator('#job-response summary').click();
+  const read = (await page.locator('#job-read-curl').textContent()).split('\n\n')[0];
+  const got = JSON.parse(execFileSync('bash', ['-c', read], { encoding: 'utf8', timeout: 30000 }));
+  assert.equal(got.id, answer.id);
+  // Posting the shown request again makes the same kind of job from the same body.
+  const again = JSON.parse(execFileSync('bash', ['-c', await page.locator('#job-request-curl').textContent()], { encoding: 'utf8', timeout: 30000 }));
+  assert.equal(again.kind, 'grow-cave');
+  assert.notEqual(again.id, answer.id);
+  await shot(page, 'job-request-and-response');
+  assert.deepEqual(page.errors, []);
 });
 
 test('phone width: every kind’s form at 390 px scrolls only downwards', async () => {

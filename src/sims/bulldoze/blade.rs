@@ -71,7 +71,12 @@ impl Validate for Blade {
 pub fn profile_schema() -> utoipa::openapi::schema::Schema {
     use utoipa::openapi::schema::{ArrayBuilder, ObjectBuilder, Type};
     let number = |lo: f64, hi: f64, what: &str| {
-        ObjectBuilder::new().schema_type(Type::Number).format(Some(utoipa::openapi::SchemaFormat::KnownFormat(utoipa::openapi::KnownFormat::Float))).minimum(Some(lo)).maximum(Some(hi)).description(Some(what))
+        ObjectBuilder::new()
+            .schema_type(Type::Number)
+            .format(Some(utoipa::openapi::SchemaFormat::KnownFormat(utoipa::openapi::KnownFormat::Float)))
+            .minimum(Some(lo))
+            .maximum(Some(hi))
+            .description(Some(what))
     };
     let point = ArrayBuilder::new()
         .prefix_items([

@@ -55,7 +55,8 @@ impl Simulation for Bulldoze {
     type Params = BulldozeParams;
     type Sequence = BulldozeSequence;
 
-    const DRAFT_RULE: &'static str = "the output grid is the draft terrain's (`resolution` is not used) and no tiles are cut";
+    const DRAFT_RULE: &'static str =
+        "the output grid is the draft terrain's (`resolution` is not used) and no tiles are cut";
 
     fn draft(params: &mut Self::Params) {
         params.resolution = None;

@@ -1,11 +1,15 @@
 // A job: progress from its event stream with each live snapshot, cancel; once it has succeeded,
 // the mesh in 3D, the maps, the result figures, downloads, and a timeline over its sequence.
 
-import { ApiError, Job, JobStatus, Progress, ProgressEvent, apiKey, arrayBuffer, artifact, blobUrl, humanBytes, jobs } from '../api';
+import { ApiError, Job, JobStatus, ProgressEvent, apiKey, arrayBuffer, artifact, blobUrl, humanBytes, jobs } from '../api';
 import { followJob } from '../sse';
-import { Viewer } from '../viewer';
+import { HYPSOMETRIC_KINDS } from '../hypsometric';
+import { progressMeter } from '../progress';
+import { Shading, Viewer } from '../viewer';
+import { metres } from '../viewer_overlay';
 import { decodeRgbaPng } from '../rgba_png';
-import { el, flatten, hasHeightfield, statusBadge } from '../ui';
+import { el, flatten, hasHeightfield, statusBadge, waterLevel } from '../ui';
+import { apiPanel } from './api_panel';
 import { button } from './list';
 
 const ENDED = ['succeeded', 'failed', 'cancelled'];
@@ -20,15 +24,13 @@ export async function jobPage(host: HTMLElement, id: string, kindNames: string[]
   }
   const title = el('h1', {}, [`${job.kind}: ${job.label || job.id}`]);
   const badge = el('span', { id: 'job-status' }, [statusBadge(job.status)]);
-  const bar = el('progress', { id: 'job-progress', max: '1', value: '0', 'aria-label': 'Progress' }) as HTMLProgressElement;
-  const pct = el('span', { id: 'job-percent' });
-  const stage = el('span', { id: 'job-stage', class: 'muted' });
+  const meter = progressMeter(signal);
   const conn = el('small', { class: 'muted', id: 'job-stream' });
   const cancel = button('Cancel', async () => {
     try {
       await jobs.cancel(id);
     } catch (e) {
-      stage.textContent = String(e);
+      meter.note(String(e));
     }
   });
   const live = el('figure', { class: 'live', hidden: '' }, [
@@ -37,39 +39,41 @@ export async function jobPage(host: HTMLElement, id: string, kindNames: string[]
   ]);
   const progressBox = el('section', { class: 'progress', 'aria-labelledby': 'progress-h' }, [
     el('h2', { id: 'progress-h' }, ['Progress']),
-    el('div', { class: 'bar-row' }, [bar, pct, cancel]),
-    el('div', { 'aria-live': 'polite' }, [stage]),
+    el('div', { class: 'bar-row' }, [meter.bar, meter.percent, cancel]),
+    meter.line,
     conn,
     live,
   ]);
   const resultBox = el('div', { class: 'result' });
+  // For every job, whatever its state: the request it was made from and the document GET gives.
+  const apiBox = el('div', { class: 'api-box' }, [apiPanel(job)]);
   host.append(
     title,
     el('p', { class: 'meta' }, [badge, ` ${job.id} · created ${new Date(job.created_at).toLocaleString()}`, job.replay_of ? ` · replay of ` : '', job.replay_of ? el('a', { href: `#/jobs/${job.replay_of}` }, [job.replay_of]) : '']),
     progressBox,
     resultBox,
+    apiBox,
   );
 
-  const showProgress = (p: Progress): void => {
-    bar.value = p.fraction;
-    pct.textContent = `${Math.round(p.fraction * 100)} %`;
-    stage.textContent = `${p.stage}${p.steps ? ` — step ${p.step} of ${p.steps}` : ''}${p.message ? `: ${p.message}` : ''}`;
-  };
   const showStatus = (s: string): void => {
     badge.replaceChildren(statusBadge(s));
     cancel.hidden = ENDED.includes(s);
   };
-  showProgress(job.progress);
+  meter.show(job.progress);
   showStatus(job.status);
 
   const ended = (j: Job): void => {
     job = j;
     showStatus(j.status);
-    showProgress(j.progress);
+    meter.end(j);
+    // What was live while it ran is history now: the last snapshot and the stream's state.
+    live.hidden = true;
+    conn.hidden = true;
     if (j.status === 'succeeded') {
-      bar.value = 1;
-      pct.textContent = '100 %';
       void result(resultBox, j, kindNames, signal);
+    } else if (j.status === 'cancelled') {
+      // Asked for: a notice, not an error.
+      resultBox.append(el('p', { class: 'notice', role: 'status', id: 'job-cancelled' }, [`This job was cancelled${j.finished_at ? ` at ${new Date(j.finished_at).toLocaleTimeString()}` : ''}; it made no result.`]));
     } else if (j.error) {
       const fields = (j.error.errors ?? []).map((e) => el('li', {}, [el('code', {}, [e.field]), `: ${e.message}`]));
       resultBox.append(
@@ -82,6 +86,8 @@ export async function jobPage(host: HTMLElement, id: string, kindNames: string[]
     if (!j.replay_of) {
       resultBox.append(el('p', {}, [el('a', { class: 'button', href: `#/new/${j.kind}?from=${j.id}` }, ['Edit as a new job'])]));
     }
+    // The request and the answer, as curl would send and get them.
+    apiBox.replaceChildren(apiPanel(j));
   };
   if (ENDED.includes(job.status)) {
     ended(job);
@@ -94,12 +100,12 @@ export async function jobPage(host: HTMLElement, id: string, kindNames: string[]
     onEvent: (e) => {
       if (e.event === 'progress') {
         const p = JSON.parse(e.data) as ProgressEvent;
-        showProgress(p);
+        meter.show(p);
         if (p.snapshot) {
           blobUrl(p.snapshot, false).then((u) => {
             const old = img.src;
             img.src = u;
-            live.hidden = false;
+            live.hidden = ENDED.includes(job.status);
             img.dataset.count = String(Number(img.dataset.count ?? 0) + 1);
             if (old.startsWith('blob:')) URL.revokeObjectURL(old);
           }, () => {});
@@ -125,10 +131,15 @@ async function result(host: HTMLElement, job: Job, kindNames: string[], signal: 
   host.append(viewSection, timeline, maps, figures, downloads);
 
   const viewer = new Viewer(viewerHost);
-  viewer.aboveGround(hasHeightfield(job));
+  const water = waterLevel(job);
+  viewer.configure({
+    ground: hasHeightfield(job),
+    water,
+    // The height tint's sea: the job's water level, else 0 m (src/export/mod.rs).
+    tintSea: HYPSOMETRIC_KINDS.includes(job.kind) ? (water ?? 0) : null,
+  });
   signal.addEventListener('abort', () => viewer.dispose());
   if (viewer.failure) viewerHost.append(el('p', { class: 'muted' }, [viewer.failure]));
-  const seaLevel = typeof job.request.sea_level === 'number' ? (job.request.sea_level as number) : null;
 
   // Levels of detail: the full mesh and each mesh_lodN.glb.
   // Ordered by level number, the full mesh (level 0) first: a name sort puts `mesh_lod1.glb`
@@ -144,7 +155,7 @@ async function result(host: HTMLElement, job: Job, kindNames: string[], signal: 
     if (!a) return;
     viewerHost.setAttribute('aria-busy', 'true');
     try {
-      await viewer.show(await arrayBuffer(a.href), seaLevel);
+      await viewer.show(await arrayBuffer(a.href));
       viewerHost.dataset.shown = `${j.id}/${a.name}`;
     } finally {
       viewerHost.removeAttribute('aria-busy');
@@ -166,16 +177,29 @@ async function result(host: HTMLElement, job: Job, kindNames: string[], signal: 
   };
   const home = el('button', { type: 'button', id: 'frame-all', title: 'Frame the whole result (F or Home in the view)' }, ['Frame all']);
   home.addEventListener('click', () => viewer.frameAll());
+  const shading = el('select', { id: 'shading' }, [
+    el('option', { value: 'shaded' }, ['shaded']),
+    el('option', { value: 'wire-over-shaded' }, ['wire over shaded']),
+    el('option', { value: 'wireframe' }, ['wireframe']),
+  ]) as HTMLSelectElement;
+  shading.addEventListener('change', () => viewer.set({ shading: shading.value as Shading }));
+  const seaBox = el('span', { class: 'sea-control' });
   controls.append(
     home,
-    check('wireframe', 'wireframe', false, (v) => viewer.set({ wireframe: v })),
+    el('label', { for: 'shading' }, ['surface']),
+    shading,
     check('vertex-colors', 'vertex colours', true, (v) => viewer.set({ vertexColors: v })),
-    ...(seaLevel !== null ? [check('sea', `sea plane (${seaLevel} m)`, true, (v) => viewer.set({ sea: v }))] : []),
+    check('shadows', 'shadows', true, (v) => viewer.set({ shadows: v })),
+    ...(hasHeightfield(job) ? [check('grid', 'grid', true, (v) => viewer.set({ grid: v }))] : []),
+    seaBox,
     ...slider('sun-azimuth', 'sun azimuth', 0, 359, 315, (v) => viewer.set({ sunAzimuth: v })),
     ...slider('sun-elevation', 'sun elevation', 2, 90, 45, (v) => viewer.set({ sunElevation: v })),
     ...(levels.length > 1 ? [el('label', { for: 'lod' }, ['level of detail']), lodSel] : []),
   );
-  const first = load(job, 'mesh.glb');
+  // The water's switch, once the mesh says whether it brings its own (carve-coast's sea).
+  const first = load(job, 'mesh.glb').then(() => {
+    if (viewer.showsWater) seaBox.append(check('sea', `sea plane (${metres(water ?? 0)})`, true, (v) => viewer.set({ sea: v })));
+  });
 
   // The maps and pictures beside the mesh.
   const grid = el('div', { class: 'maps' });
