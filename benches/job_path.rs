@@ -135,8 +135,14 @@ fn live(kind: &dyn JobKind, params: &Value, seed: u64, limits: &Limits) -> (f64,
         progress: AtomicUsize::new(0),
         snapshots: Mutex::new(Vec::new()),
     };
-    let ctx =
-        RunContext { cancel: &cancel, sink: &sink, terrain: &support::NoStore, limits, mesh: MeshSettings::default(), draft: false };
+    let ctx = RunContext {
+        cancel: &cancel,
+        sink: &sink,
+        terrain: &support::NoStore,
+        limits,
+        mesh: MeshSettings::default(),
+        draft: false,
+    };
     let started = Instant::now();
     std::hint::black_box(kind.run(params, seed, &ctx).expect("runs"));
     let seconds = started.elapsed().as_secs_f64();

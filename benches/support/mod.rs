@@ -28,5 +28,12 @@ pub fn with_context<T>(f: impl FnOnce(&RunContext) -> T) -> T {
 #[allow(dead_code)]
 pub fn with_limits<T>(limits: &Limits, f: impl FnOnce(&RunContext) -> T) -> T {
     let cancel = AtomicBool::new(false);
-    f(&RunContext { cancel: &cancel, sink: &SilentProgress, terrain: &NoStore, limits, mesh: MeshSettings::default(), draft: false })
+    f(&RunContext {
+        cancel: &cancel,
+        sink: &SilentProgress,
+        terrain: &NoStore,
+        limits,
+        mesh: MeshSettings::default(),
+        draft: false,
+    })
 }
