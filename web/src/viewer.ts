@@ -24,6 +24,8 @@ import {
   PlaneGeometry,
   Scene,
   Sphere,
+  Raycaster,
+  Vector2,
   Vector3,
   WebGLRenderer,
 } from 'three';
@@ -86,6 +88,8 @@ export class Viewer {
   opts: ViewOptions = { shading: 'shaded', vertexColors: true, sunAzimuth: 315, sunElevation: 45, sea: true, grid: true, shadows: true };
   /** Why WebGL is not there, if it is not. */
   readonly failure: string | null = null;
+  /** Called with the point of the model under a click (not a drag, not the gizmo), in metres. */
+  onPick: ((point: Vector3) => void) | null = null;
 
   constructor(host: HTMLElement) {
     this.host = host;
@@ -124,7 +128,12 @@ export class Viewer {
     this.canvas.addEventListener('click', (e) => {
       if (!down || Math.hypot(e.clientX - down[0], e.clientY - down[1]) > 3 || !this.gizmo || !this.controls) return;
       this.gizmo.center.copy(this.controls.target);
-      if (this.gizmo.handleClick(e)) this.turn();
+      if (this.gizmo.handleClick(e)) {
+        this.turn();
+        return;
+      }
+      const hit = this.onPick ? this.pick(e.clientX, e.clientY) : null;
+      if (hit) this.onPick?.(hit);
     });
     // Back from wherever the orbit went: F (as in Blender and Unity) or Home frames it all.
     this.canvas.addEventListener('keydown', (e) => {
@@ -210,6 +219,17 @@ export class Viewer {
     this.placeSea();
     this.placeGrid();
     this.apply();
+  }
+
+  /** Where the model (not its water) is under a point of the window, in the model's metres. */
+  pick(clientX: number, clientY: number): Vector3 | null {
+    if (!this.model) return null;
+    const r = this.canvas.getBoundingClientRect();
+    const ndc = new Vector2(((clientX - r.left) / r.width) * 2 - 1, -((clientY - r.top) / r.height) * 2 + 1);
+    const ray = new Raycaster();
+    ray.setFromCamera(ndc, this.camera);
+    const hit = ray.intersectObject(this.model, true).find((h) => !this.ownWater.includes(h.object as Mesh));
+    return hit ? hit.point.clone() : null;
   }
 
   set(opts: Partial<ViewOptions>): void {

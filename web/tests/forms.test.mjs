@@ -103,6 +103,37 @@ test('a live-edited bulldoze road: moving the road redraws the draft, the draft 
   assert.deepEqual(page.errors, []);
 });
 
+test('drawing on the draft: a click on the terrain adds a road vertex where it lands', async () => {
+  const page = await newPage(browser, server.url);
+  await page.goto('/#/new/bulldoze');
+  await page.selectOption('#preset', { label: 'contour-road' });
+  const before = await draftsAfter(page, 0);
+  // The ditch's path (three vertices across a 256 m terrain) takes the clicks.
+  await page.selectOption('#pick-target', 'operations[2].pass.path');
+  const canvas = page.locator('#draft-viewer canvas');
+  const box = await canvas.boundingBox();
+  // The middle of the view: the camera looks at the middle of the terrain's box, so the click
+  // lands on the hill near the terrain's centre (128, 128), not near the origin.
+  await page.mouse.click(box.x + box.width / 2, box.y + box.height / 2);
+  const after = await draftsAfter(page, before.drafts);
+  await page.locator('.raw-box summary').click();
+  const path = JSON.parse(await page.locator('textarea.raw').inputValue()).operations[2].pass.path;
+  assert.equal(path.length, 4, JSON.stringify(path));
+  const added = path[3];
+  assert.ok(Math.hypot(added.x - 128, added.z - 128) < 60, `the vertex lands near the centre: ${JSON.stringify(added)}`);
+  // A drag orbits and adds nothing.
+  await page.mouse.move(box.x + 50, box.y + 50);
+  await page.mouse.down();
+  await page.mouse.move(box.x + 150, box.y + 80, { steps: 5 });
+  await page.mouse.up();
+  await page.waitForTimeout(600);
+  assert.equal(JSON.parse(await page.locator('textarea.raw').inputValue()).operations[2].pass.path.length, 4);
+  assert.equal(await page.locator('#pick-target').inputValue(), 'operations[2].pass.path');
+  await shot(page, 'draft-click-adds-a-vertex', { fullPage: false });
+  record('draft-click-vertex', { added, drafts: after.drafts });
+  assert.deepEqual(page.errors, []);
+});
+
 test('forms that fit: more settings folded, Run always in view, sliders, pairs with their own bounds', async () => {
   const page = await newPage(browser, server.url);
   const heights = {};

@@ -3,6 +3,7 @@
 // it, and shows the mesh in a viewer beside the form. Run makes the full job.
 
 import { ApiError, drafts } from '../api';
+import { PointList, pointLists } from '../points';
 import { Viewer } from '../viewer';
 import { el } from '../ui';
 
@@ -21,6 +22,11 @@ export class DraftPreview {
   /** When the newest edit was made (performance.now()), for the edit-to-picture time. */
   private editedAt = 0;
   private count = 0;
+  /** Where a click on the draft adds a point: the request's point lists, by path. */
+  private target = el('select', { id: 'pick-target' }) as HTMLSelectElement;
+  private lists: PointList[] = [];
+  /** Set by the page: add a point at (x, z) to the list at `list`. */
+  onPoint: ((list: PointList, x: number, z: number) => void) | null = null;
 
   constructor(private kind: string, heightfield: boolean, signal: AbortSignal) {
     this.toggle.checked = true;
@@ -38,12 +44,17 @@ export class DraftPreview {
         this.status.textContent = 'Live preview off.';
       }
     });
+    this.viewer.onPick = (p) => {
+      const list = this.lists.find((l) => l.name === this.target.value);
+      if (list) this.onPoint?.(list, p.x, p.z);
+    };
     this.box = el('section', { class: 'draft', 'aria-labelledby': 'draft-h' }, [
       el('div', { class: 'draft-head' }, [
         el('h2', { id: 'draft-h' }, ['Preview']),
         el('label', { for: 'draft-on' }, [this.toggle, ' live draft while editing']),
       ]),
       this.host,
+      el('div', { class: 'pick-row', hidden: '' }, [el('label', { for: 'pick-target' }, ['A click on the terrain adds a point to']), this.target]),
       this.status,
       el('p', { class: 'help' }, ['A draft runs this request at reduced resolution (the server’s draft rule for the kind); nothing is stored. Run makes the full job.']),
     ]);
@@ -53,10 +64,21 @@ export class DraftPreview {
   /** The form changed: draft the new body after a quiet moment, dropping any draft under way. */
   edited(body: unknown): void {
     this.latest = body;
+    this.offerLists(body);
     this.editedAt = performance.now();
     if (!this.toggle.checked) return;
     clearTimeout(this.timer);
     this.timer = window.setTimeout(() => void this.draft(body, this.editedAt), DEBOUNCE_MS);
+  }
+
+  /** The point lists a click can add to, the choice kept while its list is there. */
+  private offerLists(body: unknown): void {
+    this.lists = pointLists(body);
+    const keep = this.target.value;
+    this.target.replaceChildren(el('option', { value: '' }, ['(nothing: clicks only orbit)']));
+    for (const l of this.lists) this.target.append(el('option', { value: l.name }, [`${l.name} (${l.count} points)`]));
+    this.target.value = this.lists.some((l) => l.name === keep) ? keep : '';
+    (this.target.parentElement as HTMLElement).hidden = this.lists.length === 0;
   }
 
   private async draft(body: unknown, editedAt: number): Promise<void> {

@@ -5,6 +5,7 @@
 import { ApiError, Job, jobs } from '../api';
 import { copyBlock, curlCommand } from '../curl';
 import { SchemaForm } from '../form';
+import { withPoint } from '../points';
 import { presets } from '../presets';
 import { Doc, Resolver, kinds, requestSchema } from '../schema';
 import { el, hasHeightfield, thumbnail } from '../ui';
@@ -54,6 +55,8 @@ export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URL
       request.refresh();
     },
   });
+  // A click on the draft's terrain adds a point to the list chosen beside it (a road vertex).
+  preview.onPoint = (list, x, z) => form?.setValue(withPoint(form.value(), list.path, x, z));
   preview.edited(form.value());
   request.refresh();
   presetSel.addEventListener('change', () => form.setValue(initial(Number(presetSel.value))));
