@@ -9,8 +9,8 @@ use super::implicit::Capsule;
 use super::outputs::{build, sample, surface, topology};
 use super::*;
 use crate::sims::test_support::TestContext;
-use crate::validate::Limits;
 use crate::terrain::generate_fractal;
+use crate::validate::Limits;
 use crate::validate::{Validate, Validator};
 
 fn params(v: Value) -> CarveCoastParams {
