@@ -206,12 +206,13 @@ fn draft_operation(kind: &dyn JobKind, body_name: &str) -> utoipa::openapi::path
         .operation_id(Some(format!("draft_{}", kind.name().replace('-', "_"))))
         .summary(Some(format!("Run a {} draft and answer with its mesh", kind.name())))
         .description(Some(format!(
-            "The body of `POST /v1/jobs/{name}`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: {rule}. Terrain sources are read at most {side} samples a side (bilinear, same extent). At most {at_once} drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after {timeout} s (504), or when its client goes away. `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/{name}` for the full job.",
+            "The body of `POST /v1/jobs/{name}`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: {rule}. Terrain sources are read at most {side} samples a side (bilinear, same extent). At most {at_once} drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after {timeout} s (504), or when its client goes away, and one whose estimated work is over {work} s is refused (422 naming the field). `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/{name}` for the full job.",
             name = kind.name(),
             rule = kind.draft_rule(),
             side = crate::jobs::DRAFT_MAX_SIDE,
             at_once = super::drafts::DRAFTS_AT_ONCE,
             timeout = crate::jobs::DRAFT_TIMEOUT.as_secs(),
+            work = crate::jobs::DRAFT_MAX_WORK_S,
         )))
         .request_body(Some(
             RequestBodyBuilder::new()

@@ -17,6 +17,11 @@ use crate::export::MeshSettings;
 /// A draft running longer than this is stopped (504): a draft is for answers within seconds.
 pub const DRAFT_TIMEOUT: Duration = Duration::from_secs(30);
 
+/// Most work a draft may be estimated at, seconds at the fastest this server runs (422 beyond,
+/// naming the field that makes it): a draft that big would hold a core for many seconds and
+/// slow every other draft beside it; the job is the way to run it.
+pub const DRAFT_MAX_WORK_S: f64 = 2.0;
+
 /// A draft's answer: the full mesh as glb, the kind's result figures, and its time.
 #[derive(Debug)]
 pub struct Draft {
@@ -81,6 +86,19 @@ impl Engine {
         self.check_references(&prepared, owner.clone()).await?;
         let (cost, params, uploads) =
             self.estimate(kind, params, seed, prepared.uploads, owner.clone(), (0, true)).await?;
+        if cost.min_seconds > DRAFT_MAX_WORK_S {
+            return Err(EngineError::Invalid {
+                errors: vec![crate::validate::FieldError {
+                    field: cost.work_field.clone(),
+                    message: format!(
+                        "even as a draft this request is at least {:.0} s of work; a draft may be at most {DRAFT_MAX_WORK_S} s \
+                         (submit it as a job)",
+                        cost.min_seconds
+                    ),
+                }],
+                too_large: false,
+            });
+        }
         let _reservation = self.reserve_draft(cost.memory_bytes)?;
 
         let cancel = Arc::new(AtomicBool::new(false));

@@ -765,7 +765,14 @@ impl Engine {
     }
 
     pub async fn list(&self, filter: ListFilter) -> Result<Vec<Job>, EngineError> {
-        let jobs = self.blocking(move |s| s.list(&filter)).await?;
+        let mut jobs = self.blocking(move |s| s.list(&filter)).await?;
+        // A job running here has its progress in memory (the store has it at the start): the
+        // list says what GET says.
+        for job in jobs.iter_mut().filter(|j| j.status == JobStatus::Running) {
+            if let Some(live) = self.live_job(&job.id) {
+                job.progress = live.progress();
+            }
+        }
         Ok(jobs.into_iter().map(Job::with_hrefs).collect())
     }
 

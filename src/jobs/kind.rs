@@ -126,16 +126,19 @@ impl RunContext<'_> {
     }
 }
 
-/// A terrain as a draft reads it: at most [`DRAFT_MAX_SIDE`] samples a side, same extent.
+/// A terrain as a draft reads it: at most [`DRAFT_MAX_SIDE`] samples a side (bilinear), over
+/// the same extent — the last sample of each row and column on the far edge.
 pub fn draft_terrain(terrain: Heightfield) -> Heightfield {
     let longest = terrain.cols.max(terrain.rows);
     if longest <= DRAFT_MAX_SIDE {
         return terrain;
     }
-    let extent = terrain.width_m().max(terrain.depth_m());
-    // A hair over the exact spacing so that rounding never leaves one sample too many.
-    let cell = (extent / (DRAFT_MAX_SIDE - 1) as f32).max(terrain.cell_size_m) * (1.0 + 1e-6);
-    terrain.resampled(cell)
+    let (width, depth) = (terrain.width_m(), terrain.depth_m());
+    let cell = width.max(depth) / (DRAFT_MAX_SIDE - 1) as f32;
+    // Rounded, not floored: a spacing a hair off the exact one must not lose the far edge.
+    let cols = ((width / cell).round() as usize + 1).clamp(2, DRAFT_MAX_SIDE);
+    let rows = ((depth / cell).round() as usize + 1).clamp(2, DRAFT_MAX_SIDE);
+    Heightfield::from_fn(cols, rows, cell, |x, z| terrain.sample(x.min(width), z.min(depth)))
 }
 
 fn progress(stage: &str, step: u64, steps: u64, message: String) -> Progress {
@@ -329,6 +332,10 @@ pub fn parse_params<T: DeserializeOwned>(value: Value) -> Result<T, RequestError
 fn did_you_mean(message: &str) -> Option<String> {
     let rest = message.strip_prefix("unknown field `").or_else(|| message.strip_prefix("unknown variant `"))?;
     let (word, expected) = rest.split_once('`')?;
+    if word.chars().count() < 3 {
+        // "3" is one edit from "0": too short for a guess to mean anything.
+        return None;
+    }
     let names = expected.split('`').skip(1).step_by(2);
     let limit = (word.chars().count() / 3).clamp(1, 3);
     names
@@ -539,7 +546,28 @@ mod tests {
         assert_eq!(did_you_mean(m).as_deref(), Some("sphere"));
         assert_eq!(did_you_mean("unknown field `colour`, expected one of `grid`, `steps`"), None);
         assert_eq!(did_you_mean("invalid type: string, expected u32"), None);
+        assert_eq!(did_you_mean("unknown variant `3`, expected one of `0`, `1`, `2`"), None);
         assert_eq!(edit_distance("kitten", "sitting"), 3);
         assert_eq!(edit_distance("", "abc"), 3);
+    }
+
+    #[test]
+    fn a_draft_terrain_keeps_its_extent_to_the_far_edge() {
+        use crate::terrain::Heightfield;
+        // 193 samples 1.5 m apart: 288 m. Drafted, 129 samples 2.25 m apart, the last on the
+        // far edge, heights those of the plane the terrain is.
+        let plane = |x: f32, z: f32| 0.25 * x - 0.1 * z + 3.0;
+        for (cols, rows, cell) in [(193, 193, 1.5), (161, 161, 3.0), (200, 120, 1.7), (1025, 513, 0.5)] {
+            let t = Heightfield::from_fn(cols, rows, cell, plane);
+            let (w, d) = (t.width_m(), t.depth_m());
+            let draft = super::draft_terrain(t);
+            assert!(draft.cols.max(draft.rows) <= super::DRAFT_MAX_SIDE, "{}x{}", draft.cols, draft.rows);
+            assert!((draft.width_m() - w).abs() <= 1e-3 * w, "width {} of {w}", draft.width_m());
+            assert!((draft.depth_m() - d).abs() <= 0.5 * draft.cell_size_m, "depth {} of {d}", draft.depth_m());
+            let (c, r) = (draft.cols - 1, draft.rows - 1);
+            let far = draft.get(c, r);
+            let expect = plane((c as f32 * draft.cell_size_m).min(w), (r as f32 * draft.cell_size_m).min(d));
+            assert!((far - expect).abs() < 1e-3, "far corner {far} vs {expect}");
+        }
     }
 }

@@ -18,7 +18,7 @@ mod runner;
 mod store_terrain;
 mod worker;
 
-pub use draft::{Draft, DRAFT_TIMEOUT};
+pub use draft::{Draft, DRAFT_MAX_WORK_S, DRAFT_TIMEOUT};
 pub use engine::{
     build_pool, default_memory_budget, Engine, EngineConfig, EngineError, EventFeed, Submitted, Submitter,
     DEFAULT_CONCURRENT_JOBS, DEFAULT_JOB_TIMEOUT_S, DEFAULT_QUEUE_CAPACITY, MAX_ATTEMPTS,

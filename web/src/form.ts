@@ -66,7 +66,7 @@ export class SchemaForm {
   }
 
   /** Show each error beside the field it names, or the nearest enclosing field shown. */
-  showErrors(errors: FieldError[], detail?: string): void {
+  showErrors(errors: FieldError[], detail?: string, focus = true): void {
     this.clearErrors();
     const general: string[] = [];
     const raw: string[] = [];
@@ -97,9 +97,10 @@ export class SchemaForm {
       this.rawError.hidden = false;
       this.rawBox.open = true;
       this.raw.setAttribute('aria-invalid', 'true');
-      this.raw.focus();
+      if (focus) this.raw.focus();
       return;
     }
+    if (!focus) return;
     const first = this.formHost.querySelector('.invalid');
     (first?.querySelector('input, select, textarea, button') as HTMLElement | null)?.focus();
   }
@@ -449,7 +450,11 @@ export class SchemaForm {
   private help(s: Schema, id: string): HTMLElement {
     const bits: string[] = [];
     if (s.description) bits.push(s.description);
-    const b = bounds(s);
+    // What the description already says (a label's "at most 200 characters") is not said twice.
+    const b = bounds(s)
+      .split(', ')
+      .filter((part) => part && !(s.description ?? '').includes(part))
+      .join(', ');
     if (b) bits.push(b);
     return el('small', { class: 'help', id: `${id}-help` }, prose(bits.join(' — ')));
   }

@@ -30,9 +30,9 @@ export function hasHeightfield(job: Job): boolean {
  * (erode), else the level a shape mask held the land above (deform-terrain; optional in the
  * request, the server's choice is in the constraint's figures as `water_level_m`).
  */
-export function waterLevel(job: Job): number | null {
+export function waterLevel(job: Pick<Job, 'request' | 'result'>): number | null {
   if (typeof job.result?.sea_level_m === 'number') return job.result.sea_level_m;
-  if (typeof job.request.sea_level === 'number') return job.request.sea_level;
+  if (typeof job.request?.sea_level === 'number') return job.request.sea_level;
   const figures = job.result?.constraints;
   if (Array.isArray(figures)) {
     for (const f of figures) {

@@ -189,6 +189,7 @@ export class Viewer {
     if (!this.renderer) return;
     if (water !== undefined) this.setting = { ...this.setting, water };
     const gltf = await this.loader.parseAsync(bytes, '');
+    const before = this.model ? this.bounds() : null;
     if (this.model) {
       this.scene.remove(this.model);
       dispose(this.model);
@@ -214,7 +215,9 @@ export class Viewer {
       if (!this.setting.ground && signedVolume(m.geometry) < 0) for (const mat of materials(m)) mat.shadowSide = FrontSide;
     });
     this.scene.add(this.model);
-    if (!this.framed) this.frameCamera();
+    // Framed on the first mesh, and again when one is of another size or place (a draft of a
+    // terrain four times as large): the orbit the user chose is kept otherwise.
+    if (!this.framed || (before && elsewhere(before, this.bounds()))) this.frameCamera();
     this.framed = true;
     this.placeSea();
     this.placeGrid();
@@ -495,6 +498,15 @@ function signedVolume(g: BufferGeometry): number {
     v += a.dot(b.cross(c));
   }
   return v;
+}
+
+/** Whether `b` is not where `a` was: its longest side 1.5 times or more off, or its centre moved by half of it. */
+function elsewhere(a: Box3, b: Box3): boolean {
+  const side = (x: Box3): number => Math.max(...x.getSize(new Vector3()).toArray());
+  const [sa, sb] = [side(a), side(b)];
+  if (!(sa > 0 && sb > 0)) return false;
+  const moved = a.getCenter(new Vector3()).distanceTo(b.getCenter(new Vector3()));
+  return sb / sa >= 1.5 || sa / sb >= 1.5 || moved > 0.5 * Math.max(sa, sb);
 }
 
 function dispose(root: Object3D): void {

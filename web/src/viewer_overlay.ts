@@ -40,7 +40,7 @@ export class Overlay {
   /** Triangles and vertices of what is drawn. */
   showCounts(triangles: number, vertices: number): void {
     this.stats.hidden = false;
-    this.stats.textContent = `${triangles.toLocaleString('en')} triangles · ${vertices.toLocaleString('en')} vertices`;
+    this.stats.textContent = triangles === 0 ? 'an empty mesh: nothing is left to show' : `${triangles.toLocaleString('en')} triangles · ${vertices.toLocaleString('en')} vertices`;
   }
 
   /**
@@ -49,7 +49,9 @@ export class Overlay {
    * shown and the grid's spacing when there are.
    */
   showHeights(min: number, max: number, tintSea: number | null, water: number | null, gridStep: number | null): void {
-    this.legend.hidden = false;
+    // An empty mesh (a column weathered away) has no heights: no legend rather than ±∞.
+    this.legend.hidden = !(Number.isFinite(min) && Number.isFinite(max));
+    if (this.legend.hidden) return;
     Object.assign(this.legend.dataset, { min: min.toFixed(3), max: max.toFixed(3) });
     this.max.textContent = `${tintSea === null ? 'highest ' : ''}${metres(max)}`;
     this.min.textContent = `${tintSea === null ? 'lowest ' : ''}${metres(min)}`;

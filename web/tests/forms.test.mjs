@@ -139,7 +139,7 @@ test('forms that fit: more settings folded, Run always in view, sliders, pairs w
   const heights = {};
   for (const kind of KINDS) {
     await page.goto(`/#/new/${kind}`);
-    await page.waitForSelector('form[aria-label] .form-fields');
+    await page.waitForSelector(`form[aria-label="New ${kind} job"] .form-fields`);
     heights[kind] = await page.evaluate(() => document.querySelector('form[aria-label]').scrollHeight);
     assert.ok((await page.locator('details.more:not([open])').count()) > 0, `${kind}: settings at their defaults are folded`);
     // Run is in the window at the top of the form and at its end.
@@ -155,7 +155,7 @@ test('forms that fit: more settings folded, Run always in view, sliders, pairs w
 
   // A bounded number has a slider kept with its box and the request.
   await page.goto('/#/new/weather-column');
-  await page.waitForSelector('form[aria-label] .form-fields');
+  await page.waitForSelector('form[aria-label="New weather-column job"] .form-fields');
   await page.evaluate(() => document.querySelectorAll('details.more').forEach((d) => (d.open = true)));
   const rate = page.locator('[data-path="rate"]');
   await rate.locator('input[type=range]').fill('2');
@@ -184,13 +184,13 @@ test('defaults that run: "defaults only" drafts for every kind, and carve-coast 
   for (const kind of KINDS) {
     await page.goto(`/#/new/${kind}`);
     const first = await draftsAfter(page, 0);
-    await page.selectOption('#preset', { label: 'defaults only' });
+    await page.selectOption('#preset', '-1');
     await draftsAfter(page, first.drafts);
     assert.doesNotMatch(await page.locator('#draft-status').textContent(), /No draft/, kind);
   }
   // A full job from defaults only (weather-column's own default layer top failed before).
   await page.goto('/#/new/weather-column');
-  await page.selectOption('#preset', { label: 'defaults only' });
+  await page.selectOption('#preset', '-1');
   await page.click('button[type=submit].primary');
   await page.waitForURL(/#\/jobs\/[0-9a-f-]{36}$/);
   const id = page.url().split('/').pop();
@@ -201,6 +201,8 @@ test('defaults that run: "defaults only" drafts for every kind, and carve-coast 
     await new Promise((r) => setTimeout(r, 200));
   }
   assert.equal(job.status, 'succeeded', JSON.stringify(job.error));
+  // …and leaves a rock (with every step it weathered away entirely before).
+  assert.ok(job.result.mesh.triangles > 1000, JSON.stringify(job.result.mesh));
 
   // carve-coast on a terrain whose heights do not reach the preset's sea level of 0 m.
   const res = await fetch(`${server.url}/v1/jobs/bulldoze`, {
@@ -220,8 +222,32 @@ test('defaults that run: "defaults only" drafts for every kind, and carve-coast 
   const body = JSON.parse(await page.locator('textarea.raw').inputValue());
   assert.deepEqual(body.terrain, { job: raised.id });
   assert.equal(body.sea_level, undefined, 'the preset’s sea level is not carried onto another terrain');
+  assert.match(body.label, /^carve-coast on job /);
+  // The water drawn is the level the server chose on this terrain (above 60 m: it was raised
+  // by 60 m), not the 0 m of an absent field.
+  const water = Number(/water (-?[\d.]+) m/.exec(await page.locator('#draft-viewer #legend-water').textContent())?.[1]);
+  assert.ok(water > 60, `water at ${water} m`);
   await shot(page, 'carve-coast-on-a-raised-terrain');
   assert.deepEqual(page.errors, []);
+});
+
+test('a refused draft marks its field beside it, keeps the focus, dims the last mesh; the next draft clears it', async () => {
+  const page = await newPage(browser, server.url);
+  await page.goto('/#/new/weather-column');
+  const first = await draftsAfter(page, 0);
+  await page.evaluate(() => document.querySelectorAll('details.more').forEach((d) => (d.open = true)));
+  const steps = page.locator('[data-path="steps"] input[type=number]');
+  await steps.fill('0');
+  const error = page.locator('[data-path="steps"] > .error');
+  await error.waitFor();
+  assert.match(await error.textContent(), /at least 1/);
+  assert.ok(await page.locator('#draft-viewer.stale').count(), 'the last mesh is dimmed');
+  assert.equal(await steps.evaluate((e) => e === document.activeElement), true, 'the focus stays where the user types');
+  assert.match(await page.locator('#draft-status').textContent(), /No draft: 422/);
+  await steps.fill('150');
+  await draftsAfter(page, first.drafts);
+  assert.ok(await error.isHidden(), 'cleared by the next drawn draft');
+  assert.equal(await page.locator('#draft-viewer.stale').count(), 0);
 });
 
 test('a typo in the raw JSON is named under it, with the field meant', async () => {
@@ -284,10 +310,19 @@ test('phone width: every kind’s form at 390 px scrolls only downwards', async 
   const widths = {};
   for (const kind of KINDS) {
     await page.goto(`/#/new/${kind}`);
-    await page.waitForSelector('form[aria-label] .form-fields');
+    await page.waitForSelector(`form[aria-label="New ${kind} job"] .form-fields`);
     await page.evaluate(() => document.querySelectorAll('details').forEach((d) => (d.open = true)));
     widths[kind] = await page.evaluate(() => document.scrollingElement.scrollWidth);
     if (kind === 'bulldoze') await shot(page, 'phone-form-bulldoze', { fullPage: false });
+    // Deep in the form, the draft is still in sight at the top of the window.
+    await page.evaluate(() => window.scrollTo(0, document.body.scrollHeight / 2));
+    // Measured in the page (the layout viewport): a mobile context's visual viewport may lag.
+    const view = await page.evaluate(() => {
+      const r = document.querySelector('#draft-viewer canvas').getBoundingClientRect();
+      return { top: r.top, bottom: r.bottom, height: window.innerHeight };
+    });
+    assert.ok(view.top >= 0 && view.bottom <= view.height, `${kind}: the draft in view while editing: ${JSON.stringify(view)}`);
+    if (kind === 'bulldoze') await shot(page, 'phone-form-bulldoze-editing', { fullPage: false });
   }
   record('phone-form-widths', widths);
   for (const [kind, w] of Object.entries(widths)) assert.ok(w <= 390, `${kind}: ${w} px wide`);

@@ -63,7 +63,7 @@ export interface paths {
         put?: never;
         /**
          * Run a bulldoze draft and answer with its mesh
-         * @description The body of `POST /v1/jobs/bulldoze`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: the output grid is the draft terrain's (`resolution` is not used) and no tiles are cut. Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away. `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/bulldoze` for the full job.
+         * @description The body of `POST /v1/jobs/bulldoze`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: the output grid is the draft terrain's (`resolution` is not used) and no tiles are cut. Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away, and one whose estimated work is over 2 s is refused (422 naming the field). `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/bulldoze` for the full job.
          */
         post: operations["draft_bulldoze"];
         delete?: never;
@@ -83,7 +83,7 @@ export interface paths {
         put?: never;
         /**
          * Run a carve-coast draft and answer with its mesh
-         * @description The body of `POST /v1/jobs/carve-coast`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: `voxel_size_m` is doubled (absent, it is twice the draft terrain's cell), and at most 2 erosion passes run. Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away. `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/carve-coast` for the full job.
+         * @description The body of `POST /v1/jobs/carve-coast`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: `voxel_size_m` is doubled (absent, it is twice the draft terrain's cell), and at most 2 erosion passes run. Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away, and one whose estimated work is over 2 s is refused (422 naming the field). `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/carve-coast` for the full job.
          */
         post: operations["draft_carve_coast"];
         delete?: never;
@@ -103,7 +103,7 @@ export interface paths {
         put?: never;
         /**
          * Run a deform-terrain draft and answer with its mesh
-         * @description The body of `POST /v1/jobs/deform-terrain`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: at most 150 iterations of the search on the draft terrain (radii in cells span twice or more the metres), and no tiles are cut. Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away. `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/deform-terrain` for the full job.
+         * @description The body of `POST /v1/jobs/deform-terrain`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: at most 150 iterations of the search on the draft terrain (radii in cells span twice or more the metres), and no tiles are cut. Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away, and one whose estimated work is over 2 s is refused (422 naming the field). `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/deform-terrain` for the full job.
          */
         post: operations["draft_deform_terrain"];
         delete?: never;
@@ -123,7 +123,7 @@ export interface paths {
         put?: never;
         /**
          * Run a erode draft and answer with its mesh
-         * @description The body of `POST /v1/jobs/erode`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: no tiles are cut; every iteration runs, on the draft terrain. Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away. `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/erode` for the full job.
+         * @description The body of `POST /v1/jobs/erode`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: no tiles are cut; every iteration runs, on the draft terrain. Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away, and one whose estimated work is over 2 s is refused (422 naming the field). `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/erode` for the full job.
          */
         post: operations["draft_erode"];
         delete?: never;
@@ -143,7 +143,7 @@ export interface paths {
         put?: never;
         /**
          * Run a grow-cave draft and answer with its mesh
-         * @description The body of `POST /v1/jobs/grow-cave`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: the roof and floor have half the samples a side (at least 9) and each ring half the vertices (at least 6). Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away. `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/grow-cave` for the full job.
+         * @description The body of `POST /v1/jobs/grow-cave`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: the roof and floor have half the samples a side (at least 9) and each ring half the vertices (at least 6). Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away, and one whose estimated work is over 2 s is refused (422 naming the field). `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/grow-cave` for the full job.
          */
         post: operations["draft_grow_cave"];
         delete?: never;
@@ -163,7 +163,7 @@ export interface paths {
         put?: never;
         /**
          * Run a weather-column draft and answer with its mesh
-         * @description The body of `POST /v1/jobs/weather-column`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: the grid has half the voxels along each axis, each twice as large, with bubbles half as many voxels across and half the steps: the same rock in metres, an eighth of the voxels. Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away. `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/weather-column` for the full job.
+         * @description The body of `POST /v1/jobs/weather-column`, checked the same way, run at once at reduced resolution and answered with the full mesh as glb (`lods` are ignored; `compression` applies); nothing is stored. The draft rule: the grid has half the voxels along each axis, each twice as large, with bubbles half as many voxels across and half the steps: the same rock in metres, an eighth of the voxels. Terrain sources are read at most 129 samples a side (bilinear, same extent). At most 2 drafts run at once (503 with Retry-After beyond, and while the jobs running leave too little of the memory budget); a draft is stopped after 30 s (504), or when its client goes away, and one whose estimated work is over 2 s is refused (422 naming the field). `Landform-Draft-Seconds` gives the run's time, `Landform-Draft-Result` the kind's result figures as JSON (when under 8 KiB). For a page that shows a result while it is edited; submit the same body to `POST /v1/jobs/weather-column` for the full job.
          */
         post: operations["draft_weather_column"];
         delete?: never;
@@ -3068,8 +3068,9 @@ export interface components {
             /**
              * Format: float
              * @description Stop once the remaining rock is at most this fraction of the initial volume (0 = run
-             *     every step, or until nothing is left).
-             * @default 0
+             *     every step, or until nothing is left). The default, 0.3, keeps a goblin: with the other
+             *     defaults most columns weather away entirely in 200 steps (the presets stop at 0.1–0.5).
+             * @default 0.3
              */
             stop_at_fraction?: number;
             mesh?: components["schemas"]["MeshOptions"];
@@ -3123,8 +3124,9 @@ export interface components {
             /**
              * Format: float
              * @description Stop once the remaining rock is at most this fraction of the initial volume (0 = run
-             *     every step, or until nothing is left).
-             * @default 0
+             *     every step, or until nothing is left). The default, 0.3, keeps a goblin: with the other
+             *     defaults most columns weather away entirely in 200 steps (the presets stop at 0.1–0.5).
+             * @default 0.3
              */
             stop_at_fraction?: number;
             mesh?: components["schemas"]["MeshOptions"];

@@ -2,10 +2,11 @@
 // the same body at reduced resolution, `POST /v1/drafts/{kind}` — cancelling the draft before
 // it, and shows the mesh in a viewer beside the form. Run makes the full job.
 
-import { ApiError, drafts } from '../api';
+import { ApiError, Job, drafts } from '../api';
 import { PointList, pointLists } from '../points';
 import { Viewer } from '../viewer';
-import { el } from '../ui';
+import { el, waterLevel } from '../ui';
+import type { FieldError } from '../api';
 
 /** Quiet time after an edit before a draft is asked for, ms. */
 const DEBOUNCE_MS = 250;
@@ -27,6 +28,13 @@ export class DraftPreview {
   private lists: PointList[] = [];
   /** Set by the page: add a point at (x, z) to the list at `list`. */
   onPoint: ((list: PointList, x: number, z: number) => void) | null = null;
+  /** Set by the page: a draft refused these fields (shown beside them), or (null) was drawn. */
+  onProblems: ((errors: FieldError[] | null) => void) | null = null;
+  /**
+   * Meshes are shown one after another, in the order their drafts were asked for: a large
+   * draft's parse finishing after a newer one's must not replace it.
+   */
+  private showing: Promise<void> = Promise.resolve();
 
   constructor(private kind: string, heightfield: boolean, signal: AbortSignal) {
     this.toggle.checked = true;
@@ -92,8 +100,12 @@ export class DraftPreview {
       // the form asks of the full job's files.
       const answer = await drafts.run(this.kind, { ...(body as Record<string, unknown>), compression: 'meshopt' }, ctl.signal);
       if (ctl.signal.aborted) return;
-      const sea = body && typeof body === 'object' && typeof (body as Record<string, unknown>).sea_level === 'number' ? ((body as Record<string, unknown>).sea_level as number) : null;
-      await this.viewer.show(answer.glb, sea);
+      // The level the server used (carve-coast's default is the terrain's), else the request's.
+      const request = (body && typeof body === 'object' ? body : {}) as Job['request'];
+      const water = waterLevel({ request, result: answer.result });
+      const shown = this.showing.then(() => (ctl.signal.aborted ? undefined : this.viewer.show(answer.glb, water)));
+      this.showing = shown.catch(() => undefined);
+      await shown;
       await new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)));
       if (ctl.signal.aborted) return;
       const ms = performance.now() - editedAt;
@@ -101,6 +113,8 @@ export class DraftPreview {
       this.host.dataset.drafts = String(this.count);
       this.host.dataset.editToFrameMs = ms.toFixed(0);
       this.host.dataset.serverSeconds = answer.seconds.toFixed(3);
+      this.host.classList.remove('stale');
+      this.onProblems?.(null);
       this.status.textContent = `Draft drawn ${(ms / 1000).toFixed(2)} s after the edit (${answer.seconds.toFixed(2)} s on the server).`;
     } catch (e) {
       if (ctl.signal.aborted) return;
@@ -108,6 +122,9 @@ export class DraftPreview {
         const p = e.problem;
         const fields = (p.errors ?? []).map((f) => `${f.field}: ${f.message}`).join('; ');
         this.status.textContent = `No draft: ${p.status} ${p.title ?? ''}${fields ? ` — ${fields}` : p.detail ? ` — ${p.detail}` : ''}`;
+        // The mesh shown is the last good one: dimmed, and the fields refused marked in the form.
+        this.host.classList.add('stale');
+        if (p.errors?.length) this.onProblems?.(p.errors);
         // Busy: ask again in a moment unless another edit came first.
         if (p.status === 503) this.timer = window.setTimeout(() => this.editedAt === editedAt && void this.draft(body, editedAt), 1000);
       } else this.status.textContent = `No draft: ${String(e)}`;

@@ -32,16 +32,20 @@ export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URL
     const body = p >= 0 ? structuredClone(list[p].body) : Object.fromEntries(Object.entries(preset).filter(([k]) => required.includes(k)));
     if (startTerrain && 'terrain' in fields) {
       body.terrain = { job: startTerrain };
-      // A preset's sea level belongs to its own terrain: on another job's terrain it is left to
-      // the server's default, a level within that terrain's heights.
+      // A preset's sea level and label belong to its own terrain: on another job's terrain the
+      // level is left to the server's default (within that terrain's heights), and the label
+      // says what the job is made on.
       delete body.sea_level;
+      body.label = `${kind} on job ${startTerrain}`;
     }
     return body;
   };
 
   const presetSel = el('select', { id: 'preset' }) as HTMLSelectElement;
   list.forEach((p, i) => presetSel.append(el('option', { value: String(i) }, [p.name])));
-  presetSel.append(el('option', { value: '-1' }, ['defaults only']));
+  // Not the schema's least values (they do not run: a layer top of 0 m, a cave without a site):
+  // what the first preset cannot do without, every other field at its default.
+  presetSel.append(el('option', { value: '-1' }, [list.length ? `defaults only (the required fields of ${list[0].name})` : 'defaults only']));
   const formHost = el('div', { class: 'form' });
   const status = el('p', { class: 'muted', role: 'status', 'aria-live': 'polite', id: 'submit-status' });
   const preview = new DraftPreview(kind, 'terrain' in fields, signal);
@@ -57,6 +61,14 @@ export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URL
   });
   // A click on the draft's terrain adds a point to the list chosen beside it (a road vertex).
   preview.onPoint = (list, x, z) => form?.setValue(withPoint(form.value(), list.path, x, z));
+  // A refused draft marks its fields as a refused submission would, without taking the focus
+  // from the field being typed in; the next drawn draft clears them.
+  let draftMarked = false;
+  preview.onProblems = (errors) => {
+    if (errors) form?.showErrors(errors, undefined, false);
+    else if (draftMarked) form?.clearErrors();
+    draftMarked = errors !== null;
+  };
   preview.edited(form.value());
   request.refresh();
   presetSel.addEventListener('change', () => form.setValue(initial(Number(presetSel.value))));
@@ -121,7 +133,8 @@ function picker(current: unknown, pick: (id: string) => void): HTMLElement {
   jobs
     .list({ status: 'succeeded', limit: 50 })
     .then((page) => {
-      const usable = page.items.filter((j) => hasHeightfield(j) && !j.replay_of).slice(0, 16);
+      // The newest few: a form is not the place to browse every result (the job list is).
+      const usable = page.items.filter((j) => hasHeightfield(j) && !j.replay_of).slice(0, 8);
       if (!usable.length) grid.append(el('small', { class: 'muted' }, ['No finished heightfield yet.']));
       for (const j of usable) {
         const name = `${j.kind}: ${j.label || j.id}`;
