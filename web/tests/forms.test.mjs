@@ -110,13 +110,16 @@ test('drawing on the draft: a click on the terrain adds a road vertex where it l
   const before = await draftsAfter(page, 0);
   // The ditch's path (three vertices across a 256 m terrain) takes the clicks.
   await page.selectOption('#pick-target', 'operations[2].pass.path');
+  // Nothing under way (a draft landing mid-click would not matter, but the test reads a still view).
+  await page.waitForFunction(() => !document.querySelector('#draft-viewer').hasAttribute('aria-busy'));
+  await page.locator('.raw-box summary').click();
   const canvas = page.locator('#draft-viewer canvas');
   const box = await canvas.boundingBox();
   // The middle of the view: the camera looks at the middle of the terrain's box, so the click
   // lands on the hill near the terrain's centre (128, 128), not near the origin.
   await page.mouse.click(box.x + box.width / 2, box.y + box.height / 2);
+  await page.waitForFunction(() => JSON.parse(document.querySelector('textarea.raw').value).operations[2].pass.path.length === 4, null, { timeout: 10000 });
   const after = await draftsAfter(page, before.drafts);
-  await page.locator('.raw-box summary').click();
   const path = JSON.parse(await page.locator('textarea.raw').inputValue()).operations[2].pass.path;
   assert.equal(path.length, 4, JSON.stringify(path));
   const added = path[3];

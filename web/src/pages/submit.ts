@@ -55,6 +55,7 @@ export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URL
   form = new SchemaForm(r, schema, initial(list.length ? 0 : -1), formHost, {
     jobPicker: (_f, current, pick) => picker(current, pick),
     onChange: (v) => {
+      runMarked = false;
       preview.edited(v);
       request.refresh();
     },
@@ -63,8 +64,12 @@ export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URL
   preview.onPoint = (list, x, z) => form?.setValue(withPoint(form.value(), list.path, x, z));
   // A refused draft marks its fields as a refused submission would, without taking the focus
   // from the field being typed in; the next drawn draft clears them.
+  // Errors a Run attempt showed stay until the next edit: a draft answering after them (it was
+  // asked for before the click) neither replaces nor clears them.
   let draftMarked = false;
+  let runMarked = false;
   preview.onProblems = (errors) => {
+    if (runMarked) return;
     if (errors) form?.showErrors(errors, undefined, false);
     else if (draftMarked) form?.clearErrors();
     draftMarked = errors !== null;
@@ -97,6 +102,7 @@ export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URL
     ev.preventDefault();
     if (!form) return;
     const body = form.value();
+    runMarked = true;
     if (form.validate().length) {
       status.textContent = 'Some fields are out of bounds: see the messages beside them.';
       return;
