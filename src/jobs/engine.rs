@@ -961,8 +961,9 @@ pub(super) fn take_common_fields(
             EngineError::field("compression", format!("must be one of {}", GlbForm::NAMES.join(", ")))
         })?,
     };
+    // `null` is not a list (the schema says so): left out, the default levels; `[]`, none.
     let lods = match body.remove("lods") {
-        None | Some(Value::Null) => MeshSettings::default().lods,
+        None => MeshSettings::default().lods,
         Some(v) => MeshSettings::parse_lods(&v).map_err(|e| EngineError::field("lods", e))?,
     };
     Ok((seed, label, MeshSettings { form: compression, lods }))
