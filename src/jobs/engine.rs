@@ -943,12 +943,14 @@ pub fn stored_size_allowed(body_bytes: usize) -> usize {
 pub(super) fn take_common_fields(
     body: &mut Map<String, Value>,
 ) -> Result<(u64, Option<String>, MeshSettings), EngineError> {
+    // None of the common fields is nullable in the schema: `null` is refused like any other
+    // wrong type (left out, each has its default).
     let seed = match body.remove("seed") {
-        None | Some(Value::Null) => 0,
+        None => 0,
         Some(v) => v.as_u64().ok_or_else(|| EngineError::field("seed", "must be an unsigned 64-bit integer"))?,
     };
     let label = match body.remove("label") {
-        None | Some(Value::Null) => None,
+        None => None,
         Some(Value::String(s)) if s.chars().count() <= MAX_LABEL_CHARS => Some(s),
         Some(Value::String(_)) => {
             return Err(EngineError::field("label", format!("must be at most {MAX_LABEL_CHARS} characters")))
@@ -956,12 +958,11 @@ pub(super) fn take_common_fields(
         Some(_) => return Err(EngineError::field("label", "must be a string")),
     };
     let compression = match body.remove("compression") {
-        None | Some(Value::Null) => GlbForm::default(),
+        None => GlbForm::default(),
         Some(v) => v.as_str().and_then(GlbForm::parse).ok_or_else(|| {
             EngineError::field("compression", format!("must be one of {}", GlbForm::NAMES.join(", ")))
         })?,
     };
-    // `null` is not a list (the schema says so): left out, the default levels; `[]`, none.
     let lods = match body.remove("lods") {
         None => MeshSettings::default().lods,
         Some(v) => MeshSettings::parse_lods(&v).map_err(|e| EngineError::field("lods", e))?,
