@@ -246,3 +246,39 @@ async fn bad_weathering_requests_name_their_field() {
     assert_eq!(status, 422, "{problem}");
     assert_eq!(problem["errors"][0]["field"], "column.profile", "{problem}");
 }
+
+/// `stop_at_fraction` left out stops at 30 % of the rock (what the default keeps); set to 0 it
+/// runs as before, every step or until nothing is left.
+#[tokio::test]
+async fn the_default_stop_keeps_a_rock_and_zero_still_runs_every_step() {
+    let server = TestServer::start().await;
+    let mut body = example("weather-column", "cube-to-ellipsoid");
+    let obj = body.as_object_mut().unwrap();
+    obj.retain(|k, _| ["grid", "column", "layers"].contains(&k.as_str()));
+    let kept = server.run("weather-column", &body).await;
+    let left = kept["result"]["remaining_fraction"].as_f64().unwrap();
+    assert!((0.25..=0.3).contains(&left), "{}", kept["result"]);
+    assert!(kept["result"]["mesh"]["triangles"].as_u64().unwrap() > 1000, "{}", kept["result"]);
+    assert_eq!(kept["request"]["stop_at_fraction"], json!(0.3));
+
+    body["stop_at_fraction"] = json!(0.0);
+    let all = server.run("weather-column", &body).await;
+    let (run, steps) = (all["result"]["steps_run"].as_u64().unwrap(), all["request"]["steps"].as_u64().unwrap());
+    let gone = all["result"]["remaining_fraction"].as_f64().unwrap();
+    assert!(run == steps || gone == 0.0, "{}", all["result"]);
+    assert!(gone < left, "{gone} vs {left}");
+}
+
+/// `null` for a common field is refused naming it, as the schema has none of them nullable;
+/// left out, each still has its default (every other test).
+#[tokio::test]
+async fn null_common_fields_are_refused_by_name() {
+    let server = TestServer::start().await;
+    for field in ["seed", "label", "compression", "lods"] {
+        let mut body = example("weather-column", "cube-to-sphere");
+        body[field] = Value::Null;
+        let (status, problem) = server.post("/v1/jobs/weather-column", &body).await;
+        assert_eq!(status, 422, "{field}: {problem}");
+        assert_eq!(problem["errors"][0]["field"], field, "{problem}");
+    }
+}

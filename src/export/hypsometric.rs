@@ -85,6 +85,30 @@ fn ramp(stops: &[(f32, [f32; 3])], t: f32) -> [f32; 3] {
 
 #[cfg(test)]
 mod tests {
+    /// The playground draws its height legend from a copy of these stops
+    /// (`web/src/hypsometric.ts`): the copy must be these numbers, or the legend lies.
+    #[test]
+    fn the_playgrounds_legend_has_these_stops() {
+        let ts = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/web/src/hypsometric.ts")).unwrap();
+        let stops = |name: &str| -> Vec<(f32, [f32; 3])> {
+            let start = ts.find(&format!("const {name}")).unwrap_or_else(|| panic!("{name} in hypsometric.ts"));
+            let block = &ts[start..start + ts[start..].find("];").unwrap()];
+            block
+                .lines()
+                .filter_map(|l| {
+                    let nums: Vec<f32> = l
+                        .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+                        .filter(|t| !t.is_empty())
+                        .map(|t| t.parse().unwrap())
+                        .collect();
+                    (nums.len() == 4).then(|| (nums[0], [nums[1], nums[2], nums[3]]))
+                })
+                .collect()
+        };
+        assert_eq!(stops("LAND"), LAND.to_vec());
+        assert_eq!(stops("WATER"), WATER.to_vec());
+    }
+
     use super::*;
 
     #[test]

@@ -9,9 +9,9 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
-use super::engine::{take_common_fields, PendingUploads};
+use super::engine::{body_object, take_common_fields, PendingUploads};
 use super::store_terrain::StoreTerrain;
-use super::{Engine, EngineError, RunContext, SilentProgress, SimError, Submitter};
+use super::{Engine, EngineError, RunContext, SilentProgress, Submitter};
 use crate::export::MeshSettings;
 
 /// A draft running longer than this is stopped (504): a draft is for answers within seconds.
@@ -63,15 +63,7 @@ impl Engine {
         let owner = who.owner.clone();
         let kind_impl =
             self.inner.kinds.get(kind).cloned().ok_or_else(|| EngineError::UnknownKind(kind.to_string()))?;
-        let Value::Object(mut body) = body else {
-            return Err(EngineError::Invalid {
-                errors: vec![crate::validate::FieldError {
-                    field: String::new(),
-                    message: "the body must be a JSON object".into(),
-                }],
-                too_large: false,
-            });
-        };
+        let mut body = body_object(body)?;
         let (seed, _label, mesh) = take_common_fields(&mut body)?;
         let limits = self.inner.config.limits.clone();
         let (k, l) = (kind_impl.clone(), limits.clone());
@@ -87,17 +79,14 @@ impl Engine {
         let (cost, params, uploads) =
             self.estimate(kind, params, seed, prepared.uploads, owner.clone(), (0, true)).await?;
         if cost.min_seconds > DRAFT_MAX_WORK_S {
-            return Err(EngineError::Invalid {
-                errors: vec![crate::validate::FieldError {
-                    field: cost.work_field.clone(),
-                    message: format!(
-                        "even as a draft this request is at least {:.0} s of work; a draft may be at most {DRAFT_MAX_WORK_S} s \
-                         (submit it as a job)",
-                        cost.min_seconds
-                    ),
-                }],
-                too_large: false,
-            });
+            return Err(EngineError::field(
+                &cost.work_field,
+                format!(
+                    "even as a draft this request is at least {:.0} s of work; a draft may be at most {DRAFT_MAX_WORK_S} s \
+                     (submit it as a job)",
+                    cost.min_seconds
+                ),
+            ));
         }
         let _reservation = self.reserve_draft(cost.memory_bytes)?;
 
@@ -128,15 +117,8 @@ impl Engine {
             }
             Ok(joined) => joined.map_err(|e| EngineError::Internal(e.to_string()))?,
         };
-        let output = output.map_err(|e| match e {
-            SimError::Invalid { field, message } => {
-                EngineError::Invalid { errors: vec![crate::validate::FieldError { field, message }], too_large: false }
-            }
-            SimError::Terrain(t) => EngineError::Invalid {
-                errors: vec![crate::validate::FieldError { field: "terrain".into(), message: t.to_string() }],
-                too_large: false,
-            },
-            other => EngineError::DraftFailed { message: other.to_string(), timed_out: false },
+        let output = output.map_err(|e| {
+            EngineError::from_sim(e, |other| EngineError::DraftFailed { message: other.to_string(), timed_out: false })
         })?;
         let seconds = started.elapsed().as_secs_f64();
         let glb = output

@@ -136,10 +136,22 @@ pub enum EngineError {
 }
 
 impl EngineError {
-    fn field(field: &str, message: impl Into<String>) -> Self {
+    pub(super) fn field(field: &str, message: impl Into<String>) -> Self {
         EngineError::Invalid {
             errors: vec![FieldError { field: field.into(), message: message.into() }],
             too_large: false,
+        }
+    }
+}
+
+impl EngineError {
+    /// A simulation's error about the request (a field, or its terrain) as the client's 422;
+    /// any other through `otherwise` (an estimate's is the server's fault, a draft's its run's).
+    pub(super) fn from_sim(e: SimError, otherwise: impl FnOnce(SimError) -> EngineError) -> Self {
+        match e {
+            SimError::Invalid { field, message } => EngineError::field(&field, message),
+            SimError::Terrain(t) => EngineError::field("terrain", t.to_string()),
+            other => otherwise(other),
         }
     }
 }
@@ -453,9 +465,7 @@ impl Engine {
         let owner = who.owner.clone();
         let kind_impl =
             self.inner.kinds.get(kind).cloned().ok_or_else(|| EngineError::UnknownKind(kind.to_string()))?;
-        let Value::Object(mut body) = body else {
-            return Err(EngineError::field("", "the body must be a JSON object"));
-        };
+        let mut body = body_object(body)?;
         let lods_named = body.get("lods").is_some_and(|l| !l.is_null());
         let (seed, label, mesh) = take_common_fields(&mut body)?;
         let limits = self.inner.config.limits.clone();
@@ -549,11 +559,7 @@ impl Engine {
         })
         .await
         .map_err(|e| EngineError::Internal(e.to_string()))?;
-        let cost = cost.map_err(|e| match e {
-            super::SimError::Invalid { field, message } => EngineError::field(&field, message),
-            super::SimError::Terrain(t) => EngineError::field("terrain", t.to_string()),
-            other => EngineError::Internal(other.to_string()),
-        })?;
+        let cost = cost.map_err(|e| EngineError::from_sim(e, |other| EngineError::Internal(other.to_string())))?;
         // Levels of detail run after the rest, from the meshes the kind counted. Their cost
         // grows with the kind's own mesh, so the kind's field is named for it unless the
         // request named `lods` itself (the default levels are not the client's choice).
@@ -938,6 +944,14 @@ impl Engine {
 /// stored at about 1.25 × its size, a path of points at under 1 ×.
 pub fn stored_size_allowed(body_bytes: usize) -> usize {
     (body_bytes + body_bytes / 2).max(body_bytes + (64 << 10))
+}
+
+/// A request body's members: it must be a JSON object.
+pub(super) fn body_object(body: Value) -> Result<Map<String, Value>, EngineError> {
+    match body {
+        Value::Object(members) => Ok(members),
+        _ => Err(EngineError::field("", "the body must be a JSON object")),
+    }
 }
 
 pub(super) fn take_common_fields(

@@ -326,20 +326,28 @@ pub fn parse_params<T: DeserializeOwned>(value: Value) -> Result<T, RequestError
     })
 }
 
+/// Longest unknown name a suggestion is looked for (field names are far shorter).
+const MAX_GUESSED_NAME: usize = 64;
+
 /// For serde's "unknown field `x`, expected one of `a`, `b`" (or "unknown variant"): the expected
 /// name nearest to `x`, when one is near (an edit distance of at most a third of its length, and
 /// at most 3) — a typo named where it was made.
 fn did_you_mean(message: &str) -> Option<String> {
     let rest = message.strip_prefix("unknown field `").or_else(|| message.strip_prefix("unknown variant `"))?;
     let (word, expected) = rest.split_once('`')?;
-    if word.chars().count() < 3 {
-        // "3" is one edit from "0": too short for a guess to mean anything.
+    let len = word.chars().count();
+    // "3" is one edit from "0": too short for a guess to mean anything. And a name longer than
+    // any field by more than the distance allowed cannot be near one: the client's key (up to a
+    // body's megabytes) is never compared character by character.
+    if !(3..=MAX_GUESSED_NAME).contains(&len) {
         return None;
     }
     let names = expected.split('`').skip(1).step_by(2);
-    let limit = (word.chars().count() / 3).clamp(1, 3);
+    let limit = (len / 3).clamp(1, 3);
+    let word = word.to_lowercase();
     names
-        .map(|n| (edit_distance(&word.to_lowercase(), &n.to_lowercase()), n))
+        .filter(|n| n.chars().count().abs_diff(len) <= limit)
+        .map(|n| (edit_distance(&word, &n.to_lowercase()), n))
         .filter(|(d, _)| *d <= limit)
         .min_by_key(|(d, _)| *d)
         .map(|(_, n)| n.to_string())
@@ -547,6 +555,8 @@ mod tests {
         assert_eq!(did_you_mean("unknown field `colour`, expected one of `grid`, `steps`"), None);
         assert_eq!(did_you_mean("invalid type: string, expected u32"), None);
         assert_eq!(did_you_mean("unknown variant `3`, expected one of `0`, `1`, `2`"), None);
+        let long = format!("unknown field `{}`, expected one of `steps`", "s".repeat(1 << 20));
+        assert_eq!(did_you_mean(&long), None);
         assert_eq!(edit_distance("kitten", "sitting"), 3);
         assert_eq!(edit_distance("", "abc"), 3);
     }

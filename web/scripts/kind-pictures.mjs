@@ -1,9 +1,10 @@
 // Makes the landing page's picture of each kind, web/src/kinds/<kind>.png: the kind's first
-// preset (what its "Try it" runs) is run by a real server, and its preview.png cut to the card's
-// 8:5 and scaled down to 320 px wide in Chromium (no image library needed), its colours
-// posterised just enough to keep the PNG under 60 KB. Run by hand when a kind or its look
-// changes:
-//   LANDFORM_BIN=target/debug/landform node web/scripts/kind-pictures.mjs [kind ...]
+// preset by name is run by a real server, and its preview.png cut to the card's 8:5 and scaled
+// down to 320 px wide in Chromium (no image library needed), its colours posterised just enough
+// to keep the PNG under 60 KB. Run by hand when a kind or its look changes:
+//   LANDFORM_BIN=target/debug/landform node web/scripts/kind-pictures.mjs [--out DIR] [kind ...]
+// (scripts/playground-tests runs it for one quick kind into a temporary folder, so it keeps
+// working.)
 import { mkdirSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
 import { launch, repo, startServer } from '../tests/harness.mjs';
@@ -12,14 +13,16 @@ import { finishedJob } from '../tests/jobs.mjs';
 const WIDTH = 320;
 const HEIGHT = 200;
 const MAX_BYTES = 60000;
-const dir = join(repo, 'web', 'src', 'kinds');
+const args = process.argv.slice(2);
+const at = args.indexOf('--out');
+const dir = at >= 0 ? args.splice(at, 2)[1] : join(repo, 'web', 'src', 'kinds');
 mkdirSync(dir, { recursive: true });
 const server = await startServer();
 const browser = await launch();
 try {
   const doc = await (await fetch(`${server.url}/openapi.json`)).json();
   const all = Object.keys(doc.paths).filter((p) => /^\/v1\/jobs\/[a-z-]+$/.test(p) && doc.paths[p].post).map((p) => p.slice('/v1/jobs/'.length));
-  const wanted = process.argv.length > 2 ? process.argv.slice(2) : all;
+  const wanted = args.length ? args : all;
   const page = await browser.newPage();
   await page.goto(server.url);
   for (const kind of wanted) {
@@ -53,6 +56,7 @@ try {
       return url.split(',')[1];
     }, { data: bytes.toString('base64'), width: WIDTH, height: HEIGHT, max: MAX_BYTES });
     const out = Buffer.from(png, 'base64');
+    if (out.length > MAX_BYTES || out.subarray(1, 4).toString() !== 'PNG') throw new Error(`${kind}: not a PNG under ${MAX_BYTES} B`);
     writeFileSync(join(dir, `${kind}.png`), out);
     console.log(`${kind}: ${first.name}, ${((Date.now() - started) / 1000).toFixed(1)} s, preview ${bytes.length} B → ${out.length} B`);
   }

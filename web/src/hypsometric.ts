@@ -1,6 +1,7 @@
 // The height colours the heightfield kinds (bulldoze, deform-terrain, erode) bake into their
 // meshes' vertex colours and previews, as a CSS gradient for the viewer's legend. The stops are
-// those of src/export/hypsometric.rs (LAND and WATER): keep the two in step.
+// those of src/export/hypsometric.rs (LAND and WATER); a test there reads this file and fails
+// when the two differ.
 
 /** Land colours (sRGB) at fractions of the land's relief, lowest to highest. */
 const LAND: [number, [number, number, number]][] = [

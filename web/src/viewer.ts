@@ -159,11 +159,6 @@ export class Viewer {
     this.controls.update();
   }
 
-  /** Keep the orbit above the ground (a terrain) or not: `configure` with only `ground` changed. */
-  aboveGround(on: boolean): void {
-    this.configure({ ...this.setting, ground: on });
-  }
-
   /** Frame the whole model again, as when it was first shown. */
   frameAll(): void {
     if (!this.renderer || !this.model) return;
@@ -182,12 +177,11 @@ export class Viewer {
   }
 
   /**
-   * Show a glb (replacing what was shown); the camera is framed on the first one only. A water
-   * level given here replaces the configured one.
+   * Show a glb (replacing what was shown) as last configured; the camera is framed on the first
+   * one, and again when a mesh is elsewhere or of another size.
    */
-  async show(bytes: ArrayBuffer, water?: number | null): Promise<void> {
+  async show(bytes: ArrayBuffer): Promise<void> {
     if (!this.renderer) return;
-    if (water !== undefined) this.setting = { ...this.setting, water };
     const gltf = await this.loader.parseAsync(bytes, '');
     const before = this.model ? this.bounds() : null;
     if (this.model) {

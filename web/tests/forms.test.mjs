@@ -3,22 +3,13 @@
 // they are typed, phone width, and the request as a curl command that works.
 import assert from 'node:assert/strict';
 import { execFileSync } from 'node:child_process';
-import { after, before, test } from 'node:test';
-import { canvasStats, launch, newPage, record, shot, startServer } from './harness.mjs';
+import { test } from 'node:test';
+import { canvasStats, record, session, shot } from './harness.mjs';
+import { post, succeeded } from './jobs.mjs';
 
-let server;
-let browser;
 const KINDS = ['bulldoze', 'carve-coast', 'deform-terrain', 'erode', 'grow-cave', 'weather-column'];
 
-before(async () => {
-  server = await startServer();
-  browser = await launch();
-});
-
-after(async () => {
-  await browser?.close();
-  server?.stop();
-});
+const s = session();
 
 /** Wait until the preview has drawn more than `n` drafts; the last one's timing. */
 async function draftsAfter(page, n, timeout = 60000) {
@@ -31,26 +22,11 @@ async function draftsAfter(page, n, timeout = 60000) {
 
 /** The draft viewer's canvas: luminance variance (a lit mesh, not a blank background). */
 async function draftVariance(page) {
-  return page.evaluate(() => {
-    const src = document.querySelector('#draft-viewer canvas');
-    const c = document.createElement('canvas');
-    [c.width, c.height] = [src.width, src.height];
-    const ctx = c.getContext('2d');
-    ctx.drawImage(src, 0, 0);
-    const px = ctx.getImageData(0, 0, c.width, c.height).data;
-    let [s, q] = [0, 0];
-    for (let i = 0; i < px.length; i += 4) {
-      const l = 0.2126 * px[i] + 0.7152 * px[i + 1] + 0.0722 * px[i + 2];
-      s += l;
-      q += l * l;
-    }
-    const n = px.length / 4;
-    return q / n - (s / n) ** 2;
-  });
+  return (await canvasStats(page, '#draft-viewer canvas')).variance;
 }
 
 test('live preview: every kind draws its draft, and again after an edit; the times from edit to frame', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   const posts = [];
   page.on('request', (r) => r.method() === 'POST' && posts.push(new URL(r.url()).pathname));
   const timing = {};
@@ -72,13 +48,13 @@ test('live preview: every kind draws its draft, and again after an edit; the tim
   record('draft-timing', timing);
   // Drafts only: a preview stores no job.
   assert.ok(posts.length >= 2 * KINDS.length && posts.every((p) => p.startsWith('/v1/drafts/')), posts.join(' '));
-  const list = await (await fetch(`${server.url}/v1/jobs`)).json();
+  const list = await (await fetch(`${s.url}/v1/jobs`)).json();
   assert.equal(list.items.length, 0);
   assert.deepEqual(page.errors, []);
 });
 
 test('a live-edited bulldoze road: moving the road redraws the draft, the draft before is dropped', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   const aborted = [];
   page.on('requestfailed', (r) => r.url().includes('/v1/drafts/') && aborted.push(r.url()));
   await page.goto('/#/new/bulldoze');
@@ -104,7 +80,7 @@ test('a live-edited bulldoze road: moving the road redraws the draft, the draft 
 });
 
 test('drawing on the draft: a click on the terrain adds a road vertex where it lands', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   await page.goto('/#/new/bulldoze');
   await page.selectOption('#preset', { label: 'contour-road' });
   const before = await draftsAfter(page, 0);
@@ -138,7 +114,7 @@ test('drawing on the draft: a click on the terrain adds a road vertex where it l
 });
 
 test('forms that fit: more settings folded, Run always in view, sliders, pairs with their own bounds', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   const heights = {};
   for (const kind of KINDS) {
     await page.goto(`/#/new/${kind}`);
@@ -183,7 +159,7 @@ test('forms that fit: more settings folded, Run always in view, sliders, pairs w
 });
 
 test('defaults that run: "defaults only" drafts for every kind, and carve-coast on another job runs', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   for (const kind of KINDS) {
     await page.goto(`/#/new/${kind}`);
     const first = await draftsAfter(page, 0);
@@ -196,27 +172,15 @@ test('defaults that run: "defaults only" drafts for every kind, and carve-coast 
   await page.selectOption('#preset', '-1');
   await page.click('button[type=submit].primary');
   await page.waitForURL(/#\/jobs\/[0-9a-f-]{36}$/);
-  const id = page.url().split('/').pop();
-  let job;
-  for (let k = 0; k < 600; k++) {
-    job = await (await fetch(`${server.url}/v1/jobs/${id}`)).json();
-    if (['succeeded', 'failed', 'cancelled'].includes(job.status)) break;
-    await new Promise((r) => setTimeout(r, 200));
-  }
-  assert.equal(job.status, 'succeeded', JSON.stringify(job.error));
+  const job = await succeeded(s.url, page.url().split('/').pop());
   // …and leaves a rock (with every step it weathered away entirely before).
   assert.ok(job.result.mesh.triangles > 1000, JSON.stringify(job.result.mesh));
 
   // carve-coast on a terrain whose heights do not reach the preset's sea level of 0 m.
-  const res = await fetch(`${server.url}/v1/jobs/bulldoze`, {
-    method: 'POST',
-    headers: { 'content-type': 'application/json', prefer: 'wait=60' },
-    body: JSON.stringify({
-      terrain: { fractal: { size: 65, cell_size: 1.0, relief: 30.0, seed: 5 } },
-      operations: [{ primitive: { shape: { box: { center: { x: 32, z: 32 }, size_x_m: 200, size_z_m: 200, height_m: 60 } }, operator: 'add' } }],
-    }),
+  const raised = await post(s.url, '/v1/jobs/bulldoze', {
+    terrain: { fractal: { size: 65, cell_size: 1.0, relief: 30.0, seed: 5 } },
+    operations: [{ primitive: { shape: { box: { center: { x: 32, z: 32 }, size_x_m: 200, size_z_m: 200, height_m: 60 } }, operator: 'add' } }],
   });
-  const raised = await res.json();
   assert.equal(raised.status, 'succeeded');
   await page.goto(`/#/new/carve-coast?terrain=${raised.id}`);
   await draftsAfter(page, 0);
@@ -235,7 +199,7 @@ test('defaults that run: "defaults only" drafts for every kind, and carve-coast 
 });
 
 test('a refused draft marks its field beside it, keeps the focus, dims the last mesh; the next draft clears it', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   await page.goto('/#/new/weather-column');
   const first = await draftsAfter(page, 0);
   await page.evaluate(() => document.querySelectorAll('details.more').forEach((d) => (d.open = true)));
@@ -254,7 +218,7 @@ test('a refused draft marks its field beside it, keeps the focus, dims the last 
 });
 
 test('a typo in the raw JSON is named under it, with the field meant', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   await page.goto('/#/new/weather-column');
   await page.locator('.raw-box summary').click();
   const raw = JSON.parse(await page.locator('textarea.raw').inputValue());
@@ -265,10 +229,10 @@ test('a typo in the raw JSON is named under it, with the field meant', async () 
   await said.waitFor();
   assert.match(await said.textContent(), /stepz: is not a field of this object — did you mean “steps”\?/);
   const a = await area.boundingBox();
-  const s = await said.boundingBox();
-  assert.ok(s.y - (a.y + a.height) < 80, `said right under the JSON: ${JSON.stringify({ a, s })}`);
+  const under = await said.boundingBox();
+  assert.ok(under.y - (a.y + a.height) < 80, `said right under the JSON: ${JSON.stringify({ a, under })}`);
   // The server says the same when the request is sent anyway (the form checks first: bypass it).
-  const res = await fetch(`${server.url}/v1/jobs/weather-column`, { method: 'POST', headers: { 'content-type': 'application/json' }, body: JSON.stringify(raw) });
+  const res = await fetch(`${s.url}/v1/jobs/weather-column`, { method: 'POST', headers: { 'content-type': 'application/json' }, body: JSON.stringify(raw) });
   const problem = await res.json();
   assert.equal(problem.errors[0].field, 'stepz');
   assert.match(problem.errors[0].message, /did you mean `steps`\?/);
@@ -276,17 +240,17 @@ test('a typo in the raw JSON is named under it, with the field meant', async () 
 });
 
 test('copy as curl: the command shown runs, and makes the job the form would', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   await page.goto('/#/new/grow-cave');
   await page.selectOption('#preset', { label: 'soda-straws' });
   await page.locator('details.request-box summary').click();
   const command = await page.locator('#request-curl').textContent();
-  assert.match(command, new RegExp(`^curl -sS -X POST '${server.url}/v1/jobs/grow-cave'`));
+  assert.match(command, new RegExp(`^curl -sS -X POST '${s.url}/v1/jobs/grow-cave'`));
   const answer = JSON.parse(execFileSync('bash', ['-c', command], { encoding: 'utf8', timeout: 30000 }));
   assert.equal(answer.kind, 'grow-cave');
   assert.match(answer.id, /^[0-9a-f-]{36}$/);
   const form = JSON.parse(await page.locator('textarea.raw').inputValue());
-  const job = await (await fetch(`${server.url}/v1/jobs/${answer.id}`)).json();
+  const job = await (await fetch(`${s.url}/v1/jobs/${answer.id}`)).json();
   assert.equal(job.request.seed, form.seed ?? 0);
   assert.deepEqual(job.request.sites, form.sites);
   await shot(page, 'copy-as-curl');
@@ -309,7 +273,7 @@ test('copy as curl: the command shown runs, and makes the job the form would', a
 });
 
 test('phone width: every kind’s form at 390 px scrolls only downwards', async () => {
-  const page = await newPage(browser, server.url, { viewport: { width: 390, height: 844 }, isMobile: true, hasTouch: true });
+  const page = await s.page({ viewport: { width: 390, height: 844 }, isMobile: true, hasTouch: true });
   const widths = {};
   for (const kind of KINDS) {
     await page.goto(`/#/new/${kind}`);

@@ -6,6 +6,7 @@ import { tmpdir } from 'node:os';
 import { dirname, join, resolve } from 'node:path';
 import { createInterface } from 'node:readline';
 import { fileURLToPath } from 'node:url';
+import { after, before } from 'node:test';
 import { chromium } from 'playwright-core';
 
 export const repo = resolve(dirname(fileURLToPath(import.meta.url)), '..', '..');
@@ -70,12 +71,12 @@ export function record(name, value) {
 }
 
 /**
- * The viewer's canvas read back in the page (it keeps its drawing buffer): the luminance
+ * A viewer's canvas (the job page's unless `selector` says another) read back in the page (it keeps its drawing buffer): the luminance
  * variance over all pixels, and a 64 × 40 grid of mean luminances to compare frames by.
  */
-export async function canvasStats(page) {
-  return page.evaluate(() => {
-    const src = document.querySelector('#viewer canvas');
+export async function canvasStats(page, selector = '#viewer canvas') {
+  return page.evaluate((selector) => {
+    const src = document.querySelector(selector);
     const w = src.width;
     const h = src.height;
     const c = document.createElement('canvas');
@@ -104,7 +105,7 @@ export async function canvasStats(page) {
     const n = w * h;
     const mean = sum / n;
     return { width: w, height: h, mean, variance: sq / n - mean * mean, grid: grid.map((v, i) => v / count[i]) };
-  });
+  }, selector);
 }
 
 /** Mean absolute difference of two frames' luminance grids (0–255). */
@@ -133,4 +134,30 @@ export async function waitForResult(page, timeout = 120000) {
   // two frames after the mesh arrived
   await page.waitForFunction(() => Number(document.querySelector('#viewer canvas')?.dataset.frames ?? 0) >= 1, null, { timeout });
   await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+}
+
+/**
+ * A test file's server and Chromium: started before its tests and stopped after them. `url` is
+ * the server's, `page(options)` a new page on it (see newPage); `setup(s)`, if given, runs once
+ * they are up (a file's own `before` may run first: node:test does not order them).
+ */
+export function session(extraArgs = [], env = {}, setup = async () => {}) {
+  const s = {
+    server: null,
+    browser: null,
+    get url() {
+      return s.server.url;
+    },
+    page: (options = {}) => newPage(s.browser, s.server.url, options),
+  };
+  before(async () => {
+    s.server = await startServer(extraArgs, env);
+    s.browser = await launch();
+    await setup(s);
+  });
+  after(async () => {
+    await s.browser?.close();
+    s.server?.stop();
+  });
+  return s;
 }

@@ -22,7 +22,12 @@ export async function post(base, path, body, wait = true) {
 
 /** A finished job of `kind` from `body`; fails unless it succeeded. */
 export async function finishedJob(base, kind, body) {
-  let job = await post(base, `/v1/jobs/${kind}`, body);
+  return succeeded(base, await post(base, `/v1/jobs/${kind}`, body));
+}
+
+/** The job (a document or an id) once it has ended (at most 5 minutes); fails unless it succeeded. */
+export async function succeeded(base, job) {
+  if (typeof job === 'string') job = await (await fetch(`${base}/v1/jobs/${job}`)).json();
   for (let i = 0; i < 600 && !['succeeded', 'failed', 'cancelled'].includes(job.status); i++) {
     await new Promise((r) => setTimeout(r, 500));
     job = await (await fetch(`${base}/v1/jobs/${job.id}`)).json();

@@ -1,25 +1,14 @@
 // The key dialog says why it opens (issue 32, defect 10): the server needs a key and none was
 // given, or it refused the key given; it does not just open again with nothing said.
 import assert from 'node:assert/strict';
-import { after, before, test } from 'node:test';
-import { launch, newPage, shot, startServer } from './harness.mjs';
+import { test } from 'node:test';
+import { session, shot } from './harness.mjs';
 
 const KEY = 'e2e-key-5c8e2a90d1';
-let server;
-let browser;
-
-before(async () => {
-  server = await startServer([], { LANDFORM_API_KEYS: `tester ${KEY}` });
-  browser = await launch();
-});
-
-after(async () => {
-  await browser?.close();
-  server?.stop();
-});
+const s = session([], { LANDFORM_API_KEYS: `tester ${KEY}` });
 
 test('the key dialog: "needs a key" first, "refused the key you gave" after a wrong one, then the page', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   await page.goto('/');
   const dialog = page.locator('#key-dialog');
   const reason = page.locator('#key-reason');

@@ -1,25 +1,14 @@
 // A server that requires API keys: the page asks for one, keeps it in the tab's session storage
 // only, and every call it makes then carries it.
 import assert from 'node:assert/strict';
-import { after, before, test } from 'node:test';
-import { launch, newPage, shot, startServer } from './harness.mjs';
+import { test } from 'node:test';
+import { session, shot } from './harness.mjs';
 
 const KEY = 'e2e-key-7f3a9c1d5b';
-let server;
-let browser;
-
-before(async () => {
-  server = await startServer([], { LANDFORM_API_KEYS: `tester ${KEY}` });
-  browser = await launch();
-});
-
-after(async () => {
-  await browser?.close();
-  server?.stop();
-});
+const s = session([], { LANDFORM_API_KEYS: `tester ${KEY}` });
 
 test('the page asks for a key, keeps it in session storage only, and sends it', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   const auth = [];
   page.on('request', (r) => r.url().includes('/v1/') && auth.push(r.headers().authorization ?? null));
   await page.goto('/#/jobs');
@@ -48,7 +37,7 @@ test('the page asks for a key, keeps it in session storage only, and sends it', 
   assert.ok(auth.every((a, i) => i === 0 || a === `Bearer ${KEY}`), `every call after the first carried the key: ${auth}`);
 
   // Another tab has no key: session storage is the tab's own.
-  const other = await newPage(browser, server.url);
+  const other = await s.page();
   await other.goto('/#/jobs');
   await other.locator('#key-dialog').waitFor({ state: 'visible' });
   assert.equal(await other.evaluate(() => sessionStorage.getItem('landform-api-key')), null);

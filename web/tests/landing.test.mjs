@@ -3,35 +3,25 @@
 // of the list, the landing page or a job's result scrolls sideways.
 import assert from 'node:assert/strict';
 import { createRequire } from 'node:module';
-import { after, before, test } from 'node:test';
-import { launch, newPage, shot, startServer, waitForResult } from './harness.mjs';
+import { test } from 'node:test';
+import { session, shot, waitForResult } from './harness.mjs';
 import { post, sideways, smallZiggurat } from './jobs.mjs';
 
 const axePath = createRequire(import.meta.url).resolve('axe-core/axe.min.js');
-let server;
-let browser;
 let terrain;
-
-before(async () => {
-  server = await startServer();
-  browser = await launch();
+const s = session([], {}, async (up) => {
   // A finished job with a long label, and replays of it (which the recent jobs leave out).
-  terrain = await smallZiggurat(server.url, 'a ziggurat with a label long enough to wrap on a phone screen');
-  for (let k = 0; k < 3; k++) await post(server.url, `/v1/jobs/${terrain.id}/replay`, { until_step: k });
-});
-
-after(async () => {
-  await browser?.close();
-  server?.stop();
+  terrain = await smallZiggurat(up.url, 'a ziggurat with a label long enough to wrap on a phone screen');
+  for (let k = 0; k < 3; k++) await post(up.url, `/v1/jobs/${terrain.id}/replay`, { until_step: k });
 });
 
 test('the landing page: an introduction, a card per kind with its picture and one line from the API document, the recent jobs', async () => {
-  const doc = await (await fetch(`${server.url}/openapi.json`)).json();
+  const doc = await (await fetch(`${s.url}/openapi.json`)).json();
   const kinds = Object.entries(doc.paths)
     .filter(([p, item]) => /^\/v1\/jobs\/[a-z-]+$/.test(p) && item.post)
     .map(([p, item]) => ({ kind: p.slice('/v1/jobs/'.length), line: item.post.description.split('\n')[0] }));
   assert.ok(kinds.length >= 6);
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   await page.goto('/');
   await page.waitForSelector('.kind-card');
   assert.match(await page.locator('main h1').textContent(), /Landform/);
@@ -55,7 +45,7 @@ test('the landing page: an introduction, a card per kind with its picture and on
   // The recent jobs: newest first, replays left out, with their pictures.
   await page.waitForSelector('#recent-jobs li');
   const listed = await page.locator('#recent-jobs li').evaluateAll((li) => li.map((x) => x.dataset.job));
-  const newest = (await (await fetch(`${server.url}/v1/jobs?limit=6&replays=false`)).json()).items.map((j) => j.id);
+  const newest = (await (await fetch(`${s.url}/v1/jobs?limit=6&replays=false`)).json()).items.map((j) => j.id);
   assert.deepEqual(listed, newest);
   assert.ok(listed.includes(terrain.id));
   await page.waitForFunction(() => [...document.querySelectorAll('#recent-jobs img.thumb:not(.empty)')].every((i) => i.complete && i.naturalWidth > 0));
@@ -71,12 +61,12 @@ test('the landing page: an introduction, a card per kind with its picture and on
 });
 
 test('Try it runs the kind\'s quick preset at once and opens its job', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   const bodies = [];
   page.on('request', (r) => r.method() === 'POST' && r.url().includes('/v1/jobs/') && bodies.push({ url: r.url(), body: r.postDataJSON() }));
   await page.goto('/');
   const kind = 'weather-column';
-  const presets = (await (await fetch(`${server.url}/v1/presets?kind=${kind}`)).json()).items;
+  const presets = (await (await fetch(`${s.url}/v1/presets?kind=${kind}`)).json()).items;
   // weather-column's quick preset (web/src/presets.ts): the goblin cap.
   const first = presets.find((p) => p.name === 'goblin-cap');
   assert.ok(first, presets.map((p) => p.name).join(' '));
@@ -86,14 +76,14 @@ test('Try it runs the kind\'s quick preset at once and opens its job', async () 
   assert.ok(bodies[0].url.endsWith(`/v1/jobs/${kind}`));
   assert.deepEqual(bodies[0].body, first.body);
   const id = page.url().split('/').pop();
-  const job = await (await fetch(`${server.url}/v1/jobs/${id}`)).json();
+  const job = await (await fetch(`${s.url}/v1/jobs/${id}`)).json();
   assert.equal(job.kind, kind);
   await waitForResult(page, 180000);
   assert.deepEqual(page.errors, []);
 });
 
 test('phone width (390 px): the landing page, the job list and a job\'s result do not scroll sideways', async () => {
-  const page = await newPage(browser, server.url, { viewport: { width: 390, height: 844 }, deviceScaleFactor: 1, isMobile: true, hasTouch: true });
+  const page = await s.page({ viewport: { width: 390, height: 844 }, deviceScaleFactor: 1, isMobile: true, hasTouch: true });
   // Every page is measured, then the test fails with all that scroll sideways.
   const wide = [];
   const check = async (name) => {
@@ -105,9 +95,9 @@ test('phone width (390 px): the landing page, the job list and a job\'s result d
       }
       window.scrollTo(0, 0);
     });
-    const s = await sideways(page);
+    const side = await sideways(page);
     await shot(page, `phone-${name}`);
-    if (s.scrollWidth > 390) wide.push(`${name}: scroll width ${s.scrollWidth} at ${s.width} px`);
+    if (side.scrollWidth > 390) wide.push(`${name}: scroll width ${side.scrollWidth} at ${side.width} px`);
   };
   await page.goto('/');
   await page.waitForSelector('main h1');
@@ -134,7 +124,7 @@ test('phone width (390 px): the landing page, the job list and a job\'s result d
 
 test('accessibility: no serious or critical axe-core violations on the landing page, light and dark, wide and narrow', async () => {
   // The page's CSP refuses injected scripts; the audit needs one.
-  const page = await newPage(browser, server.url, { bypassCSP: true });
+  const page = await s.page({ bypassCSP: true });
   await page.goto('/');
   await page.waitForSelector('#recent-jobs li');
   for (const [scheme, width] of [['light', 1280], ['dark', 1280], ['dark', 390]]) {

@@ -1,22 +1,11 @@
 // End-to-end: the playground in headless Chromium against a real server started here.
 import assert from 'node:assert/strict';
 import { createRequire } from 'node:module';
-import { after, before, test } from 'node:test';
-import { canvasStats, frameDifference, launch, newPage, record, runPreset, shot, startServer, waitForResult } from './harness.mjs';
+import { test } from 'node:test';
+import { canvasStats, frameDifference, record, runPreset, session, shot, waitForResult } from './harness.mjs';
 
 const axePath = createRequire(import.meta.url).resolve('axe-core/axe.min.js');
-let server;
-let browser;
-
-before(async () => {
-  server = await startServer();
-  browser = await launch();
-});
-
-after(async () => {
-  await browser?.close();
-  server?.stop();
-});
+const s = session();
 
 /** Every value the progress bar showed, sampled in the page. */
 async function watchProgress(page) {
@@ -30,7 +19,7 @@ async function watchProgress(page) {
 }
 
 test('first paint and the shipped page', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   await page.goto('/');
   await page.waitForSelector('table.jobs, main p.muted[role=status]');
   await page.waitForFunction(() => document.querySelector('nav#nav a[href="#/new/bulldoze"]'));
@@ -46,7 +35,7 @@ test('first paint and the shipped page', async () => {
 });
 
 test('a bulldoze job from its preset: progress to 100 %, a drawn 3D frame, and the timeline', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   await watchProgress(page);
   const id = await runPreset(page, 'bulldoze', 'ziggurat');
   await waitForResult(page);
@@ -81,7 +70,7 @@ test('a bulldoze job from its preset: progress to 100 %, a drawn 3D frame, and t
   assert.ok(shown.endsWith('/mesh.glb'), `a timeline move keeps the full mesh, not ${shown}`);
   assert.equal(await page.locator('#lod').inputValue(), 'mesh.glb');
   // The replay is the original's operations up to step 0, made by the server.
-  const replay = await (await fetch(`${server.url}/v1/jobs/${shown.split('/')[0]}`)).json();
+  const replay = await (await fetch(`${s.url}/v1/jobs/${shown.split('/')[0]}`)).json();
   assert.equal(replay.replay_of, id);
   assert.equal(replay.replay_until_step, 0);
   await shot(page, 'bulldoze-timeline-step-0');
@@ -96,7 +85,7 @@ test('a bulldoze job from its preset: progress to 100 %, a drawn 3D frame, and t
 });
 
 test('composition: carve-coast on a deform-terrain result picked from the thumbnails', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   const island = await runPreset(page, 'deform-terrain', 'star-island');
   await waitForResult(page);
   await page.goto('/#/new/carve-coast');
@@ -114,7 +103,7 @@ test('composition: carve-coast on a deform-terrain result picked from the thumbn
   await page.waitForURL(/#\/jobs\/[0-9a-f-]{36}$/);
   const coast = page.url().split('/').pop();
   await waitForResult(page);
-  const job = await (await fetch(`${server.url}/v1/jobs/${coast}`)).json();
+  const job = await (await fetch(`${s.url}/v1/jobs/${coast}`)).json();
   assert.equal(job.status, 'succeeded');
   assert.deepEqual(job.request.terrain, { job: island });
   assert.ok(await page.locator('#sea').isChecked(), 'the sea plane is offered');
@@ -125,7 +114,7 @@ test('composition: carve-coast on a deform-terrain result picked from the thumbn
 });
 
 test('bad fields: the schema bound is checked before sending, the server 422 is shown beside its field', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   const posts = [];
   // Submissions only: the live draft posts to /v1/drafts/ as the form changes.
   page.on('request', (r) => r.method() === 'POST' && r.url().includes('/v1/jobs/') && posts.push(r.url()));
@@ -162,7 +151,7 @@ test('bad fields: the schema bound is checked before sending, the server 422 is 
 });
 
 test('every kind: a finished job on its page', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   const presets = { 'weather-column': 'goblin-cap', 'grow-cave': 'columns', 'deform-terrain': 'tileable', 'carve-coast': 'small-island-one-pass', bulldoze: 'hillside-road', erode: 'eroded-island' };
   for (const [kind, preset] of Object.entries(presets)) {
     await runPreset(page, kind, preset);
@@ -184,7 +173,7 @@ test('every kind: a finished job on its page', async () => {
   await shot(page, 'job-list-grow-cave');
   // First meaningful paint with a populated list: a fresh tab (cold cache) until the rows, and
   // until every thumbnail has drawn.
-  const fresh = await newPage(browser, server.url);
+  const fresh = await s.page();
   await fresh.goto('/#/jobs');
   await fresh.waitForSelector('table.jobs tbody tr');
   const rows = await fresh.evaluate(() => performance.now());
@@ -196,7 +185,7 @@ test('every kind: a finished job on its page', async () => {
 });
 
 test('a dropped event stream is resumed with Last-Event-ID', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   const resumed = [];
   let cut = null;
   // The first stream is cut after its first two events (no `done`): the page must reconnect and
@@ -223,7 +212,7 @@ test('a dropped event stream is resumed with Last-Event-ID', async () => {
 
 test('accessibility: no serious or critical axe-core violations on the form, job and list pages', async () => {
   // The page's CSP refuses injected scripts; the audit needs one.
-  const page = await newPage(browser, server.url, { bypassCSP: true });
+  const page = await s.page({ bypassCSP: true });
   const audit = async (name) => {
     await page.addScriptTag({ path: axePath });
     const result = await page.evaluate(() => window.axe.run(document, { resultTypes: ['violations'] }));
@@ -259,7 +248,7 @@ test('accessibility: no serious or critical axe-core violations on the form, job
 });
 
 test('live snapshots appear as the job runs, and cancel stops it', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   // The S-road converges in about a second now: six times its iterations (96 000 operations,
   // within the server's cap) keep it running long enough to be watched and cancelled.
   const id = await runPreset(page, 'deform-terrain', 's-road', (p) =>
@@ -273,7 +262,7 @@ test('live snapshots appear as the job runs, and cancel stops it', async () => {
   await shot(page, 'deform-terrain-live-snapshot');
   await page.getByRole('button', { name: 'Cancel' }).click();
   await page.waitForFunction(() => /cancelled/.test(document.querySelector('#job-status')?.textContent ?? ''), null, { timeout: 30000 });
-  const job = await (await fetch(`${server.url}/v1/jobs/${id}`)).json();
+  const job = await (await fetch(`${s.url}/v1/jobs/${id}`)).json();
   assert.equal(job.status, 'cancelled');
   // Cancelled is a notice, not an error (progress.test.mjs checks it further).
   assert.ok(await page.locator('#job-cancelled').isVisible());
@@ -281,7 +270,7 @@ test('live snapshots appear as the job runs, and cancel stops it', async () => {
 });
 
 test('help text: readable bounds and code spans, no raw Markdown', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   await page.goto('/#/new/bulldoze');
   await page.selectOption('#preset', { label: 'ziggurat' });
   const seedHelp = await page.locator('[data-path="seed"] small.help').textContent();
@@ -298,7 +287,7 @@ test('help text: readable bounds and code spans, no raw Markdown', async () => {
 test('the job list: replays are filtered by the server, so a page of them hides no job behind it', async () => {
   // A job, then 25 replays of it, as a timeline makes them (one per position): newer than it.
   const post = async (path, body) => {
-    const res = await fetch(`${server.url}${path}`, {
+    const res = await fetch(`${s.url}${path}`, {
       method: 'POST',
       headers: { 'content-type': 'application/json', prefer: 'wait=60' },
       body: JSON.stringify(body),
@@ -306,7 +295,7 @@ test('the job list: replays are filtered by the server, so a page of them hides 
     assert.ok(res.ok, `${path}: ${res.status}`);
     return res.json();
   };
-  const presets = await (await fetch(`${server.url}/v1/presets?kind=bulldoze`)).json();
+  const presets = await (await fetch(`${s.url}/v1/presets?kind=bulldoze`)).json();
   const body = structuredClone(presets.items.find((p) => p.name === 'ziggurat').body);
   body.terrain.fractal.size = 65;
   body.lods = [];
@@ -315,7 +304,7 @@ test('the job list: replays are filtered by the server, so a page of them hides 
   assert.equal(job.status, 'succeeded');
   for (let k = 0; k < 25; k++) await post(`/v1/jobs/${job.id}/replay`, { until_step: k });
 
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   await page.goto('/#/jobs');
   await page.waitForSelector('table.jobs');
   const row = page.locator(`table.jobs a[href="#/jobs/${job.id}"]`).first();
@@ -331,18 +320,18 @@ test('the job list: replays are filtered by the server, so a page of them hides 
 });
 
 test('the viewer: a terrain cannot be orbited under, and Frame all (button, F) brings it back', async () => {
-  const presets = await (await fetch(`${server.url}/v1/presets?kind=bulldoze`)).json();
+  const presets = await (await fetch(`${s.url}/v1/presets?kind=bulldoze`)).json();
   const body = structuredClone(presets.items.find((p) => p.name === 'ziggurat').body);
   body.terrain.fractal.size = 65;
   body.lods = [];
-  const res = await fetch(`${server.url}/v1/jobs/bulldoze`, {
+  const res = await fetch(`${s.url}/v1/jobs/bulldoze`, {
     method: 'POST',
     headers: { 'content-type': 'application/json', prefer: 'wait=60' },
     body: JSON.stringify(body),
   });
   const job = await res.json();
   assert.equal(job.status, 'succeeded');
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   await page.goto(`/#/jobs/${job.id}`);
   await waitForResult(page);
   const canvas = page.locator('#viewer canvas');

@@ -2,22 +2,11 @@
 // state with the seconds while the server's fraction stands still (never a made-up fraction);
 // after success no stale snapshot or stream line; a cancelled job is a neutral notice.
 import assert from 'node:assert/strict';
-import { after, before, test } from 'node:test';
-import { launch, newPage, shot, startServer, waitForResult } from './harness.mjs';
+import { test } from 'node:test';
+import { session, shot, waitForResult } from './harness.mjs';
 import { post, presetBody } from './jobs.mjs';
 
-let server;
-let browser;
-
-before(async () => {
-  server = await startServer();
-  browser = await launch();
-});
-
-after(async () => {
-  await browser?.close();
-  server?.stop();
-});
+const s = session();
 
 /** Sample the progress block every 100 ms from the page's start. */
 async function watch(page) {
@@ -42,17 +31,17 @@ async function watch(page) {
 /** A job submitted from its page's form (the body as given), followed on its page. */
 async function submitAndFollow(page, kind, body) {
   // Submitted by the API, then opened at once: the page follows it from its first events.
-  const job = await post(server.url, `/v1/jobs/${kind}`, body, false);
+  const job = await post(s.url, `/v1/jobs/${kind}`, body, false);
   await page.goto(`/#/jobs/${job.id}`);
   return job.id;
 }
 
 test('a stage that holds its fraction shows the stage, a moving bar and the seconds; nothing stale stays after success', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   await watch(page);
   // The coast's meshing reports one fraction (passes of passes + 1) through all its chunks, then
   // extracts the surface and writes the mesh for seconds without a word (at 129² samples).
-  const body = await presetBody(server.url, 'carve-coast', 'small-island-one-pass');
+  const body = await presetBody(s.url, 'carve-coast', 'small-island-one-pass');
   body.terrain.fractal.size = 193;
   await submitAndFollow(page, 'carve-coast', body);
   await page.waitForSelector('#job-waiting:not([hidden])', { timeout: 60000 });
@@ -78,15 +67,15 @@ test('a stage that holds its fraction shows the stage, a moving bar and the seco
 });
 
 test('deform-terrain: a search that meets its goal early ends short of its limit; the page says so and shows only the server\'s fractions', async () => {
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   await watch(page);
   // The tileable preset's search stops at its epsilon after some 80 of its 1500 iterations.
-  const body = await presetBody(server.url, 'deform-terrain', 'tileable');
+  const body = await presetBody(s.url, 'deform-terrain', 'tileable');
   const stream = page.waitForResponse((r) => /\/v1\/jobs\/[^/]+\/events$/.test(r.url()), { timeout: 60000 });
   const id = await submitAndFollow(page, 'deform-terrain', body);
   const sent = (await (await stream).text()).split('\n').filter((l) => l.startsWith('data: {"fraction"')).map((l) => JSON.parse(l.slice(6)));
   await waitForResult(page, 120000);
-  const job = await (await fetch(`${server.url}/v1/jobs/${id}`)).json();
+  const job = await (await fetch(`${s.url}/v1/jobs/${id}`)).json();
   assert.equal(job.result.stopped, 'epsilon');
   const last = sent[sent.length - 1];
   assert.ok(last.step < last.steps, JSON.stringify(last));
@@ -100,15 +89,15 @@ test('deform-terrain: a search that meets its goal early ends short of its limit
 });
 
 test('a cancelled job says cancelled: no 0 %, no "running: cancelled", no error box', async () => {
-  const page = await newPage(browser, server.url);
-  const body = await presetBody(server.url, 'deform-terrain', 's-road');
+  const page = await s.page();
+  const body = await presetBody(s.url, 'deform-terrain', 's-road');
   body.max_iterations = 6000;
   const id = await submitAndFollow(page, 'deform-terrain', body);
   await page.waitForFunction(() => /running/.test(document.querySelector('#job-status')?.textContent ?? ''), null, { timeout: 60000 });
   await page.getByRole('button', { name: 'Cancel' }).click();
   await page.waitForFunction(() => /cancelled/.test(document.querySelector('#job-status')?.textContent ?? ''), null, { timeout: 30000 });
   await page.locator('#job-cancelled').waitFor();
-  const job = await (await fetch(`${server.url}/v1/jobs/${id}`)).json();
+  const job = await (await fetch(`${s.url}/v1/jobs/${id}`)).json();
   assert.equal(job.status, 'cancelled');
   assert.equal(await page.locator('#job-stage').textContent(), 'cancelled');
   assert.equal(await page.locator('#job-percent').textContent(), '');

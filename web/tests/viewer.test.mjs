@@ -2,61 +2,49 @@
 // shadows, wire over shaded, full screen, the triangle count and the height legend checked
 // against the glb read here, and water for every result with a water level.
 import assert from 'node:assert/strict';
-import { after, before, test } from 'node:test';
+import { test } from 'node:test';
 import { glbPrimitives } from './glb.mjs';
-import { canvasStats, frameDifference, launch, newPage, out, shot, startServer, waitForResult } from './harness.mjs';
+import { canvasStats, frameDifference, out, session, shot, waitForResult } from './harness.mjs';
 import { artifactBytes, finishedJob, presetBody, settle, smallZiggurat } from './jobs.mjs';
 
-let server;
-let browser;
-
-before(async () => {
-  server = await startServer();
-  browser = await launch();
-});
-
-after(async () => {
-  await browser?.close();
-  server?.stop();
-});
+const s = session();
 
 
-/** Pixels of the canvas's bottom-right gizmo square (128 CSS px) by hue: red, green, blue. */
-function gizmoColours(page) {
-  return page.evaluate(() => {
+/**
+ * Pixels of the viewer's canvas (or of its bottom-right `corner` CSS px square) counted by
+ * class: the gizmo's axis hues, the bare background (#1d2733, a wireframe's holes), and a pale
+ * glare (light, not warmer than blue: the sun on water, not a peak's white or the sand).
+ */
+function pixelCounts(page, corner = 0) {
+  return page.evaluate((corner) => {
     const src = document.querySelector('#viewer canvas');
-    const scale = src.width / src.clientWidth;
-    const side = Math.round(128 * scale);
+    const side = corner ? Math.round(corner * (src.width / src.clientWidth)) : 0;
     const c = document.createElement('canvas');
     [c.width, c.height] = [src.width, src.height];
     const ctx = c.getContext('2d');
     ctx.drawImage(src, 0, 0);
-    const d = ctx.getImageData(src.width - side, src.height - side, side, side).data;
-    const n = { red: 0, green: 0, blue: 0 };
+    const d = side ? ctx.getImageData(src.width - side, src.height - side, side, side).data : ctx.getImageData(0, 0, c.width, c.height).data;
+    const n = { all: d.length / 4, red: 0, green: 0, blue: 0, background: 0, glare: 0 };
     for (let k = 0; k < d.length; k += 4) {
       const [r, g, b] = [d[k], d[k + 1], d[k + 2]];
       if (r > 180 && g < 120 && b < 140) n.red++;
       if (g > 180 && r < 190 && b < 120) n.green++;
       if (b > 180 && r < 120 && g < 170) n.blue++;
+      if (Math.abs(r - 0x1d) < 4 && Math.abs(g - 0x27) < 4 && Math.abs(b - 0x33) < 4) n.background++;
+      if ((r + g + b) / 3 > 170 && b >= r) n.glare++;
     }
     return n;
-  });
+  }, corner);
 }
 
-/** The share of the canvas showing the bare background (#1d2733): the wireframe's holes. */
-function backgroundShare(page) {
-  return page.evaluate(() => {
-    const src = document.querySelector('#viewer canvas');
-    const c = document.createElement('canvas');
-    [c.width, c.height] = [src.width, src.height];
-    const ctx = c.getContext('2d');
-    ctx.drawImage(src, 0, 0);
-    const d = ctx.getImageData(0, 0, c.width, c.height).data;
-    let n = 0;
-    for (let k = 0; k < d.length; k += 4) n += Math.abs(d[k] - 0x1d) < 4 && Math.abs(d[k + 1] - 0x27) < 4 && Math.abs(d[k + 2] - 0x33) < 4;
-    return n / (d.length / 4);
-  });
-}
+/** The gizmo's square (128 CSS px) by hue: red, green, blue. */
+const gizmoColours = (page) => pixelCounts(page, 128);
+
+/** The share of the canvas showing the bare background: the wireframe's holes. */
+const backgroundShare = async (page) => {
+  const n = await pixelCounts(page);
+  return n.background / n.all;
+};
 
 /**
  * Turn the view to look straight down by clicking the gizmo's Y (above its centre), set a high
@@ -69,17 +57,8 @@ async function glareFromAbove(page) {
   await page.mouse.click(box.x + box.width - 64, box.y + box.height - 64 - 28);
   await page.waitForFunction(() => Number(document.querySelector('#viewer canvas').dataset.polar) < 0.05, null, { timeout: 5000 });
   await setSlider(page, 'sun-elevation', 70);
-  return page.evaluate(() => {
-    const src = document.querySelector('#viewer canvas');
-    const c = document.createElement('canvas');
-    [c.width, c.height] = [src.width, src.height];
-    const ctx = c.getContext('2d');
-    ctx.drawImage(src, 0, 0);
-    const d = ctx.getImageData(0, 0, c.width, c.height).data;
-    let n = 0;
-    for (let k = 0; k < d.length; k += 4) n += (d[k] + d[k + 1] + d[k + 2]) / 3 > 170 && d[k + 2] >= d[k];
-    return n / (d.length / 4);
-  });
+  const n = await pixelCounts(page);
+  return n.glare / n.all;
 }
 
 async function setSlider(page, id, value) {
@@ -88,9 +67,9 @@ async function setSlider(page, id, value) {
 }
 
 test('the viewer on a terrain: triangle count and legend from the glb, grid and scale, gizmo, shadows, wire over shaded, full screen', async () => {
-  const job = await smallZiggurat(server.url);
-  const prims = glbPrimitives(await artifactBytes(server.url, job, 'mesh.glb'));
-  const page = await newPage(browser, server.url);
+  const job = await smallZiggurat(s.url);
+  const prims = glbPrimitives(await artifactBytes(s.url, job, 'mesh.glb'));
+  const page = await s.page();
   await page.goto(`/#/jobs/${job.id}`);
   await waitForResult(page);
   const canvas = page.locator('#viewer canvas');
@@ -183,13 +162,13 @@ test('the viewer on a terrain: triangle count and legend from the glb, grid and 
 
 test('water for every result with a water level: the star island plane, the coast\'s own sea hidden with its switch, matte at high sun', async () => {
   // The star island at half the samples over the same 256 m (the mask is in metres).
-  const body = await presetBody(server.url, 'deform-terrain', 'star-island');
+  const body = await presetBody(s.url, 'deform-terrain', 'star-island');
   Object.assign(body.terrain.fractal, { size: 129, cell_size: 2.0 });
   body.max_iterations = 300;
-  const island = await finishedJob(server.url, 'deform-terrain', body);
+  const island = await finishedJob(s.url, 'deform-terrain', body);
   const level = island.result.constraints.find((c) => typeof c.water_level_m === 'number').water_level_m;
   assert.equal(island.request.constraints[0].shape_mask.water_level, undefined, 'the level is the server\'s choice');
-  const page = await newPage(browser, server.url);
+  const page = await s.page();
   await page.goto(`/#/jobs/${island.id}`);
   await waitForResult(page);
   const sea = page.locator('#sea');
@@ -212,9 +191,9 @@ test('water for every result with a water level: the star island plane, the coas
 
   // carve-coast: its mesh has a sea of its own (node `sea`, material `water`); the switch hides
   // it, so what is shown loses its triangles.
-  const coastBody = await presetBody(server.url, 'carve-coast', 'small-island-one-pass');
-  const coast = await finishedJob(server.url, 'carve-coast', coastBody);
-  const prims = glbPrimitives(await artifactBytes(server.url, coast, 'mesh.glb'));
+  const coastBody = await presetBody(s.url, 'carve-coast', 'small-island-one-pass');
+  const coast = await finishedJob(s.url, 'carve-coast', coastBody);
+  const prims = glbPrimitives(await artifactBytes(s.url, coast, 'mesh.glb'));
   const water = prims.filter((p) => p.material === 'water');
   assert.ok(water.length > 0, JSON.stringify(prims.map((p) => [p.node, p.material])));
   const all = prims.reduce((s, p) => s + p.triangles, 0);
@@ -240,9 +219,9 @@ test('water for every result with a water level: the star island plane, the coas
 });
 
 test('a cave: framed whole (F), lit through its cut-away walls, free to orbit', async () => {
-  const body = await presetBody(server.url, 'grow-cave', 'columns');
-  const job = await finishedJob(server.url, 'grow-cave', body);
-  const page = await newPage(browser, server.url);
+  const body = await presetBody(s.url, 'grow-cave', 'columns');
+  const job = await finishedJob(s.url, 'grow-cave', body);
+  const page = await s.page();
   await page.goto(`/#/jobs/${job.id}`);
   await waitForResult(page);
   const canvas = page.locator('#viewer canvas');

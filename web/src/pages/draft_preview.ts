@@ -5,6 +5,7 @@
 import { ApiError, Job, drafts } from '../api';
 import { PointList, pointLists } from '../points';
 import { Viewer } from '../viewer';
+import { HYPSOMETRIC_KINDS } from '../hypsometric';
 import { el, waterLevel } from '../ui';
 import type { FieldError } from '../api';
 
@@ -36,10 +37,10 @@ export class DraftPreview {
    */
   private showing: Promise<void> = Promise.resolve();
 
-  constructor(private kind: string, heightfield: boolean, signal: AbortSignal) {
+  constructor(private kind: string, private heightfield: boolean, signal: AbortSignal) {
     this.toggle.checked = true;
     this.viewer = new Viewer(this.host);
-    this.viewer.aboveGround(heightfield);
+    this.viewer.configure({ ground: heightfield, water: null, tintSea: null });
     signal.addEventListener('abort', () => {
       this.inFlight?.abort();
       clearTimeout(this.timer);
@@ -72,11 +73,14 @@ export class DraftPreview {
   /** The form changed: draft the new body after a quiet moment, dropping any draft under way. */
   edited(body: unknown): void {
     this.latest = body;
-    this.offerLists(body);
     this.editedAt = performance.now();
-    if (!this.toggle.checked) return;
     clearTimeout(this.timer);
-    this.timer = window.setTimeout(() => void this.draft(body, this.editedAt), DEBOUNCE_MS);
+    // After the quiet moment, not at each keystroke: the lists (a walk of the whole request)
+    // and the draft.
+    this.timer = window.setTimeout(() => {
+      this.offerLists(body);
+      if (this.toggle.checked) void this.draft(body, this.editedAt);
+    }, DEBOUNCE_MS);
   }
 
   /** The point lists a click can add to, the choice kept while its list is there. */
@@ -103,7 +107,13 @@ export class DraftPreview {
       // The level the server used (carve-coast's default is the terrain's), else the request's.
       const request = (body && typeof body === 'object' ? body : {}) as Job['request'];
       const water = waterLevel({ request, result: answer.result });
-      const shown = this.showing.then(() => (ctl.signal.aborted ? undefined : this.viewer.show(answer.glb, water)));
+      const shown = this.showing.then(() => {
+        if (ctl.signal.aborted) return undefined;
+        // As the job page shows a result (job.ts): the legend in the height tint of the kinds
+        // that colour by height, tinted with the sea at the water level.
+        this.viewer.configure({ ground: this.heightfield, water, tintSea: HYPSOMETRIC_KINDS.includes(this.kind) ? (water ?? 0) : null });
+        return this.viewer.show(answer.glb);
+      });
       this.showing = shown.catch(() => undefined);
       await shown;
       await new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)));

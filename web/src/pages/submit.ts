@@ -52,22 +52,29 @@ export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URL
   // Declared before the curl block that reads it (its first text is made as it is built).
   let form: SchemaForm | undefined = undefined;
   const request = copyBlock('request-curl', 'as curl', () => curlCommand('POST', `/v1/jobs/${kind}`, form?.value()));
+  const requestSummary = el('summary', {}, ['The request as curl']);
+  const requestBox = el('details', { class: 'request-box' }, [requestSummary, request.box]) as HTMLDetailsElement;
+  // Brought up to date as it is opened (the click comes before the box opens, so the text is
+  // there when it shows), and at each edit while it is open.
+  requestSummary.addEventListener('click', () => request.refresh());
+  // A refused draft marks its fields as a refused submission would, without taking the focus
+  // from the field being typed in; the next drawn draft clears them. Errors a Run attempt
+  // showed stay until the next edit: a draft answering after them (it was asked for before the
+  // click) neither replaces nor clears them.
+  let draftMarked = false;
+  let runMarked = false;
   form = new SchemaForm(r, schema, initial(list.length ? 0 : -1), formHost, {
     jobPicker: (_f, current, pick) => picker(current, pick),
     onChange: (v) => {
       runMarked = false;
       preview.edited(v);
-      request.refresh();
+      // Written out only while it is shown: a request of thousands of points is not turned
+      // into text at every keystroke for a folded box.
+      if (requestBox.open) request.refresh();
     },
   });
   // A click on the draft's terrain adds a point to the list chosen beside it (a road vertex).
   preview.onPoint = (list, x, z) => form?.setValue(withPoint(form.value(), list.path, x, z));
-  // A refused draft marks its fields as a refused submission would, without taking the focus
-  // from the field being typed in; the next drawn draft clears them.
-  // Errors a Run attempt showed stay until the next edit: a draft answering after them (it was
-  // asked for before the click) neither replaces nor clears them.
-  let draftMarked = false;
-  let runMarked = false;
   preview.onProblems = (errors) => {
     if (runMarked) return;
     if (errors) form?.showErrors(errors, undefined, false);
@@ -75,7 +82,6 @@ export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URL
     draftMarked = errors !== null;
   };
   preview.edited(form.value());
-  request.refresh();
   presetSel.addEventListener('change', () => form.setValue(initial(Number(presetSel.value))));
   // "Edit as a new job": the form starts from an earlier job's request (defaults filled in).
   const from = query.get('from');
@@ -94,7 +100,7 @@ export function submitPage(host: HTMLElement, doc: Doc, kind: string, query: URL
   const f = el('form', { novalidate: '', 'aria-label': `New ${kind} job` }, [
     el('div', { class: 'preset-row' }, [el('label', { for: 'preset' }, ['Preset (from api/)']), presetSel]),
     formHost,
-    el('details', { class: 'request-box' }, [el('summary', {}, ['The request as curl']), request.box]),
+    requestBox,
     // Kept in view at the bottom of the window (CSS sticky), however long the form.
     el('div', { class: 'actions sticky-actions' }, [submit, status]),
   ]);
