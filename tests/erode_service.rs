@@ -200,9 +200,10 @@ async fn bad_erode_requests_name_their_field() {
         (with(json!({"hydraulic": {"n": 3.0}})), 422, "hydraulic.n"),
         (with(json!({"hydraulic": {"k": -1.0}})), 422, "hydraulic.k"),
         (with(json!({"hydraulic": {"uplift_m_per_yr": 1.0}})), 422, "hydraulic.uplift_m_per_yr"),
-        (with(json!({"thermal": {"rate": 0.2}})), 422, "thermal.rate"),
+        (with(json!({"thermal": {"diffusivity_m2_per_yr": 11.0}})), 422, "thermal.diffusivity_m2_per_yr"),
         (with(json!({"thermal": {"talus_angle_deg": 90.0}})), 422, "thermal.talus_angle_deg"),
-        (with(json!({"thermal": {"sweeps": 0}})), 422, "thermal.sweeps"),
+        (with(json!({"thermal": {"diffusivity_m2_per_yr": -1.0}})), 422, "thermal.diffusivity_m2_per_yr"),
+        (with(json!({"thermal": {"sweeps": 2}})), 422, "thermal.sweeps"),
         (with(json!({"hydraulic": null, "thermal": false})), 422, "hydraulic"),
         (with(json!({"hydraulic": {"kay": 1.0}})), 422, "hydraulic.kay"),
     ];

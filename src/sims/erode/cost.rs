@@ -7,18 +7,18 @@ use crate::export::{heightfield_artifacts_peak_bytes, heightfield_lod_triangles,
 use crate::jobs::{Cost, CostBuilder, SimError};
 use crate::terrain::TerrainLookup;
 
-/// Cell updates a second at best: an iteration of the fluvial step counts 1 per cell, each
-/// thermal sweep 1/4. A 2-core machine measures about 1.5e7 (`cargo bench --bench erode`); the
+/// Cell updates a second at best: an iteration of the fluvial step counts 1 per cell, the
+/// hillslope step 1 or 2. A 2-core machine measures about 1.5e7 (`cargo bench --bench erode`); the
 /// margin is for machines several times faster, so only work that could not finish within the
 /// time limit anywhere is refused.
 const CELL_UPDATES_PER_SECOND: f64 = 1e8;
 /// Request, result, sequence and small buffers of any job.
 const BASE_BYTES: u64 = 256 << 10;
-/// Bytes per cell while eroding: the input (f32), heights, the second buffer and Ψ (f64
-/// each), and with the fluvial step its solve buffer, area, sediment and losses (f64 each),
-/// receivers, donors and the order (6).
-const THERMAL_BYTES_PER_CELL: u64 = 4 + 8 + 8 + 1;
-const FLUVIAL_BYTES_PER_CELL: u64 = 4 * 8 + 6;
+/// Bytes per cell while eroding: the input (f32), heights, the hillslope's two buffers (f64
+/// each), and with the fluvial step Ψ, its solve buffer, area, sediment and losses (f64 each),
+/// receivers, donors and the order (6), outlets and the deltas' visit stamps (5).
+const THERMAL_BYTES_PER_CELL: u64 = 4 + 8 + 8 + 8 + 1;
+const FLUVIAL_BYTES_PER_CELL: u64 = 5 * 8 + 6 + 5;
 /// The flood's heap and closed set at its worst, before the erosion's arrays.
 const FLOOD_BYTES_PER_CELL: u64 = 4 + 8 + 1 + 1 + 16;
 /// Finishing: input and output (f32), the maps (three f32, two u8) and the route they read
@@ -34,7 +34,9 @@ pub fn estimate(params: &ErodeParams, terrain: &dyn TerrainLookup) -> Result<Cos
     let (cols, rows) = (extent.cols, extent.rows);
     let cells = cols.saturating_mul(rows);
     let fluvial = params.hydraulic.on().is_some();
-    let sweeps = params.thermal.on().map_or(0, |t| u64::from(t.sweeps));
+    // The hillslope step: two implicit line solves and a few failure sweeps, about two cell
+    // updates (or one with creep off).
+    let hill = params.thermal.on().map_or(0, |t| if t.diffusivity_m2_per_yr > 0.0 { 8 } else { 4 });
     let iterations = u64::from(params.iterations);
 
     let eroding = cells.saturating_mul(THERMAL_BYTES_PER_CELL + if fluvial { FLUVIAL_BYTES_PER_CELL } else { 0 });
@@ -46,9 +48,9 @@ pub fn estimate(params: &ErodeParams, terrain: &dyn TerrainLookup) -> Result<Cos
     cost.lods(heightfield_lod_triangles(cols, rows, params.tiles.is_some()), HEIGHTFIELD_LOD_BYTES_PER_TRIANGLE);
     cost.memory("", BASE_BYTES).memory("iterations", iterations * ITERATION_BYTES);
     cost.memory("terrain", eroding.max(flood).max(finish));
-    // Per iteration: the fluvial step (1 per cell) and the sweeps (1/4 each); loading,
+    // Per iteration: the fluvial step (1 per cell) and the hillslope step; loading,
     // measures and exports visit every cell a few dozen times.
-    let per_iteration = cells.saturating_mul(4 * u64::from(fluvial) + sweeps) / 4;
+    let per_iteration = cells.saturating_mul(4 * u64::from(fluvial) + hill) / 4;
     let work = per_iteration.saturating_mul(iterations).saturating_add(cells.saturating_mul(40));
     Ok(cost.work("iterations", work).build("cell updates", CELL_UPDATES_PER_SECOND))
 }

@@ -1,16 +1,21 @@
-//! The erosion's state and one iteration of it: uplift, drainage, the stream-power step,
-//! thermal sweeps, and the raise that keeps every land cell draining.
+//! The erosion's state and one iteration of it: uplift, drainage, the stream-power step, the
+//! sediment that reached the sea settled as deltas, hillslope transport, and the raise that
+//! keeps every land cell draining — with every volume that enters, moves or leaves counted.
 
 use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 
 use super::flood::{fill, EPSILON_M};
 use super::flow::Flow;
-use super::grid::{outlets, Grid};
+use super::grid::Grid;
+use super::hillslope::Hillslope;
+use super::marine::Marine;
 use super::params::ErodeParams;
 use super::stream_power::StreamPower;
-use super::thermal::Talus;
 use crate::terrain::Heightfield;
+
+/// Most cell raises one iteration's pit repair makes before it floods the whole grid instead.
+const PIT_RAISES_PER_CELL: usize = 4;
 
 /// The fluvial half of an iteration.
 struct Fluvial {
@@ -22,12 +27,7 @@ struct Fluvial {
     eroded: Vec<f64>,
     /// The heights the step solves into.
     next: Vec<f64>,
-}
-
-/// The thermal half of an iteration.
-struct Relax {
-    talus: Talus,
-    sweeps: u32,
+    marine: Marine,
 }
 
 /// A terrain being eroded, iteration by iteration.
@@ -35,35 +35,47 @@ pub struct Erosion {
     pub grid: Grid,
     /// Heights, m; f64 while eroding, f32 only at the end (and in each checksum).
     pub heights: Vec<f64>,
+    /// The grid's border and the sea (at or below the sea level), found again each iteration.
     outlets: Vec<bool>,
     /// Rivers cut down to it, not to the sea floor.
     sea_level: f64,
+    dt_years: f64,
     fluvial: Option<Fluvial>,
-    relax: Option<Relax>,
-    /// Ψ of the stream-power step, then the second buffer of the thermal sweeps.
+    hillslope: Option<Hillslope>,
+    /// Ψ of the stream-power step.
     scratch: Vec<f64>,
     pub totals: Totals,
 }
 
-/// What the erosion moved, m³.
+/// What the erosion moved, m³. Over a run, the volume under the terrain changes by
+/// `lake_fill + drain_raise + uplift + unsettled − exported`: everything else only moved.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Totals {
     /// Filling the input's depressions before the first iteration.
     pub lake_fill_m3: f64,
-    /// Sediment carried into outlets (sea and the grid's border).
-    pub sediment_to_outlets_m3: f64,
+    /// Sediment rivers carried into the sea and settled there.
+    pub settled_in_sea_m3: f64,
+    /// What left the grid: sediment carried into the border, creep and failure into it, and
+    /// what a mouth's sea had no room for.
+    pub exported_m3: f64,
     /// Raised to keep land cells draining after each iteration.
     pub drain_raise_m3: f64,
+    /// Added by uplift.
+    pub uplift_m3: f64,
+    /// Net gains upstream of a mouth in one iteration (sediment settling from what an earlier
+    /// iteration carried) that the mouth cannot hand back: counted, not taken from the sea.
+    pub unsettled_m3: f64,
     pub iterations: u32,
 }
 
 impl Erosion {
-    /// Start from `hf`: outlets fixed from its heights and `sea_level`, depressions filled
-    /// (when the fluvial step is on).
+    /// Start from `hf`: depressions filled (when the fluvial step is on).
     pub fn new(hf: &Heightfield, params: &ErodeParams) -> Self {
         let grid = Grid::new(hf.cols, hf.rows, f64::from(hf.cell_size_m));
         let mut heights: Vec<f64> = hf.heights_m.par_iter().map(|&h| f64::from(h)).collect();
-        let outlets = outlets(&grid, &heights, f64::from(params.sea_level));
+        let sea_level = f64::from(params.sea_level);
+        let mut outlets = vec![false; grid.cells()];
+        find_outlets(&grid, &heights, sea_level, &mut outlets);
         let mut totals = Totals::default();
         let dt = params.time_step_years;
         let fluvial = params.hydraulic.on().map(|h| {
@@ -81,66 +93,136 @@ impl Erosion {
                 flow: Flow::new(grid.cells()),
                 eroded: vec![0.0; grid.cells()],
                 next: vec![0.0; grid.cells()],
+                marine: Marine::new(grid.cells()),
             }
         });
-        let relax = params
-            .thermal
-            .on()
-            .map(|t| Relax { talus: Talus::new(&grid, t.talus_angle_deg, t.rate), sweeps: t.sweeps });
-        let scratch = vec![0.0; grid.cells()];
-        Self { grid, heights, outlets, sea_level: f64::from(params.sea_level), fluvial, relax, scratch, totals }
+        let hillslope = params.thermal.on().map(|t| {
+            Hillslope::new(&grid, t.diffusivity_m2_per_yr, t.talus_angle_deg, fluvial.is_some())
+        });
+        let scratch = if fluvial.is_some() { vec![0.0; grid.cells()] } else { Vec::new() };
+        Self { grid, heights, outlets, sea_level, dt_years: dt, fluvial, hillslope, scratch, totals }
     }
 
     /// One iteration.
     pub fn step(&mut self) {
+        if self.fluvial.is_some() {
+            find_outlets(&self.grid, &self.heights, self.sea_level, &mut self.outlets);
+            self.totals.drain_raise_m3 += self.drain_pits();
+            self.fluvial_step();
+        }
+        if let Some(h) = &mut self.hillslope {
+            let rivers = self.fluvial.as_mut().map(|f| (&self.outlets[..], &mut f.eroded[..]));
+            self.totals.exported_m3 += h.step(&self.grid, &mut self.heights, self.dt_years, rivers);
+        }
+        if let Some(f) = &self.fluvial {
+            self.totals.drain_raise_m3 += f.flow.raise_to_drain(&self.grid, &mut self.heights, EPSILON_M);
+        }
+        self.totals.iterations += 1;
+    }
+
+    /// Uplift, drainage, the stream-power step, and the sediment the last iteration sent to the
+    /// outlets settled in the sea or sent off the grid.
+    fn fluvial_step(&mut self) {
         let grid = &self.grid;
-        if let Some(f) = &mut self.fluvial {
-            if f.uplift_m > 0.0 {
-                let u = f.uplift_m;
-                self.heights.par_iter_mut().zip(&self.outlets).for_each(|(h, &o)| {
+        let Some(f) = &mut self.fluvial else { return };
+        if f.uplift_m > 0.0 {
+            let u = f.uplift_m;
+            let raised: usize = self
+                .heights
+                .par_iter_mut()
+                .zip(&self.outlets)
+                .map(|(h, &o)| {
                     if !o {
                         *h += u;
                     }
-                });
+                    usize::from(!o)
+                })
+                .sum();
+            self.totals.uplift_m3 += raised as f64 * u * grid.cell * grid.cell;
+        }
+        // Outlets stand at least at the sea level while the step runs: the base level rivers
+        // cut down to, not the sea floor below it. They never erode, so their entries of
+        // `eroded` keep their real heights meanwhile.
+        let sea = self.sea_level;
+        // A cell that was land last iteration and is an outlet now (cut to the sea, or drowned
+        // by a collapse) still holds what it lost then: it arrives where it stands.
+        let own: Vec<(usize, f64)> = collect_arrivals(&self.outlets, &f.eroded);
+        self.heights.par_iter_mut().zip(&mut f.eroded).zip(&self.outlets).for_each(|((h, e), &o)| {
+            if o {
+                *e = *h;
+                *h = h.max(sea);
             }
-            // Outlets stand at least at the sea level while the step runs: the base level rivers
-            // cut down to, not the sea floor below it. They never erode, so their entries of
-            // `eroded` keep their real heights meanwhile.
-            let sea = self.sea_level;
-            self.heights.par_iter_mut().zip(&mut f.eroded).zip(&self.outlets).for_each(|((h, e), &o)| {
+        });
+        f.flow.route(grid, &self.heights, &self.outlets, &f.eroded, f.power.flow_exponent);
+        // What reaches each outlet, in index order: settled after the step, on the real heights.
+        let mut arrivals: Vec<(usize, f64)> = collect_arrivals(&self.outlets, &f.flow.sediment);
+        merge_arrivals(&mut arrivals, &own);
+        f.power.psi(&f.flow.area, &mut self.scratch);
+        f.power.solve(grid, &self.heights, &self.outlets, &f.flow, &self.scratch, &mut f.next);
+        let area = grid.cell * grid.cell;
+        f.eroded.par_iter_mut().zip(&mut f.next).zip(&self.heights).zip(&self.outlets).for_each(
+            |(((e, n), &h), &o)| {
                 if o {
-                    *e = *h;
-                    *h = h.max(sea);
+                    *n = *e;
+                    *e = 0.0;
+                } else {
+                    *e = area * (h - *n);
                 }
-            });
-            f.flow.route(grid, &self.heights, &self.outlets, &f.eroded, f.power.flow_exponent);
-            self.totals.sediment_to_outlets_m3 +=
-                self.outlets.iter().zip(&f.flow.sediment).filter(|(&o, _)| o).map(|(_, &v)| v.max(0.0)).sum::<f64>();
-            f.power.psi(&f.flow.area, &mut self.scratch);
-            f.power.solve(grid, &self.heights, &self.outlets, &f.flow, &self.scratch, &mut f.next);
-            let area = grid.cell * grid.cell;
-            f.eroded.par_iter_mut().zip(&mut f.next).zip(&self.heights).zip(&self.outlets).for_each(
-                |(((e, n), &h), &o)| {
-                    if o {
-                        *n = *e;
-                        *e = 0.0;
-                    } else {
-                        *e = area * (h - *n);
-                    }
-                },
-            );
-            std::mem::swap(&mut self.heights, &mut f.next);
+            },
+        );
+        std::mem::swap(&mut self.heights, &mut f.next);
+        deliver(grid, &mut self.heights, sea, &self.outlets, &mut f.marine, &arrivals, &mut self.totals);
+    }
+
+    /// Carry the last iteration's sediment to the outlets and settle it, so that nothing is left
+    /// in transit when the run ends.
+    pub fn flush(&mut self) {
+        let grid = &self.grid;
+        let Some(f) = &mut self.fluvial else { return };
+        find_outlets(grid, &self.heights, self.sea_level, &mut self.outlets);
+        let own = collect_arrivals(&self.outlets, &f.eroded);
+        f.flow.route(grid, &self.heights, &self.outlets, &f.eroded, f.power.flow_exponent);
+        let mut arrivals = collect_arrivals(&self.outlets, &f.flow.sediment);
+        merge_arrivals(&mut arrivals, &own);
+        f.eroded.iter_mut().for_each(|e| *e = 0.0);
+        deliver(grid, &mut self.heights, self.sea_level, &self.outlets, &mut f.marine, &arrivals, &mut self.totals);
+    }
+
+    /// Raise every land cell that has no lower neighbour (land the hillslope raised from the
+    /// sea, say) until it drains: a few local raises, or a flood of the whole grid when there
+    /// are many. Returns the volume added, m³.
+    fn drain_pits(&mut self) -> f64 {
+        let (grid, h, outlets) = (&self.grid, &mut self.heights, &self.outlets);
+        let cols = grid.cols;
+        let pit = |h: &[f64], i: usize| {
+            !outlets[i] && (0..8).all(|k| grid.neighbour(i, k).is_none_or(|n| h[n] >= h[i]))
+        };
+        let frozen: &[f64] = h;
+        let mut stack: Vec<usize> = (0..grid.rows)
+            .into_par_iter()
+            .flat_map_iter(|r| (r * cols..(r + 1) * cols).filter(move |&i| pit(frozen, i)))
+            .collect();
+        if stack.is_empty() {
+            return 0.0;
         }
-        if let Some(r) = &self.relax {
-            for _ in 0..r.sweeps {
-                r.talus.sweep(grid, &self.heights, &mut self.scratch, self.fluvial.is_some());
-                std::mem::swap(&mut self.heights, &mut self.scratch);
+        stack.reverse();
+        let before: f64 = h.iter().sum();
+        let mut budget = PIT_RAISES_PER_CELL * grid.cells();
+        while let Some(i) = stack.pop() {
+            if !pit(h, i) {
+                continue;
             }
+            if budget == 0 {
+                // Too deep for local raises: flood (it raises only what does not drain).
+                fill(grid, h, outlets, EPSILON_M);
+                break;
+            }
+            budget -= 1;
+            let lowest = (0..8).filter_map(|k| grid.neighbour(i, k)).map(|n| h[n]).fold(f64::INFINITY, f64::min);
+            h[i] = lowest + EPSILON_M;
+            stack.extend((0..8).rev().filter_map(|k| grid.neighbour(i, k)).filter(|&n| !outlets[n]));
         }
-        if let Some(f) = &self.fluvial {
-            self.totals.drain_raise_m3 += f.flow.raise_to_drain(grid, &mut self.heights, EPSILON_M);
-        }
-        self.totals.iterations += 1;
+        (h.iter().sum::<f64>() - before) * grid.cell * grid.cell
     }
 
     /// The heights as a heightfield of `cell_size_m`.
@@ -150,10 +232,10 @@ impl Erosion {
         hf
     }
 
-    /// The largest drop beyond the talus slope between neighbours, m (None without the thermal
-    /// step).
-    pub fn talus_excess(&self) -> Option<f64> {
-        self.relax.as_ref().map(|r| r.talus.max_excess(&self.grid, &self.heights))
+    /// The share of faces steeper than the talus slope beyond the failure's tolerance (None
+    /// without hillslope transport).
+    pub fn steep_share(&self) -> Option<f64> {
+        self.hillslope.as_ref().map(|h| h.steep_share(&self.grid, &self.heights))
     }
 
     /// The first 16 hex digits of the sha256 of the heights as little-endian f32s: what the
@@ -180,4 +262,61 @@ fn sha256_f32(values: impl Iterator<Item = f32>) -> [u8; 32] {
         hasher.update(&buf);
     }
     hasher.finalize().into()
+}
+
+/// The grid's border and every cell at or below `sea_level`: water that reaches one leaves the
+/// land, and the fluvial step does not cut it.
+fn find_outlets(grid: &Grid, heights: &[f64], sea_level: f64, outlets: &mut [bool]) {
+    let cols = grid.cols;
+    outlets.par_chunks_mut(cols).enumerate().for_each(|(r, row)| {
+        for (c, o) in row.iter_mut().enumerate() {
+            *o = heights[r * cols + c] <= sea_level || grid.on_border(r * cols + c);
+        }
+    });
+}
+
+/// The sediment that reached each outlet, m³, in index order (nonzero only).
+fn collect_arrivals(outlets: &[bool], sediment: &[f64]) -> Vec<(usize, f64)> {
+    outlets.iter().zip(sediment).enumerate().filter(|(_, (&o, &v))| o && v != 0.0).map(|(i, (_, &v))| (i, v)).collect()
+}
+
+/// Add `more` into `arrivals` (both in index order), keeping index order.
+fn merge_arrivals(arrivals: &mut Vec<(usize, f64)>, more: &[(usize, f64)]) {
+    if more.is_empty() {
+        return;
+    }
+    arrivals.extend_from_slice(more);
+    arrivals.sort_by_key(|&(i, _)| i);
+    arrivals.dedup_by(|b, a| {
+        if a.0 == b.0 {
+            a.1 += b.1;
+            true
+        } else {
+            false
+        }
+    });
+}
+
+/// Settle each arrival in the sea at its outlet (a delta), or send it off the grid at the
+/// border; a negative arrival (a net gain upstream) is counted, not taken back.
+fn deliver(
+    grid: &Grid,
+    heights: &mut [f64],
+    sea_level: f64,
+    outlets: &[bool],
+    marine: &mut Marine,
+    arrivals: &[(usize, f64)],
+    totals: &mut Totals,
+) {
+    for &(i, v) in arrivals {
+        if v < 0.0 {
+            totals.unsettled_m3 -= v;
+        } else if grid.on_border(i) {
+            totals.exported_m3 += v;
+        } else {
+            let left = marine.settle(grid, heights, |n| outlets[n], sea_level, i, v);
+            totals.settled_in_sea_m3 += v - left;
+            totals.exported_m3 += left;
+        }
+    }
 }

@@ -1,5 +1,6 @@
 //! Where water goes: each land cell sends its flow to all its lower neighbours, split by slope
-//! to a power (multiple flow directions, Quinn et al. 1991), and the cells in an order where
+//! to a power times the contour length crossed (multiple flow directions, Quinn et al. 1991),
+//! and the cells in an order where
 //! every cell comes after all the cells that drain into it.
 //!
 //! The order is built by Kahn's algorithm over the donor counts (one sequential pass, O(n));
@@ -124,8 +125,9 @@ impl Flow {
     }
 }
 
-/// The share of cell `i`'s flow each receiver in `mask` takes: slope to the `exponent`,
-/// normalised (zero for neighbours that are not receivers).
+/// The share of cell `i`'s flow each receiver in `mask` takes: slope to the `exponent` times
+/// the contour length towards it (Quinn et al. 1991), normalised (zero for neighbours that are
+/// not receivers).
 #[inline]
 pub fn weights(grid: &Grid, heights: &[f64], i: usize, mask: u8, exponent: f64) -> [f64; 8] {
     let mut w = [0.0; 8];
@@ -133,7 +135,7 @@ pub fn weights(grid: &Grid, heights: &[f64], i: usize, mask: u8, exponent: f64) 
     for k in 0..8 {
         if mask & (1 << k) != 0 {
             let s = (heights[i] - heights[grid.inner(i, k)]) / grid.length[k];
-            w[k] = if exponent == 1.0 { s } else { libm::pow(s, exponent) };
+            w[k] = grid.contour[k] * if exponent == 1.0 { s } else { libm::pow(s, exponent) };
             sum += w[k];
         }
     }

@@ -19,6 +19,10 @@ pub struct Grid {
     pub length: [f64; 8],
     /// Index offset of each neighbour of [`N8`].
     pub offset: [isize; 8],
+    /// The contour length water crosses towards each neighbour of [`N8`], in cells: ½ for the
+    /// four sides, √2/4 for the corners (Quinn et al. 1991), so that flow on a plane splits by
+    /// the plane's own direction rather than the grid's.
+    pub contour: [f64; 8],
 }
 
 impl Grid {
@@ -26,7 +30,8 @@ impl Grid {
         let diagonal = cell * std::f64::consts::SQRT_2;
         let length = DIAGONAL.map(|d| if d { diagonal } else { cell });
         let offset = N8.map(|(dc, dr)| dr * cols as isize + dc);
-        Self { cols, rows, cell, length, offset }
+        let contour = DIAGONAL.map(|d| if d { std::f64::consts::SQRT_2 / 4.0 } else { 0.5 });
+        Self { cols, rows, cell, length, offset, contour }
     }
 
     pub fn cells(&self) -> usize {

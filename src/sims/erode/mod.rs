@@ -3,13 +3,17 @@
 //! slow, scree below cliffs.
 //!
 //! The fluvial step is the stream-power law E = k·A^m·S^n solved implicitly in O(n) per
-//! iteration (Braun & Willett 2013) on multiple-flow-direction drainage (Quinn et al. 1991),
-//! with the deposition term of Yuan et al. 2019; the surface is kept free of pits by
+//! iteration (Braun & Willett 2013) on multiple-flow-direction drainage weighted by contour
+//! length (Quinn et al. 1991), with the deposition term of Yuan et al. 2019; sediment that
+//! reaches the sea settles as a delta (`marine.rs`); the surface is kept free of pits by
 //! Priority-Flood+ε (Barnes et al. 2014) once and a raise along the drainage after every
-//! iteration. The thermal step is talus-angle relaxation (Musgrave et al. 1989; Olsen 2004).
-//! Cordonnier et al. 2016 and Schott et al. 2023 show the same stream-power model shaping
-//! terrain for authoring. Every pass is a fixed-order sequential sweep or a row-parallel
-//! gather, so the bytes do not depend on the thread count.
+//! iteration. The hillslope step (`thermal` in the request) is creep that grows towards the
+//! talus slope (Roering et al. 1999), solved implicitly, and failure of anything steeper,
+//! measured on the gradient. Every rate is per year and per metre, so the landform does not
+//! depend on the time step or the cell size beyond the methods' error. Cordonnier et al. 2016
+//! and Schott et al. 2023 show the same stream-power model shaping terrain for authoring. Every
+//! pass is a fixed-order sequential sweep or a row-parallel gather, so the bytes do not depend
+//! on the thread count.
 
 mod cost;
 mod erosion;
@@ -21,15 +25,18 @@ pub mod metrics;
 mod params;
 mod sequence;
 mod stream_power;
-mod thermal;
+mod hillslope;
+mod marine;
 
 #[cfg(test)]
 mod tests;
 
+use rayon::prelude::*;
 use serde_json::{json, Map, Value};
 
 pub use erosion::{input_sha256, Erosion};
 pub use params::{ErodeParams, Hydraulic, Switch, Thermal, MAX_ITERATIONS};
+pub use hillslope::FAIL_TOLERANCE;
 pub use sequence::ErodeSequence;
 
 use crate::export::{short_decimal, HeightfieldExport};
@@ -49,9 +56,10 @@ impl Simulation for Erode {
     const KIND: &'static str = "erode";
     const SUMMARY: &'static str =
         "Erode a heightfield: stream-power rivers with deposition on a pit-free surface, and talus-angle scree";
-    // 2: deposition capped by the donors' heights plus their own deposits (1: every non-outlet
-    // neighbour's height).
-    const GENERATOR_VERSION: u32 = 2;
+    // 3: hillslope creep and failure in physical units, contour-length flow weights, outlets
+    // found every iteration, deltas (2: deposition capped by the donors' heights plus their own
+    // deposits; 1: every non-outlet neighbour's height).
+    const GENERATOR_VERSION: u32 = 3;
     type Params = ErodeParams;
     type Sequence = ErodeSequence;
 
@@ -136,6 +144,7 @@ fn erode(
             Ok(crate::export::snapshot_png(&erosion.heightfield()))
         });
     }
+    erosion.flush();
     Ok((erosion, checksums))
 }
 
@@ -149,7 +158,7 @@ fn finish(
     ctx: &RunContext,
 ) -> Result<Outcome<ErodeSequence>, SimError> {
     let totals = erosion.totals;
-    let talus_excess = erosion.talus_excess();
+    let steep_share = erosion.steep_share();
     let output = erosion.heightfield();
     drop(erosion);
     check_heights(&output)?;
@@ -160,8 +169,8 @@ fn finish(
         .map_or(0.0, |h| h.uplift_m_per_yr * params.time_step_years * f64::from(totals.iterations));
     let maps = Maps::new(input, &output, params.sea_level, exponent, uplift_m);
     let mut figures = figures(input, &output, params, &maps, totals);
-    if let Some(excess) = talus_excess {
-        figures.insert("max_talus_excess_m".into(), json!(round6(excess)));
+    if let Some(share) = steep_share {
+        figures.insert("steeper_than_talus_share".into(), json!(round6(share)));
     }
     let map_files = maps.artifacts(output.cols, output.rows);
     let (material, rock) = maps.splat();
@@ -215,12 +224,51 @@ fn figures(
     out.insert("eroded_m3".into(), json!(round3(sum(&maps.wear))));
     out.insert("deposited_m3".into(), json!(round3(sum(&maps.deposition))));
     out.insert("lake_fill_m3".into(), json!(round3(totals.lake_fill_m3)));
-    out.insert("sediment_to_outlets_m3".into(), json!(round3(totals.sediment_to_outlets_m3)));
     out.insert("drain_raise_m3".into(), json!(round3(totals.drain_raise_m3)));
+    out.insert("mass_balance".into(), mass_balance(input, output, params.sea_level, totals));
     if (output.cols * output.rows) as u64 <= METRICS_MAX_CELLS {
         out.insert("landform".into(), landform(input, output, params));
     }
     out
+}
+
+/// Where the material went, m³, from the heights themselves and the erosion's own counts:
+/// `eroded + lake_fill + drain_raise + uplift + unsettled = deposited_on_land + deposited_in_sea
+/// + exported` (to the rounding of the f32 heights).
+fn mass_balance(input: &Heightfield, output: &Heightfield, sea_level: f32, totals: erosion::Totals) -> Value {
+    let cell_area = f64::from(output.cell_size_m) * f64::from(output.cell_size_m);
+    let cols = output.cols;
+    // Per row, then the rows in order: the same sums with any thread count.
+    let rows: Vec<[f64; 3]> = (0..output.rows)
+        .into_par_iter()
+        .map(|r| {
+            let mut sums = [0.0; 3];
+            for i in r * cols..(r + 1) * cols {
+                let (a, b) = (output.heights_m[i], input.heights_m[i]);
+                let d = f64::from(a) - f64::from(b);
+                if d < 0.0 {
+                    sums[0] -= d;
+                } else if a > sea_level {
+                    sums[1] += d;
+                } else {
+                    sums[2] += d;
+                }
+            }
+            sums
+        })
+        .collect();
+    let sum = |k: usize| round3(rows.iter().map(|s| s[k]).sum::<f64>() * cell_area);
+    json!({
+        "eroded_m3": sum(0),
+        "deposited_on_land_m3": sum(1),
+        "deposited_in_sea_m3": sum(2),
+        "exported_m3": round3(totals.exported_m3),
+        "settled_in_sea_by_rivers_m3": round3(totals.settled_in_sea_m3),
+        "lake_fill_m3": round3(totals.lake_fill_m3),
+        "drain_raise_m3": round3(totals.drain_raise_m3),
+        "uplift_m3": round3(totals.uplift_m3),
+        "unsettled_m3": round3(totals.unsettled_m3),
+    })
 }
 
 /// `{"input": {…}, "output": {…}}` of the measures in [`metrics`].

@@ -166,26 +166,61 @@ fn rough(size: u32, relief: f32, seed: u64) -> Value {
 }
 
 #[test]
-fn thermal_sweeps_conserve_material_never_overshoot_and_settle_at_the_talus_angle() {
-    let p = params(json!({"terrain": rough(97, 300.0, 5), "hydraulic": null, "thermal": {"talus_angle_deg": 35.0}}));
+fn hillslope_transport_conserves_material_never_overshoots_and_reaches_the_talus_angle() {
+    let p = params(json!({
+        "terrain": rough(97, 300.0, 5), "hydraulic": null,
+        "thermal": {"talus_angle_deg": 35.0, "diffusivity_m2_per_yr": 0.01},
+    }));
     let hf = terrain(&p);
     let (lo, hi) = hf.min_max();
     let volume = |h: &[f64]| h.iter().map(|&x| x - f64::from(lo)).sum::<f64>();
     let mut e = Erosion::new(&hf, &p);
     let before = volume(&e.heights);
-    let talus = thermal::Talus::new(&e.grid, 35.0, 0.125);
-    let mut its = 0;
-    while talus.max_excess(&e.grid, &e.heights) > 1e-3 && its < 20_000 {
+    // One step relaxes the input (failure runs until no face is steeper than the talus slope
+    // beyond its tolerance, or its sweep cap); a few more finish what the cap left.
+    for its in 1..=10 {
         e.step();
-        its += 1;
         assert!(e.heights.iter().all(|&h| h >= f64::from(lo) && h <= f64::from(hi)), "overshoot at {its}");
     }
     let after = volume(&e.heights);
     assert!((after - before).abs() <= 1e-12 * before, "volume {before} → {after}");
+    assert_eq!(e.steep_share(), Some(0.0));
     let out = e.heightfield();
-    let share = metrics::within_angle_share(&out, 37.0);
-    assert!(share >= 0.995, "{share} within 37° after {its} iterations");
-    assert!(metrics::within_angle_share(&hf, 37.0) < 0.9, "the input was not steep enough to test");
+    let share = metrics::within_angle_share(&out, 40.0);
+    assert!(share >= 0.99, "{share} within 40°");
+    assert!(metrics::within_angle_share(&hf, 40.0) < 0.9, "the input was not steep enough to test");
+}
+
+#[test]
+fn creep_alone_spreads_a_ridge_as_the_diffusion_equation_does() {
+    // Failure off in effect (a critical slope of 89°), creep on a gentle ridge along x: linear
+    // diffusion decays a cosine of wave number k by exp(−κk²t), whatever the steps (the implicit
+    // solve is first order in time: 10 steps of 500 yr within 1.5 %). The grid's ends let
+    // nothing through; a cosine whose crests sit half a cell beyond the first and last samples
+    // has its slope zero there too, so it decays as a whole.
+    let (cols, rows, cell) = (64usize, 8usize, 2.0f64);
+    let lambda = cols as f64 * cell;
+    let k = 2.0 * std::f64::consts::PI / lambda;
+    let kappa = 0.05;
+    let hf = Heightfield::from_fn(cols, rows, cell as f32, |x, _| (5.0 * (k * (f64::from(x) + 0.5 * cell)).cos()) as f32);
+    let amplitude = |h: &[f64]| h[rows / 2 * cols] / (k * 0.5 * cell).cos();
+    let run = |steps: u32, dt: f64| {
+        let p = params(json!({
+            "terrain": {"fractal": {}}, "hydraulic": null, "iterations": steps, "time_step_years": dt,
+            "thermal": {"talus_angle_deg": 89.0, "diffusivity_m2_per_yr": kappa},
+        }));
+        let mut e = Erosion::new(&hf, &p);
+        let start = amplitude(&e.heights);
+        for _ in 0..steps {
+            e.step();
+        }
+        amplitude(&e.heights) / start
+    };
+    let expected = (-kappa * k * k * 5_000.0).exp();
+    for (steps, dt) in [(10, 500.0), (100, 50.0)] {
+        let got = run(steps, dt);
+        assert!((got - expected).abs() <= 0.015, "{steps} × {dt} yr: decayed to {got}, the closed form {expected}");
+    }
 }
 
 #[test]
@@ -215,7 +250,10 @@ fn the_measures_read_a_tilted_plane_and_a_pit_as_they_should() {
 fn island(seed: u64, thermal: bool) -> ErodeParams {
     let mut v = json!({"terrain": {"fractal": {"size": 257, "cell_size": 2.0, "island": true, "seed": seed}}});
     if !thermal {
+        // The channels graded: the rivers alone at four times the default k (what the default
+        // was before the hillslope step could wear an island as fast).
         v["thermal"] = Value::Null;
+        v["hydraulic"] = json!({"k": 2e-4});
     }
     params(v)
 }
@@ -250,10 +288,10 @@ fn check_island(p: &ErodeParams) -> (f64, f64) {
 
 #[test]
 fn an_eroded_island_drains_has_concave_channels_and_follows_hacks_law() {
-    // The defaults, thermal on.
+    // The defaults, hillslope transport on.
     let (theta, hack) = check_island(&island(11, true));
     assert!((0.3..=0.7).contains(&theta), "θ {theta}");
-    assert!((0.5..=0.7).contains(&hack), "Hack {hack}");
+    assert!((0.45..=0.65).contains(&hack), "Hack {hack}");
 }
 
 #[test]
@@ -328,7 +366,7 @@ fn a_process_is_on_when_absent_and_off_with_null_or_false_and_stays_off_when_sto
 
 #[test]
 fn with_both_processes_talus_that_reaches_the_sea_stays_on_the_grid() {
-    // No fluvial erosion (k = 0), so only the thermal sweeps and the drain raise move material:
+    // No fluvial erosion (k = 0), so only the hillslope transport and the drain raise move material:
     // what slides off a steep island's coast must pile up in the sea, not vanish (the border,
     // the only sink, lies on a flat sea floor far from the coast).
     // A cone steeper than the talus (63°) standing in a flat sea floor.
@@ -342,8 +380,11 @@ fn with_both_processes_talus_that_reaches_the_sea_stays_on_the_grid() {
     for _ in 0..60 {
         e.step();
     }
+    // The collapse's debris joins the rivers' load: the last of it is carried when the run ends.
+    e.flush();
     let moved = hf.heights_m.iter().zip(&e.heights).map(|(&a, &b)| (f64::from(a) - b).abs()).sum::<f64>() * 4.0;
-    let change = volume(&e.heights) - before - e.totals.drain_raise_m3;
+    let t = e.totals;
+    let change = volume(&e.heights) - before - t.drain_raise_m3 - t.unsettled_m3 + t.exported_m3;
     assert!(moved > 1e4, "the test moved too little: {moved} m³");
     assert!(change.abs() <= 1e-9 * moved.max(1.0) + 1e-6, "{change} m³ of {moved} m³ moved went missing");
 }
@@ -358,8 +399,8 @@ fn a_bad_member_of_a_process_is_reported_at_its_own_path() {
     let (f, m) = field(json!({"terrain": {"fractal": {}}, "hydraulic": {"kk": 1.0}}));
     assert_eq!(f, "hydraulic.kk", "{m}");
     assert!(m.contains("unknown field `kk`"), "{m}");
-    let (f, m) = field(json!({"terrain": {"fractal": {}}, "thermal": {"sweeps": "two"}}));
-    assert_eq!(f, "thermal.sweeps", "{m}");
+    let (f, m) = field(json!({"terrain": {"fractal": {}}, "thermal": {"talus_angle_deg": "two"}}));
+    assert_eq!(f, "thermal.talus_angle_deg", "{m}");
     let (f, m) = field(json!({"terrain": {"fractal": {}}, "thermal": 3}));
     assert_eq!(f, "thermal", "{m}");
     assert!(m.contains("true (the defaults)"), "{m}");
@@ -393,7 +434,7 @@ fn mountain_front() -> Heightfield {
 fn erode_front(deposition_g: f64) -> (Heightfield, Vec<f64>, f64) {
     let p = params(json!({
         "terrain": {"fractal": {}}, "sea_level": -1000.0, "iterations": 100, "thermal": null,
-        "hydraulic": {"deposition_g": deposition_g},
+        "hydraulic": {"deposition_g": deposition_g, "k": 2e-4},
     }));
     let hf = mountain_front();
     let mut e = Erosion::new(&hf, &p);

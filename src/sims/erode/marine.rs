@@ -1,0 +1,87 @@
+//! Sediment that a river carries into the sea settles there as a delta: it runs from the
+//! mouth down the sea floor's steepest way, filling each cell it crosses up to a shoreface
+//! surface just under the sea level that deepens away from the mouth ([`SHOREFACE_SLOPE`]),
+//! until it is spent — the mouth's marine deposition to base level, in the manner of
+//! FastScape's marine component (Yuan et al. 2019), without a separate marine transport law.
+//! A path that has filled its way blocks itself, so the next step's sediment takes another and
+//! the deposit spreads as lobes; the hillslope creep, which runs under the sea as on land,
+//! smooths its front.
+//!
+//! Each step of the path goes to the lowest sea neighbour not yet crossed (ties to the lower
+//! index), so the result depends on nothing but the heights. What cannot settle within
+//! [`MAX_CELLS`] cells of the mouth, or where the path meets the grid's border or a dead end,
+//! leaves the grid.
+
+use super::grid::Grid;
+
+/// The deposit's top near the mouth stands this far under the sea level, m: it stays sea.
+pub const TOP_DEPTH_M: f64 = 0.05;
+/// How fast the shoreface the deposit builds deepens away from the mouth, m/m (shorefaces and
+/// delta fronts slope 0.5–2 %).
+pub const SHOREFACE_SLOPE: f64 = 0.01;
+/// Most sea cells one mouth's sediment crosses in one step (a bound on the work).
+pub const MAX_CELLS: usize = 1 << 14;
+
+/// The delta builder's reusable buffer.
+pub struct Marine {
+    /// The path each cell was last crossed by, so nothing is cleared between paths.
+    stamp: Vec<u32>,
+    visit: u32,
+}
+
+impl Marine {
+    pub fn new(cells: usize) -> Self {
+        Self { stamp: vec![0; cells], visit: 0 }
+    }
+
+    /// Settle `volume_m3` arriving at sea cell `mouth` along its path down the sea floor (`sea`
+    /// cells off the grid's border). Returns the volume left over, which leaves the grid.
+    pub fn settle(
+        &mut self,
+        grid: &Grid,
+        heights: &mut [f64],
+        sea: impl Fn(usize) -> bool,
+        sea_level: f64,
+        mouth: usize,
+        volume_m3: f64,
+    ) -> f64 {
+        let area = grid.cell * grid.cell;
+        let mut left = volume_m3 / area;
+        if left <= 0.0 {
+            return 0.0;
+        }
+        self.visit = self.visit.wrapping_add(1);
+        if self.visit == 0 {
+            self.stamp.iter_mut().for_each(|s| *s = 0);
+            self.visit = 1;
+        }
+        let visit = self.visit;
+        let (mut at, mut d) = (mouth, 0.0);
+        for _ in 0..MAX_CELLS {
+            self.stamp[at] = visit;
+            let top = sea_level - TOP_DEPTH_M - SHOREFACE_SLOPE * d;
+            if heights[at] < top {
+                let fill = (top - heights[at]).min(left);
+                heights[at] += fill;
+                left -= fill;
+                if left <= 0.0 {
+                    return 0.0;
+                }
+            }
+            let mut next: Option<(usize, usize)> = None;
+            for k in 0..8 {
+                let Some(n) = grid.neighbour(at, k) else { continue };
+                if self.stamp[n] == visit || !sea(n) || grid.on_border(n) {
+                    continue;
+                }
+                if next.is_none_or(|(m, _)| heights[n] < heights[m]) {
+                    next = Some((n, k));
+                }
+            }
+            let Some((n, k)) = next else { break };
+            d += grid.length[k];
+            at = n;
+        }
+        left * area
+    }
+}
