@@ -862,8 +862,7 @@ ErodeThermal = TypedDict(
     'ErodeThermal',
     {
         'talus_angle_deg': NotRequired[float],
-        'rate': NotRequired[float],
-        'sweeps': NotRequired[int],
+        'diffusivity_m2_per_yr': NotRequired[float],
     },
 )
 
