@@ -157,7 +157,7 @@ impl Erosion {
         // What reaches each outlet, in index order: settled after the step, on the real heights.
         let mut arrivals: Vec<(usize, f64)> = collect_arrivals(&self.outlets, &f.flow.sediment);
         merge_arrivals(&mut arrivals, &own);
-        f.power.psi(&f.flow.area, &mut self.scratch);
+        f.power.psi(&f.flow.area, &self.outlets, grid.cell * grid.cell, &mut self.scratch);
         f.power.solve(grid, &self.heights, &self.outlets, &f.flow, &self.scratch, &mut f.next);
         let area = grid.cell * grid.cell;
         f.eroded.par_iter_mut().zip(&mut f.next).zip(&self.heights).zip(&self.outlets).for_each(
@@ -194,9 +194,7 @@ impl Erosion {
     fn drain_pits(&mut self) -> f64 {
         let (grid, h, outlets) = (&self.grid, &mut self.heights, &self.outlets);
         let cols = grid.cols;
-        let pit = |h: &[f64], i: usize| {
-            !outlets[i] && (0..8).all(|k| grid.neighbour(i, k).is_none_or(|n| h[n] >= h[i]))
-        };
+        let pit = |h: &[f64], i: usize| !outlets[i] && grid.lowest_neighbour(h, i) >= h[i];
         let frozen: &[f64] = h;
         let mut stack: Vec<usize> = (0..grid.rows)
             .into_par_iter()
@@ -218,8 +216,7 @@ impl Erosion {
                 break;
             }
             budget -= 1;
-            let lowest = (0..8).filter_map(|k| grid.neighbour(i, k)).map(|n| h[n]).fold(f64::INFINITY, f64::min);
-            h[i] = lowest + EPSILON_M;
+            h[i] = grid.lowest_neighbour(h, i) + EPSILON_M;
             stack.extend((0..8).rev().filter_map(|k| grid.neighbour(i, k)).filter(|&n| !outlets[n]));
         }
         (h.iter().sum::<f64>() - before) * grid.cell * grid.cell

@@ -54,6 +54,17 @@ impl Grid {
             .then(|| (i as isize + self.offset[k]) as usize)
     }
 
+    /// The lowest of cell `i`'s neighbours' heights (interior cells without the bounds checks).
+    #[inline]
+    pub fn lowest_neighbour(&self, heights: &[f64], i: usize) -> f64 {
+        let (c, r) = (i % self.cols, i / self.cols);
+        if c > 0 && r > 0 && c + 1 < self.cols && r + 1 < self.rows {
+            (0..8).map(|k| heights[self.inner(i, k)]).fold(f64::INFINITY, f64::min)
+        } else {
+            (0..8).filter_map(|k| self.neighbour(i, k)).map(|n| heights[n]).fold(f64::INFINITY, f64::min)
+        }
+    }
+
     /// Neighbour `k` of an interior cell (not on the border), without the bounds check.
     #[inline]
     pub fn inner(&self, i: usize, k: usize) -> usize {

@@ -134,12 +134,21 @@ impl Hillslope {
             best
         };
         let frozen: &[f64] = h;
+        // Every candidate above is at least S_c·Δx/√2 over the lowest neighbour: a cell no
+        // higher than that (most of them) needs no closer look.
+        let clear = d * std::f64::consts::FRAC_1_SQRT_2;
         let seeds: Vec<(usize, f64)> = (0..rows)
             .into_par_iter()
             .flat_map_iter(|r| {
                 (r * cols..(r + 1) * cols).filter_map(move |i| {
+                    if outlets[i] {
+                        return None;
+                    }
+                    if frozen[i] <= grid.lowest_neighbour(frozen, i) + clear {
+                        return None;
+                    }
                     let u = allowed(frozen, i);
-                    (!outlets[i] && u < frozen[i] - COLLAPSE_TOLERANCE_M).then_some((i, u))
+                    (u < frozen[i] - COLLAPSE_TOLERANCE_M).then_some((i, u))
                 })
             })
             .collect();
@@ -158,9 +167,11 @@ impl Hillslope {
             if ordered(h[i]) != k {
                 continue;
             }
+            // Whatever this cell now allows a neighbour is at least `clear` above it.
+            let floor = h[i] + clear;
             for k in 0..8 {
                 let Some(n) = grid.neighbour(i, k) else { continue };
-                if outlets[n] {
+                if outlets[n] || h[n] <= floor {
                     continue;
                 }
                 let u = allowed(h, n);

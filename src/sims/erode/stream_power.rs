@@ -28,9 +28,21 @@ const ROOT_STEPS: usize = 60;
 
 impl StreamPower {
     /// Ψ = k·Δt·A^m for every cell, into `psi`.
-    pub fn psi(&self, area: &[f64], psi: &mut [f64]) {
+    /// Outlets (never solved) are skipped, and a cell that drains only itself (a ridge, half
+    /// the land) takes the one power of a cell's area worked out once: the same bits as its own
+    /// `pow` would give, for a fraction of the time.
+    pub fn psi(&self, area: &[f64], outlets: &[bool], cell_area: f64, psi: &mut [f64]) {
         let (k_dt, m) = (self.k_dt, self.m);
-        psi.par_iter_mut().zip(area).for_each(|(p, &a)| *p = k_dt * libm::pow(a, m));
+        let single = k_dt * libm::pow(cell_area, m);
+        psi.par_iter_mut().zip(area).zip(outlets).for_each(|((p, &a), &o)| {
+            *p = if o {
+                0.0
+            } else if a == cell_area {
+                single
+            } else {
+                k_dt * libm::pow(a, m)
+            }
+        });
     }
 
     /// Solve every cell of `heights` (after uplift) into `next`, receivers first; outlets keep
