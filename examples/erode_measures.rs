@@ -26,7 +26,10 @@ impl TerrainLookup for NoStore {
 }
 
 fn island(size: u32, cell: f32, relief: f32, seed: u64) -> Heightfield {
-    let src = serde_json::from_value(json!({"fractal": {"size": size, "cell_size": cell, "relief": relief, "island": true, "seed": seed}})).unwrap();
+    let src = serde_json::from_value(
+        json!({"fractal": {"size": size, "cell_size": cell, "relief": relief, "island": true, "seed": seed}}),
+    )
+    .unwrap();
     resolve(&src, &NoStore, &Limits::default()).unwrap()
 }
 
@@ -51,7 +54,8 @@ fn describe(label: &str, input: &Heightfield, out: &Heightfield, secs: f64, talu
     let (mean, _) = lowering(&a, &b, &land);
     let d = Drainage::new(&b, 0.0);
     let chan = 200.0 * b.cell * b.cell;
-    let _ = chan; let min_area = 400.0f64;
+    let _ = chan;
+    let min_area = 400.0f64;
     println!(
         "{label}: {secs:.2} s, mean lowering {mean:.3} m of {:.2}, θ {:?}, Hack {:?}, density {:.5}/m, steeper than talus+5° {:.3} (input {:.3}), aspect harmonic {:.3} (input {:.3}), pits {:.4}, max {:.1} → {:.1}",
         a.h.iter().zip(&land).filter(|(_, &l)| l).map(|(h, _)| h).sum::<f64>() / land.iter().filter(|&&l| l).count() as f64,
@@ -127,7 +131,7 @@ fn hillshade(hf: &Heightfield, path: &str) {
     std::fs::create_dir_all("target/erode-measures").unwrap();
     let s = Surface::of(hf);
     let mut px = vec![0u8; hf.cols * hf.rows];
-    let (sx, sy, sz) = (-0.5f64, -0.5, 0.7071);
+    let (sx, sy, sz) = (-0.5f64, -0.5, std::f64::consts::FRAC_1_SQRT_2);
     for r in 1..hf.rows - 1 {
         for c in 1..hf.cols - 1 {
             let i = r * hf.cols + c;
@@ -139,7 +143,10 @@ fn hillshade(hf: &Heightfield, path: &str) {
     }
     // Three times larger, each sample a 3 × 3 block, so the facets can be seen.
     let z = 3;
-    let big: Vec<u8> = (0..hf.rows * z).flat_map(|r| (0..hf.cols * z).map(move |c| (r / z) * hf.cols + c / z)).map(|i| px[i]).collect();
+    let big: Vec<u8> = (0..hf.rows * z)
+        .flat_map(|r| (0..hf.cols * z).map(move |c| (r / z) * hf.cols + c / z))
+        .map(|i| px[i])
+        .collect();
     let file = std::fs::File::create(path).unwrap();
     let mut enc = png::Encoder::new(std::io::BufWriter::new(file), (hf.cols * z) as u32, (hf.rows * z) as u32);
     enc.set_color(png::ColorType::Grayscale);

@@ -221,3 +221,131 @@ async fn bad_erode_requests_name_their_field() {
     assert_eq!(got, 422, "{problem}");
     assert!(problem.to_string().contains("iterations"), "{problem}");
 }
+
+/// The material channel (A) of a job's splat map: what the job itself worked.
+async fn worked(server: &TestServer, id: &str) -> Vec<bool> {
+    let png = server.artifact(id, "splatmap.png").await;
+    let mut reader = png::Decoder::new(std::io::Cursor::new(png)).read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size()];
+    reader.next_frame(&mut buf).unwrap();
+    buf.chunks_exact(4).map(|px| px[3] >= 128).collect()
+}
+
+/// Erode `shaped` (a road-building job's result) with and without keeping what it worked, and
+/// measure the road cells against the heights the road job left: (RMS kept, RMS not kept,
+/// mean |change| off the road and its shoulders when kept).
+async fn keep_the_road(server: &TestServer, shaped: &str) -> (f64, f64, f64) {
+    let road = worked(server, shaped).await;
+    let before = heights(server, shaped).await;
+    let base = json!({"terrain": {"job": shaped}, "sea_level": -1000.0, "hydraulic": {"k": 2e-4}});
+    let mut kept = base.clone();
+    kept["keep"] = json!([{"worked_by": {"job": shaped, "shoulder_m": 4.0}}]);
+    let with = server.run("erode", &kept).await;
+    let without = server.run("erode", &base).await;
+    let (after, control) =
+        (heights(server, with["id"].as_str().unwrap()).await, heights(server, without["id"].as_str().unwrap()).await);
+    let rms = |h: &[f32]| {
+        let (sum, n) = road
+            .iter()
+            .zip(h.iter().zip(&before))
+            .filter(|(&r, _)| r)
+            .fold((0.0, 0usize), |(s, n), (_, (&a, &b))| (s + f64::from(a - b).powi(2), n + 1));
+        assert!(n > 50, "only {n} road cells");
+        (sum / n as f64).sqrt()
+    };
+    // Off the road: every cell more than 10 samples from a road cell (beyond any shoulder).
+    let cols = (before.len() as f64).sqrt() as usize;
+    let near = |i: usize| {
+        let (c, r) = ((i % cols) as isize, (i / cols) as isize);
+        (-10..=10).any(|dr| {
+            (-10..=10).any(|dc| {
+                let (cc, rr) = (c + dc, r + dr);
+                cc >= 0
+                    && rr >= 0
+                    && (cc as usize) < cols
+                    && (rr as usize) < cols
+                    && road[rr as usize * cols + cc as usize]
+            })
+        })
+    };
+    let off: Vec<f64> =
+        (0..before.len()).filter(|&i| !near(i)).map(|i| f64::from(after[i] - before[i]).abs()).collect();
+    let mean_off = off.iter().sum::<f64>() / off.len() as f64;
+    let mass = &with["result"]["mass_balance"];
+    assert!(mass["held_m3"].is_number(), "{mass}");
+    (rms(&after), rms(&control), mean_off)
+}
+
+#[tokio::test]
+async fn what_a_bulldozer_and_a_road_designer_laid_down_is_kept_and_the_rest_erodes() {
+    let server = TestServer::start().await;
+    // A road bulldozed across a range (the example's hillside road).
+    let dozed = server.run("bulldoze", &example("bulldoze", "hillside-road")).await;
+    let (kept, loose, off) = keep_the_road(&server, dozed["id"].as_str().unwrap()).await;
+    eprintln!("bulldozed road: RMS {kept:.3} m kept, {loose:.3} m not; off the road {off:.3} m");
+    assert!(kept <= 0.25, "the kept road moved {kept} m RMS");
+    assert!(loose > 1.0, "without keeping it the road moved only {loose} m RMS: the test shows nothing");
+    assert!(off > 0.2, "off the road the terrain changed by {off} m on average: not eroded");
+    // A road laid by deform-terrain.
+    let body = json!({
+        "seed": 3,
+        "terrain": {"fractal": {"size": 65, "cell_size": 2.0, "relief": 40.0, "seed": 11}},
+        "constraints": [{"road": {
+            "path": [{"x": 16, "z": 20}, {"x": 60, "z": 60}, {"x": 112, "z": 100}],
+            "width_m": 6.0,
+            "height": {"constant": 20.0}
+        }}],
+        "max_iterations": 60
+    });
+    let laid = server.run("deform-terrain", &body).await;
+    let (kept, loose, off) = keep_the_road(&server, laid["id"].as_str().unwrap()).await;
+    eprintln!("deform-terrain road: RMS {kept:.3} m kept, {loose:.3} m not; off the road {off:.3} m");
+    assert!(kept <= 0.25, "the kept road moved {kept} m RMS");
+    assert!(loose > kept + 0.2, "without keeping it the road moved only {loose} m RMS: the test shows nothing");
+    assert!(off > 0.05, "off the road the terrain changed by {off} m on average: not eroded");
+}
+
+#[tokio::test]
+async fn a_kept_area_that_does_not_fit_is_refused_naming_its_field() {
+    let server = TestServer::start().await;
+    let small = server.run("erode", &json!({"terrain": {"fractal": {"size": 33}}, "iterations": 2})).await;
+    let id = small["id"].as_str().unwrap();
+    let base = json!({"terrain": {"fractal": {"size": 65}}, "iterations": 2});
+    let with = |keep: Value| {
+        let mut b = base.clone();
+        b["keep"] = keep;
+        b
+    };
+    let missing = "01890000-0000-7000-8000-000000000000";
+    let cases = [
+        (with(json!([{"worked_by": {"job": id}}])), 422, "keep[0].worked_by.job"),
+        (with(json!([{"worked_by": {"job": missing}}])), 422, "keep[0].worked_by.job"),
+        (with(json!([{"worked_by": {"job": "road"}}])), 422, "keep[0].worked_by.job"),
+        (
+            with(json!([{"polygon": {"points_m": [{"x": 1, "z": 1}, {"x": 5, "z": 1}]}}])),
+            422,
+            "keep[0].polygon.points_m",
+        ),
+        (
+            with(
+                json!([{"polygon": {"points_m": [{"x": 1, "z": 1}, {"x": 5, "z": 1}, {"x": 3, "z": 4}], "shoulder_m": -1}}]),
+            ),
+            422,
+            "keep[0].polygon.shoulder_m",
+        ),
+        (
+            with(json!((0..17)
+                .map(|_| json!({"polygon": {"points_m": [{"x": 1, "z": 1}, {"x": 5, "z": 1}, {"x": 3, "z": 4}]}}))
+                .collect::<Vec<_>>())),
+            413,
+            "keep",
+        ),
+    ];
+    for (body, status, field) in cases {
+        let (got, problem) = server.post("/v1/jobs/erode", &body).await;
+        assert_eq!(got, status, "{field}: {problem}");
+        let fields: Vec<&str> =
+            problem["errors"].as_array().into_iter().flatten().filter_map(|e| e["field"].as_str()).collect();
+        assert!(fields.iter().any(|f| f.starts_with(field)), "wanted {field:?}: {problem}");
+    }
+}

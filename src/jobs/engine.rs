@@ -1021,6 +1021,10 @@ impl crate::terrain::TerrainLookup for PendingUploads<'_> {
         self.store.job_heightfield(job_id)
     }
 
+    fn job_artifact(&self, job_id: &str, name: &str) -> Result<Vec<u8>, String> {
+        self.store.job_artifact(job_id, name)
+    }
+
     fn input(&self, sha256: &str) -> Result<Vec<u8>, String> {
         match self.uploads.iter().find(|(sha, _)| sha == sha256) {
             Some((_, png)) => Ok(png.clone()),

@@ -62,6 +62,16 @@ impl TerrainLookup for StoreTerrain {
         read_heightfield_npy(&bytes, cell_size as f32)
     }
 
+    fn job_artifact(&self, job_id: &str, name: &str) -> Result<Vec<u8>, String> {
+        self.usable(job_id)??;
+        let (_, bytes) = self
+            .store
+            .artifact(job_id, name)
+            .map_err(store_failed)?
+            .ok_or_else(|| format!("job {job_id} has no {name}"))?;
+        Ok(bytes)
+    }
+
     fn input(&self, sha256: &str) -> Result<Vec<u8>, String> {
         self.store.input(sha256).map_err(store_failed)?.ok_or_else(|| format!("no upload with sha256 {sha256}"))
     }

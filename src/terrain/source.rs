@@ -149,6 +149,11 @@ pub trait TerrainLookup: Sync {
     fn job_heightfield(&self, job_id: &str) -> Result<Heightfield, String>;
     /// An uploaded file by its sha256, or why there is none.
     fn input(&self, sha256: &str) -> Result<Vec<u8>, String>;
+    /// An artifact of a succeeded job that made a heightfield (its `splatmap.png`, say), or why
+    /// there is none. A lookup that holds no jobs has none.
+    fn job_artifact(&self, job_id: &str, name: &str) -> Result<Vec<u8>, String> {
+        Err(format!("no job with id {job_id} to read {name} from"))
+    }
     /// The size of a succeeded job's final heightfield. The store reads it from the job's
     /// result without the heights; this default builds the heightfield.
     fn job_extent(&self, job_id: &str) -> Result<super::TerrainExtent, String> {

@@ -31,6 +31,8 @@ const ITERATION_BYTES: u64 = 64;
 pub fn estimate(params: &ErodeParams, terrain: &dyn TerrainLookup) -> Result<Cost, SimError> {
     let extent =
         params.terrain.extent(terrain).map_err(|message| SimError::Invalid { field: "terrain".into(), message })?;
+    let span = |n: u64| (n.max(1) - 1) as f64 * extent.cell_size_m;
+    super::keep::check_jobs(&params.keep, terrain, span(extent.cols), span(extent.rows))?;
     let (cols, rows) = (extent.cols, extent.rows);
     let cells = cols.saturating_mul(rows);
     let fluvial = params.hydraulic.on().is_some();

@@ -44,11 +44,13 @@ pub struct Erosion {
     hillslope: Option<Hillslope>,
     /// Ψ of the stream-power step.
     scratch: Vec<f64>,
+    /// Kept cells: index, weight (0–1] and starting height.
+    held: Vec<(u32, f32, f64)>,
     pub totals: Totals,
 }
 
 /// What the erosion moved, m³. Over a run, the volume under the terrain changes by
-/// `lake_fill + drain_raise + uplift + unsettled − exported`: everything else only moved.
+/// `lake_fill + drain_raise + uplift + unsettled + held − exported`: everything else only moved.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Totals {
     /// Filling the input's depressions before the first iteration.
@@ -65,6 +67,8 @@ pub struct Totals {
     /// Net gains upstream of a mouth in one iteration (sediment settling from what an earlier
     /// iteration carried) that the mouth cannot hand back: counted, not taken from the sea.
     pub unsettled_m3: f64,
+    /// Added (or, negative, taken) to hold kept areas at their starting heights.
+    pub held_m3: f64,
     pub iterations: u32,
 }
 
@@ -96,11 +100,23 @@ impl Erosion {
                 marine: Marine::new(grid.cells()),
             }
         });
-        let hillslope = params.thermal.on().map(|t| {
-            Hillslope::new(&grid, t.diffusivity_m2_per_yr, t.talus_angle_deg, fluvial.is_some())
-        });
+        let hillslope = params
+            .thermal
+            .on()
+            .map(|t| Hillslope::new(&grid, t.diffusivity_m2_per_yr, t.talus_angle_deg, fluvial.is_some()));
         let scratch = if fluvial.is_some() { vec![0.0; grid.cells()] } else { Vec::new() };
-        Self { grid, heights, outlets, sea_level, dt_years: dt, fluvial, hillslope, scratch, totals }
+        Self { grid, heights, outlets, sea_level, dt_years: dt, fluvial, hillslope, scratch, held: Vec::new(), totals }
+    }
+
+    /// Hold the cells of `weights` (0–1 each, on this grid) at `start`'s heights: after every
+    /// iteration a kept cell moves back towards its starting height by its weight.
+    pub fn hold(&mut self, start: &Heightfield, weights: &[f32]) {
+        self.held = weights
+            .iter()
+            .enumerate()
+            .filter(|(_, &w)| w > 0.0)
+            .map(|(i, &w)| (i as u32, w, f64::from(start.heights_m[i])))
+            .collect();
     }
 
     /// One iteration.
@@ -116,6 +132,16 @@ impl Erosion {
         }
         if let Some(f) = &self.fluvial {
             self.totals.drain_raise_m3 += f.flow.raise_to_drain(&self.grid, &mut self.heights, EPSILON_M);
+        }
+        if !self.held.is_empty() {
+            let mut added = 0.0;
+            for &(i, w, start) in &self.held {
+                let h = &mut self.heights[i as usize];
+                let next = if w >= 1.0 { start } else { *h + f64::from(w) * (start - *h) };
+                added += next - *h;
+                *h = next;
+            }
+            self.totals.held_m3 += added * self.grid.cell * self.grid.cell;
         }
         self.totals.iterations += 1;
     }

@@ -71,7 +71,13 @@ impl Hillslope {
     /// loss this iteration, m³), failure is the envelope of [`Hillslope::collapse`] and its debris
     /// joins the rivers' load; without, the conservative sweeps of [`Hillslope::fail`] pile it at
     /// the foot. Returns the volume that left the grid through its fixed border, m³.
-    pub fn step(&mut self, grid: &Grid, heights: &mut [f64], dt_years: f64, rivers: Option<(&[bool], &mut [f64])>) -> f64 {
+    pub fn step(
+        &mut self,
+        grid: &Grid,
+        heights: &mut [f64],
+        dt_years: f64,
+        rivers: Option<(&[bool], &mut [f64])>,
+    ) -> f64 {
         let before = total(grid, heights);
         if self.kappa > 0.0 {
             self.creep(grid, heights, dt_years);
@@ -204,19 +210,11 @@ impl Hillslope {
             || (vec![0.0; cols], vec![0.0; cols], vec![0.0; cols]),
             |(cp, dp, off), (r, out)| {
                 // off[c]: the coefficient of the face between c and c + 1.
-                for c in 0..cols - 1 {
-                    off[c] = this.coefficient(scale, face_x(grid, frozen, r, c));
+                for (c, o) in off[..cols - 1].iter_mut().enumerate() {
+                    *o = this.coefficient(scale, face_x(grid, frozen, r, c));
                 }
                 let at = |c: usize| frozen[r * cols + c];
-                solve(
-                    cols,
-                    |c| this.fixed(grid, r, c),
-                    |c| off[c],
-                    at,
-                    cp,
-                    dp,
-                    |c, x| out[c] = x,
-                );
+                solve(cols, |c| this.fixed(grid, r, c), |c| off[c], at, cp, dp, |c, x| out[c] = x);
             },
         );
         // Columns: coefficients from `h` as it was, right-hand sides from `mid`, into `blocks`
@@ -230,8 +228,8 @@ impl Hillslope {
                     if c >= cols {
                         break;
                     }
-                    for r in 0..rows - 1 {
-                        off[r] = this.coefficient(scale, face_y(grid, frozen, r, c));
+                    for (r, o) in off[..rows - 1].iter_mut().enumerate() {
+                        *o = this.coefficient(scale, face_y(grid, frozen, r, c));
                     }
                     solve(
                         rows,

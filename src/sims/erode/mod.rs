@@ -20,13 +20,14 @@ mod erosion;
 mod flood;
 mod flow;
 mod grid;
+mod hillslope;
+mod keep;
 mod maps;
+mod marine;
 pub mod metrics;
 mod params;
 mod sequence;
 mod stream_power;
-mod hillslope;
-mod marine;
 
 #[cfg(test)]
 mod tests;
@@ -35,8 +36,9 @@ use rayon::prelude::*;
 use serde_json::{json, Map, Value};
 
 pub use erosion::{input_sha256, Erosion};
-pub use params::{ErodeParams, Hydraulic, Switch, Thermal, MAX_ITERATIONS};
 pub use hillslope::FAIL_TOLERANCE;
+pub use keep::{Keep, KeepPoint, KeepPolygon, KeepWorked};
+pub use params::{ErodeParams, Hydraulic, Switch, Thermal, MAX_ITERATIONS};
 pub use sequence::ErodeSequence;
 
 use crate::export::{short_decimal, HeightfieldExport};
@@ -88,6 +90,7 @@ impl Simulation for Erode {
             time_step_years: params.time_step_years,
             hydraulic: params.hydraulic.clone(),
             thermal: params.thermal.clone(),
+            keep: params.keep.clone(),
             checksums,
         };
         finish(&input, erosion, params, sequence, ctx)
@@ -123,7 +126,11 @@ fn erode(
     expected: Option<&[String]>,
     ctx: &RunContext,
 ) -> Result<(Erosion, Vec<String>), SimError> {
+    let held = keep::weights(&params.keep, input, ctx.terrain)?;
     let mut erosion = Erosion::new(input, params);
+    if let Some(weights) = held {
+        erosion.hold(input, &weights);
+    }
     let total = u64::from(params.iterations);
     let mut checksums = Vec::with_capacity(params.iterations as usize);
     for it in 0..params.iterations as usize {
@@ -233,8 +240,8 @@ fn figures(
 }
 
 /// Where the material went, m³, from the heights themselves and the erosion's own counts:
-/// `eroded + lake_fill + drain_raise + uplift + unsettled = deposited_on_land + deposited_in_sea
-/// + exported` (to the rounding of the f32 heights).
+/// `eroded + lake_fill + drain_raise + uplift + unsettled + held = deposited_on_land +
+/// deposited_in_sea + exported` (to the rounding of the f32 heights).
 fn mass_balance(input: &Heightfield, output: &Heightfield, sea_level: f32, totals: erosion::Totals) -> Value {
     let cell_area = f64::from(output.cell_size_m) * f64::from(output.cell_size_m);
     let cols = output.cols;
@@ -268,6 +275,7 @@ fn mass_balance(input: &Heightfield, output: &Heightfield, sea_level: f32, total
         "drain_raise_m3": round3(totals.drain_raise_m3),
         "uplift_m3": round3(totals.uplift_m3),
         "unsettled_m3": round3(totals.unsettled_m3),
+        "held_m3": round3(totals.held_m3),
     })
 }
 

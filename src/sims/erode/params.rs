@@ -7,6 +7,7 @@ use serde::de::{self, MapAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use utoipa::ToSchema;
 
+use super::keep::{self, Keep};
 use crate::export::TileGrid;
 use crate::terrain::TerrainSource;
 use crate::validate::{Limits, Validate, Validator};
@@ -89,6 +90,13 @@ pub struct ErodeParams {
     #[serde(default)]
     #[schema(value_type = Option<Thermal>, nullable = true)]
     pub thermal: Switch<Thermal>,
+    /// Areas kept at their starting heights, each with a shoulder over which the erosion fades
+    /// back in: polygons, or the cells an earlier job worked (a road a bulldozer or
+    /// deform-terrain laid down). At most 16.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    // 16 = keep::MAX_KEEP
+    #[schema(max_items = 16)]
+    pub keep: Vec<Keep>,
     /// Cut the terrain's mesh into tiles as well, at every level of detail (`tiles/…`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tiles: Option<TileGrid>,
@@ -245,6 +253,7 @@ impl Validate for ErodeParams {
         if let Some(tiles) = &self.tiles {
             v.field("tiles", |v| tiles.validate(v, limits));
         }
+        keep::validate(&self.keep, v);
         if self.hydraulic.on().is_none() && self.thermal.on().is_none() {
             v.error("hydraulic", "hydraulic and thermal are both off: turn on at least one");
         }

@@ -4,6 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::keep::Keep;
 use super::params::{ErodeParams, Hydraulic, Switch, Thermal};
 use crate::jobs::Sequence;
 use crate::terrain::TerrainSource;
@@ -20,6 +21,9 @@ pub struct ErodeSequence {
     pub time_step_years: f64,
     pub hydraulic: Switch<Hydraulic>,
     pub thermal: Switch<Thermal>,
+    /// The areas kept at their starting heights.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub keep: Vec<Keep>,
     /// After each iteration, the first 16 hex digits of the sha256 of the heights as
     /// little-endian f32s.
     pub checksums: Vec<String>,
@@ -41,6 +45,7 @@ impl ErodeSequence {
             time_step_years: self.time_step_years,
             hydraulic: self.hydraulic.clone(),
             thermal: self.thermal.clone(),
+            keep: self.keep.clone(),
             tiles,
         }
     }

@@ -202,7 +202,8 @@ fn creep_alone_spreads_a_ridge_as_the_diffusion_equation_does() {
     let lambda = cols as f64 * cell;
     let k = 2.0 * std::f64::consts::PI / lambda;
     let kappa = 0.05;
-    let hf = Heightfield::from_fn(cols, rows, cell as f32, |x, _| (5.0 * (k * (f64::from(x) + 0.5 * cell)).cos()) as f32);
+    let hf =
+        Heightfield::from_fn(cols, rows, cell as f32, |x, _| (5.0 * (k * (f64::from(x) + 0.5 * cell)).cos()) as f32);
     let amplitude = |h: &[f64]| h[rows / 2 * cols] / (k * 0.5 * cell).cos();
     let run = |steps: u32, dt: f64| {
         let p = params(json!({
@@ -497,4 +498,42 @@ fn the_neighbour_order_is_symmetric() {
     for k in 0..8 {
         assert_eq!(super::grid::N8[7 - k], (-super::grid::N8[k].0, -super::grid::N8[k].1));
     }
+}
+
+#[test]
+fn a_kept_polygon_holds_inside_and_fades_across_its_shoulder() {
+    // A square 20–40 m on a 2 m grid with a 10 m shoulder: weight 1 inside, about ½ at 5 m out,
+    // 0 beyond 10 m (the chamfer distance is within 8 % of the straight one).
+    let hf = Heightfield::flat(41, 41, 2.0, 5.0);
+    let keep: Vec<keep::Keep> = serde_json::from_value(json!([{"polygon": {
+        "points_m": [{"x": 20, "z": 20}, {"x": 40, "z": 20}, {"x": 40, "z": 40}, {"x": 20, "z": 40}],
+        "shoulder_m": 10.0,
+    }}]))
+    .unwrap();
+    let t = TestContext::new(hf.clone());
+    let w = keep::weights(&keep, &hf, t.ctx().terrain).unwrap().unwrap();
+    let at = |x: usize, z: usize| w[(z / 2) * 41 + x / 2];
+    assert_eq!(at(30, 30), 1.0);
+    assert_eq!(at(20, 20), 1.0);
+    assert!((at(46, 30) - 0.4).abs() < 0.05, "6 m out: {}", at(46, 30));
+    assert_eq!(at(52, 30), 0.0);
+    assert_eq!(at(10, 10), 0.0);
+    // Eroding an island with that area kept leaves it exactly where it started.
+    let island = terrain(&params(
+        json!({"terrain": {"fractal": {"size": 41, "cell_size": 2.0, "relief": 40.0, "island": true, "seed": 3}}}),
+    ));
+    let p = params(json!({"terrain": {"fractal": {}}, "iterations": 20, "hydraulic": {"k": 2e-4}}));
+    let mut e = Erosion::new(&island, &p);
+    e.hold(&island, &w);
+    for _ in 0..20 {
+        e.step();
+    }
+    let out = e.heightfield();
+    for (i, &wi) in w.iter().enumerate() {
+        if wi == 1.0 {
+            assert_eq!(out.heights_m[i], island.heights_m[i], "kept cell {i} moved");
+        }
+    }
+    let moved = out.heights_m.iter().zip(&island.heights_m).zip(&w).filter(|((a, b), &wi)| wi == 0.0 && a != b).count();
+    assert!(moved > 100, "only {moved} cells outside the kept area eroded");
 }

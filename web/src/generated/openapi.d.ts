@@ -2119,6 +2119,59 @@ export interface components {
              */
             flow_exponent?: number;
         };
+        /** @description An area the erosion keeps at its starting heights. */
+        ErodeKeep: {
+            /** @description A polygon on the terrain, in metres. */
+            polygon: components["schemas"]["ErodeKeepPolygon"];
+        } | {
+            /**
+             * @description The cells an earlier job worked: its splat map's material channel (A) at half weight or
+             *     more — a bulldoze job's cut and fill, a deform-terrain job's roads. The job's terrain must
+             *     cover the same extent as this one's (its grid may be finer or coarser: a draft's is).
+             */
+            worked_by: components["schemas"]["ErodeKeepWorked"];
+        };
+        /** @description A point of a kept polygon, metres. */
+        ErodeKeepPoint: {
+            /**
+             * Format: double
+             * @description Metres east of the first column (within ±10 000 000).
+             */
+            x: number;
+            /**
+             * Format: double
+             * @description Metres south of the first row (within ±10 000 000).
+             */
+            z: number;
+        };
+        /** @description A kept polygon. */
+        ErodeKeepPolygon: {
+            /**
+             * @description Corners, metres on the grid (x east from the first column, z south from the first row),
+             *     3 to 4 096 of them; inside by the even–odd rule.
+             */
+            points_m: components["schemas"]["ErodeKeepPoint"][];
+            /**
+             * Format: double
+             * @description Metres beyond the polygon over which the erosion fades back in (0 to 1 000).
+             * @default 0
+             */
+            shoulder_m?: number;
+        };
+        /** @description Cells an earlier job worked. */
+        ErodeKeepWorked: {
+            /**
+             * @description The earlier job's id (a succeeded bulldoze or deform-terrain job, or any heightfield job
+             *     whose splat map marks its own work).
+             */
+            job: string;
+            /**
+             * Format: double
+             * @description Metres beyond the worked cells over which the erosion fades back in (0 to 1 000).
+             * @default 0
+             */
+            shoulder_m?: number;
+        };
         /**
          * @description Erode a heightfield: stream-power fluvial erosion with sediment deposition on a surface
          *     kept free of pits, and talus-angle slope relaxation.
@@ -2160,6 +2213,12 @@ export interface components {
             time_step_years?: number;
             hydraulic?: null | components["schemas"]["ErodeHydraulic"];
             thermal?: null | components["schemas"]["ErodeThermal"];
+            /**
+             * @description Areas kept at their starting heights, each with a shoulder over which the erosion fades
+             *     back in: polygons, or the cells an earlier job worked (a road a bulldozer or
+             *     deform-terrain laid down). At most 16.
+             */
+            keep?: components["schemas"]["ErodeKeep"][];
             tiles?: null | components["schemas"]["TileGrid"];
         };
         /**
@@ -2203,6 +2262,12 @@ export interface components {
             time_step_years?: number;
             hydraulic?: null | components["schemas"]["ErodeHydraulic"];
             thermal?: null | components["schemas"]["ErodeThermal"];
+            /**
+             * @description Areas kept at their starting heights, each with a shoulder over which the erosion fades
+             *     back in: polygons, or the cells an earlier job worked (a road a bulldozer or
+             *     deform-terrain laid down). At most 16.
+             */
+            keep?: components["schemas"]["ErodeKeep"][];
             tiles?: null | components["schemas"]["TileGrid"];
             /**
              * Format: int64

@@ -841,6 +841,46 @@ ErodeHydraulic = TypedDict(
     },
 )
 
+ErodeKeep = Union['ErodeKeepPolygon2', 'ErodeKeepWorkedBy']
+
+ErodeKeepPoint = TypedDict(
+    'ErodeKeepPoint',
+    {
+        'x': float,
+        'z': float,
+    },
+)
+
+ErodeKeepPolygon = TypedDict(
+    'ErodeKeepPolygon',
+    {
+        'points_m': list['ErodeKeepPoint'],
+        'shoulder_m': NotRequired[float],
+    },
+)
+
+ErodeKeepPolygon2 = TypedDict(
+    'ErodeKeepPolygon2',
+    {
+        'polygon': 'ErodeKeepPolygon',
+    },
+)
+
+ErodeKeepWorked = TypedDict(
+    'ErodeKeepWorked',
+    {
+        'job': str,
+        'shoulder_m': NotRequired[float],
+    },
+)
+
+ErodeKeepWorkedBy = TypedDict(
+    'ErodeKeepWorkedBy',
+    {
+        'worked_by': 'ErodeKeepWorked',
+    },
+)
+
 ErodeParamsBody = TypedDict(
     'ErodeParamsBody',
     {
@@ -850,6 +890,7 @@ ErodeParamsBody = TypedDict(
         'time_step_years': NotRequired[float],
         'hydraulic': NotRequired[Union['ErodeHydraulic', None]],
         'thermal': NotRequired[Union['ErodeThermal', None]],
+        'keep': NotRequired[list['ErodeKeep']],
         'tiles': NotRequired[Union['TileGrid', None]],
         'seed': NotRequired[int],
         'label': NotRequired[str],
