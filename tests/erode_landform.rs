@@ -140,9 +140,10 @@ fn every_volume_is_accounted_for_and_the_sea_keeps_what_the_rivers_bring() {
     // An island with its sea, run as a job: the test measures eroded and deposited volumes
     // itself from the input and the job's heightfield.npy, and adds them up with the volumes
     // that only the erosion can count (what left the grid, lakes filled, drain raises).
-    let hf = island(129, 2.0, 60.0, 5);
+    // The default island (257² at 2 m), with open sea between its coast and the border.
+    let hf = island(257, 2.0, 120.0, 11);
     let p = params(
-        json!({"terrain": {"fractal": {"size": 129, "cell_size": 2.0, "relief": 60.0, "island": true, "seed": 5}}}),
+        json!({"terrain": {"fractal": {"size": 257, "cell_size": 2.0, "relief": 120.0, "island": true, "seed": 11}}}),
     );
     let out = support::with_context(|ctx| Erode::run(&p, 1, ctx).unwrap());
     let npy = &out.artifacts.iter().find(|a| a.name == "heightfield.npy").unwrap().bytes;
@@ -174,6 +175,6 @@ fn every_volume_is_accounted_for_and_the_sea_keeps_what_the_rivers_bring() {
     // the mouths, rather than leaving the map (before, 0.7 % of the eroded volume stayed).
     let settled = get("settled_in_sea_by_rivers_m3");
     assert!(settled > 0.5 * eroded, "rivers settled {settled} m³ in the sea of {eroded} m³ eroded");
-    assert!(exported < 0.25 * settled, "{exported} m³ left the grid against {settled} m³ settled");
+    assert!(exported < 0.1 * settled, "{exported} m³ left the grid against {settled} m³ settled");
     assert!(sea > 0.5 * eroded, "{sea} m³ of the sea floor's rise against {eroded} m³ eroded");
 }

@@ -1,11 +1,11 @@
 //! Sediment that a river carries into the sea settles there as a delta: it runs from the
 //! mouth down the sea floor's steepest way, filling each cell it crosses up to a shoreface
-//! surface just under the sea level that deepens away from the mouth ([`SHOREFACE_SLOPE`]),
-//! until it is spent — the mouth's marine deposition to base level, in the manner of
-//! FastScape's marine component (Yuan et al. 2019), without a separate marine transport law.
-//! A path that has filled its way blocks itself, so the next step's sediment takes another and
-//! the deposit spreads as lobes; the hillslope creep, which runs under the sea as on land,
-//! smooths its front.
+//! surface just under the sea level that deepens away from the mouth ([`SHOREFACE_SLOPE`]), but
+//! never more than [`FRONT_SLOPE`] above the deepest cell beside it, until it is spent — the
+//! mouth's marine deposition to base level, in the manner of FastScape's marine component
+//! (Yuan et al. 2019), without a separate marine transport law. A path that has filled its way
+//! blocks itself, so the next step's sediment takes another and the deposit spreads as lobes;
+//! the front slope keeps the delta's edge a ramp down to the sea floor, not a wall.
 //!
 //! Each step of the path goes to the lowest sea neighbour not yet crossed (ties to the lower
 //! index), so the result depends on nothing but the heights. What cannot settle within
@@ -19,6 +19,9 @@ pub const TOP_DEPTH_M: f64 = 0.05;
 /// How fast the shoreface the deposit builds deepens away from the mouth, m/m (shorefaces and
 /// delta fronts slope 0.5–2 %).
 pub const SHOREFACE_SLOPE: f64 = 0.01;
+/// Steepest the deposit stands above the sea floor beside it, m/m (about 17°: delta foresets
+/// dip 10–25°), so the delta's front is a slope down to the sea floor and not a wall.
+pub const FRONT_SLOPE: f64 = 0.3;
 /// Most sea cells one mouth's sediment crosses in one step (a bound on the work).
 pub const MAX_CELLS: usize = 1 << 14;
 
@@ -59,7 +62,8 @@ impl Marine {
         let (mut at, mut d) = (mouth, 0.0);
         for _ in 0..MAX_CELLS {
             self.stamp[at] = visit;
-            let top = sea_level - TOP_DEPTH_M - SHOREFACE_SLOPE * d;
+            let front = grid.lowest_neighbour(heights, at) + FRONT_SLOPE * grid.cell;
+            let top = (sea_level - TOP_DEPTH_M - SHOREFACE_SLOPE * d).min(front);
             if heights[at] < top {
                 let fill = (top - heights[at]).min(left);
                 heights[at] += fill;
