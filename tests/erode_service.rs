@@ -181,6 +181,18 @@ async fn the_examples_run() {
     }
 }
 
+/// Each body is answered with its status and a problem naming a field that starts with its
+/// field.
+async fn assert_refused<const N: usize>(server: &TestServer, cases: [(Value, u16, &str); N]) {
+    for (body, status, field) in cases {
+        let (got, problem) = server.post("/v1/jobs/erode", &body).await;
+        assert_eq!(got, status, "{field}: {problem}");
+        let fields: Vec<&str> =
+            problem["errors"].as_array().into_iter().flatten().filter_map(|e| e["field"].as_str()).collect();
+        assert!(fields.iter().any(|f| f.starts_with(field)), "wanted {field:?}: {problem}");
+    }
+}
+
 #[tokio::test]
 async fn bad_erode_requests_name_their_field() {
     let server = TestServer::start().await;
@@ -207,13 +219,7 @@ async fn bad_erode_requests_name_their_field() {
         (with(json!({"hydraulic": null, "thermal": false})), 422, "hydraulic"),
         (with(json!({"hydraulic": {"kay": 1.0}})), 422, "hydraulic.kay"),
     ];
-    for (body, status, field) in cases {
-        let (got, problem) = server.post("/v1/jobs/erode", &body).await;
-        assert_eq!(got, status, "{field}: {problem}");
-        let fields: Vec<&str> =
-            problem["errors"].as_array().into_iter().flatten().filter_map(|e| e["field"].as_str()).collect();
-        assert!(fields.iter().any(|f| f.starts_with(field)), "wanted {field:?}: {problem}");
-    }
+    assert_refused(&server, cases).await;
     // A grid × iterations past the time limit (the test server's 120 s) is refused before it
     // runs: 1025² cells × 10 000 iterations × 1.5 updates at 1e8 a second is 158 s.
     let (got, problem) =
@@ -341,11 +347,5 @@ async fn a_kept_area_that_does_not_fit_is_refused_naming_its_field() {
             "keep",
         ),
     ];
-    for (body, status, field) in cases {
-        let (got, problem) = server.post("/v1/jobs/erode", &body).await;
-        assert_eq!(got, status, "{field}: {problem}");
-        let fields: Vec<&str> =
-            problem["errors"].as_array().into_iter().flatten().filter_map(|e| e["field"].as_str()).collect();
-        assert!(fields.iter().any(|f| f.starts_with(field)), "wanted {field:?}: {problem}");
-    }
+    assert_refused(&server, cases).await;
 }

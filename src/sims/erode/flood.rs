@@ -13,11 +13,18 @@ pub const EPSILON_M: f64 = 1e-4;
 
 /// A height as a key that orders like the float (heights are finite), ties broken by index so
 /// the fill does not depend on the heap's internals.
-fn key(h: f64, i: usize) -> Reverse<(u64, u32)> {
+pub fn key(h: f64, i: usize) -> Reverse<(u64, u32)> {
+    Reverse((ordered(h), i as u32))
+}
+
+/// An order-preserving map of an f64's bits onto u64.
+pub fn ordered(h: f64) -> u64 {
     let bits = h.to_bits();
-    // Order-preserving map of an f64's bits onto u64.
-    let ordered = if bits >> 63 == 1 { !bits } else { bits | (1 << 63) };
-    Reverse((ordered, i as u32))
+    if bits >> 63 == 1 {
+        !bits
+    } else {
+        bits | (1 << 63)
+    }
 }
 
 /// Fill `heights` in place from the `outlets` inwards, each cell at least `epsilon` above the

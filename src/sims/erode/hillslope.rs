@@ -23,6 +23,7 @@
 
 use rayon::prelude::*;
 
+use super::flood::{key, ordered};
 use super::grid::Grid;
 
 /// S/S_c beyond which creep's coefficient stops growing (×10.3 of κ): failure takes over there,
@@ -60,7 +61,9 @@ impl Hillslope {
         let sc = libm::tan(talus_angle_deg.to_radians());
         let cells = grid.cells();
         let blocks = if kappa > 0.0 { vec![0.0; grid.cols.div_ceil(BLOCK) * BLOCK * grid.rows] } else { Vec::new() };
-        Self { kappa, sc, fixed_border, mid: vec![0.0; cells], blocks }
+        // The collapse (rivers on) needs neither buffer; creep needs both, the sweeps `mid`.
+        let mid = if kappa > 0.0 || !fixed_border { vec![0.0; cells] } else { Vec::new() };
+        Self { kappa, sc, fixed_border, mid, blocks }
     }
 
     fn fixed(&self, grid: &Grid, r: usize, c: usize) -> bool {
@@ -161,7 +164,6 @@ impl Hillslope {
         if seeds.is_empty() {
             return;
         }
-        let key = |u: f64, i: usize| Reverse((ordered(u), i as u32));
         let mut heap = BinaryHeap::with_capacity(seeds.len());
         for (i, u) in seeds {
             debris[i] += (h[i] - u) * area;
@@ -346,16 +348,6 @@ impl Hillslope {
             })
             .sum();
         steep as f64 / (2 * cols * rows - cols - rows) as f64
-    }
-}
-
-/// A height as a key that orders like the number (finite heights), for the collapse's heap.
-fn ordered(h: f64) -> u64 {
-    let bits = h.to_bits();
-    if bits >> 63 == 1 {
-        !bits
-    } else {
-        bits | (1 << 63)
     }
 }
 

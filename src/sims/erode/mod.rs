@@ -36,7 +36,6 @@ use rayon::prelude::*;
 use serde_json::{json, Map, Value};
 
 pub use erosion::{input_sha256, Erosion};
-pub use hillslope::FAIL_TOLERANCE;
 pub use keep::{Keep, KeepPoint, KeepPolygon, KeepWorked};
 pub use params::{ErodeParams, Hydraulic, Switch, Thermal, MAX_ITERATIONS};
 pub use sequence::ErodeSequence;
