@@ -312,7 +312,7 @@ async fn what_a_bulldozer_and_a_road_designer_laid_down_is_kept_and_the_rest_ero
 }
 
 #[tokio::test]
-async fn a_kept_area_that_does_not_fit_is_refused_naming_its_field() {
+async fn a_kept_area_or_painted_map_that_does_not_fit_is_refused_naming_its_field() {
     let server = TestServer::start().await;
     let small = server.run("erode", &json!({"terrain": {"fractal": {"size": 33}}, "iterations": 2})).await;
     let id = small["id"].as_str().unwrap();
@@ -348,4 +348,270 @@ async fn a_kept_area_that_does_not_fit_is_refused_naming_its_field() {
         ),
     ];
     assert_refused(&server, cases).await;
+    // Painted maps: the shape of the terrain's, one source, values in range, an earlier job
+    // on the same extent.
+    let map = |m: Value| {
+        let mut b = base.clone();
+        b["hydraulic"] = json!({"erodibility_map": m["e"], "uplift_map": m["u"]});
+        if m["e"].is_null() {
+            b["hydraulic"].as_object_mut().unwrap().remove("erodibility_map");
+        }
+        if m["u"].is_null() {
+            b["hydraulic"].as_object_mut().unwrap().remove("uplift_map");
+        }
+        b
+    };
+    let square = json!({"png_base64": painted_png(17, 17, |c, _| c > 8)});
+    let flat = json!({"png_base64": painted_png(65, 20, |c, _| c > 8)});
+    let cases = [
+        (map(json!({"e": {"png": flat, "black": 0, "white": 1}})), 422, "hydraulic.erodibility_map.png"),
+        (
+            map(json!({"e": {"png": square, "splat_of": {"job": id, "channel": "a"}, "black": 0, "white": 1}})),
+            422,
+            "hydraulic.erodibility_map.splat_of",
+        ),
+        (map(json!({"e": {"black": 0, "white": 1}})), 422, "hydraulic.erodibility_map.png"),
+        (map(json!({"e": {"png": square, "black": 0, "white": 101}})), 422, "hydraulic.erodibility_map.white"),
+        (map(json!({"u": {"png": square, "black": -1, "white": 0}})), 422, "hydraulic.uplift_map.black"),
+        (map(json!({"u": {"png": square, "black": 0, "white": 0.2}})), 422, "hydraulic.uplift_map.white"),
+        (
+            map(json!({"u": {"splat_of": {"job": id, "channel": "a"}, "black": 0, "white": 0.001}})),
+            422,
+            "hydraulic.uplift_map.splat_of.job",
+        ),
+        (
+            map(json!({"u": {"splat_of": {"job": missing, "channel": "r"}, "black": 0, "white": 0.001}})),
+            422,
+            "hydraulic.uplift_map.splat_of.job",
+        ),
+        (
+            map(json!({"u": {"splat_of": {"job": id, "channel": "x"}, "black": 0, "white": 0.001}})),
+            422,
+            "hydraulic.uplift_map.splat_of.channel",
+        ),
+        (
+            map(json!({"e": {"png": {"png_sha256": "0".repeat(64)}, "black": 0, "white": 1}})),
+            422,
+            "hydraulic.erodibility_map.png",
+        ),
+        (
+            with(json!([]))
+                .as_object()
+                .map(|o| {
+                    let mut b = Value::Object(o.clone());
+                    b["base_level"] = json!("coast");
+                    b
+                })
+                .unwrap(),
+            422,
+            "base_level",
+        ),
+        (
+            {
+                let mut b = base.clone();
+                b["base_level"] = json!("sea");
+                b["hydraulic"] = json!(false);
+                b
+            },
+            422,
+            "base_level",
+        ),
+    ];
+    assert_refused(&server, cases).await;
+    // A map that fits: the sediment an earlier erosion of the same extent laid (its splat
+    // map's A), read as erodibility — and a smaller PNG of the same shape, stretched.
+    let earlier = server.run("erode", &base).await;
+    let fits = map(json!({
+        "e": {"splat_of": {"job": earlier["id"], "channel": "a"}, "black": 1, "white": 10},
+        "u": {"png": square, "black": 0, "white": 0.001}
+    }));
+    let done = server.run("erode", &fits).await;
+    assert!(done["result"]["mass_balance"]["uplift_m3"].as_f64().unwrap() > 0.0, "{done}");
+}
+
+/// Run an erode job and read its heights.
+async fn run_heights(server: &TestServer, body: &Value) -> Vec<f32> {
+    let job = server.run("erode", body).await;
+    heights(server, job["id"].as_str().unwrap()).await
+}
+
+/// A `cols × rows` 8-bit grayscale PNG, white where `white(col, row)`, base64-encoded.
+fn painted_png(cols: u32, rows: u32, white: impl Fn(u32, u32) -> bool) -> String {
+    use base64::Engine as _;
+    let mut out = Vec::new();
+    let mut encoder = png::Encoder::new(&mut out, cols, rows);
+    encoder.set_color(png::ColorType::Grayscale);
+    encoder.set_depth(png::BitDepth::Eight);
+    let pixels: Vec<u8> = (0..rows)
+        .flat_map(|r| (0..cols).map(move |c| (r, c)))
+        .map(|(r, c)| if white(c, r) { 255 } else { 0 })
+        .collect();
+    encoder.write_header().unwrap().write_image_data(&pixels).unwrap();
+    base64::engine::general_purpose::STANDARD.encode(out)
+}
+
+#[tokio::test]
+async fn painted_erodibility_and_uplift_act_only_where_painted() {
+    let server = TestServer::start().await;
+    // A 65² range at 2 m, no sea (the border is the base level), rivers alone: 20 × 500 years.
+    let terrain = json!({"fractal": {"size": 65, "cell_size": 2.0, "relief": 40.0, "seed": 11}});
+    let body = |hydraulic: Value| {
+        json!({"terrain": terrain, "sea_level": -1000.0, "iterations": 20, "time_step_years": 500.0,
+               "thermal": false, "hydraulic": hydraulic})
+    };
+    // The east half (columns 32 on) white: the map's pixel c lies on column c.
+    let east = painted_png(65, 65, |c, _| c >= 32);
+    let input = run_heights(&server, &body(json!({"k": 0.0}))).await;
+    let lowered = |h: &[f32], west: bool| {
+        (0..h.len())
+            .filter(|&i| {
+                let c = i % 65;
+                if west {
+                    c <= 30
+                } else {
+                    c >= 33
+                }
+            })
+            .filter(|&i| h[i] < input[i] - 1e-3)
+            .count()
+    };
+    // Erodibility: k × 0 in the west, k × 1 in the east. With k = 0 everywhere nothing is
+    // lowered (the input above), so a lowered cell is one the map let the rivers cut.
+    let control = run_heights(&server, &body(json!({"k": 2e-4}))).await;
+    let map = json!({"png": {"png_base64": east}, "black": 0.0, "white": 1.0});
+    let painted = server.run("erode", &body(json!({"k": 2e-4, "erodibility_map": map}))).await;
+    let after = heights(&server, painted["id"].as_str().unwrap()).await;
+    let (west, east_cut, west_control) = (lowered(&after, true), lowered(&after, false), lowered(&control, true));
+    eprintln!("erodibility map: {west} western cells lowered (without the map {west_control}), {east_cut} eastern");
+    assert_eq!(west, 0, "cells where k was painted 0 were cut");
+    assert!(west_control > 100, "without the map only {west_control} western cells were cut: the test shows nothing");
+    assert!(east_cut > 100, "only {east_cut} eastern cells were cut");
+    // Uplift: 2 mm/yr painted in the east over 10 000 years (k = 0, so nothing wears it):
+    // 20 m on every eastern land cell, none in the west; the border stays (base level).
+    let map = json!({"png": {"png_base64": east}, "black": 0.0, "white": 0.002});
+    let raised = server.run("erode", &body(json!({"k": 0.0, "uplift_map": map}))).await;
+    let after = heights(&server, raised["id"].as_str().unwrap()).await;
+    let inner = |i: usize| (1..64).contains(&(i % 65)) && (1..64).contains(&(i / 65));
+    let rise = |i: usize| f64::from(after[i] - input[i]);
+    let east_ok =
+        (0..after.len()).filter(|&i| inner(i) && i % 65 >= 32).filter(|&i| (rise(i) - 20.0).abs() < 0.01).count();
+    // The west rises only where the rising east dams its rivers: lakes filled to their spill
+    // (k = 0: nothing cuts through), which the mass balance counts as its drain raise.
+    let west_lowered = (0..after.len()).filter(|&i| i % 65 < 32 && rise(i) < -1e-3).count();
+    let west_raised: f64 = (0..after.len()).filter(|&i| i % 65 < 32).map(|i| rise(i).max(0.0)).sum::<f64>() * 4.0;
+    let drain_raise = raised["result"]["mass_balance"]["drain_raise_m3"].as_f64().unwrap();
+    eprintln!("uplift map: {east_ok} of 2016 eastern cells rose 20 m; the west raised {west_raised:.1} m³ (drain raise {drain_raise:.1} m³)");
+    assert!(east_ok >= 2000, "only {east_ok} of 2016 eastern cells rose by the painted 20 m");
+    assert_eq!(west_lowered, 0, "western cells were lowered with k = 0");
+    assert!(
+        west_raised <= drain_raise * 1.001 + 1.0,
+        "the west rose by {west_raised} m³, more than the lakes' {drain_raise}"
+    );
+    // The mass balance's uplift by hand: 63 rows × 32 columns × 20 m × 4 m².
+    let uplift = raised["result"]["mass_balance"]["uplift_m3"].as_f64().unwrap();
+    assert!((uplift - 161_280.0).abs() < 1.0, "uplift_m3 {uplift}, by hand 161 280");
+    // The replay reads the stored map again, to the same bytes.
+    let id = raised["id"].as_str().unwrap();
+    let (status, replay) = server.post(&format!("/v1/jobs/{id}/replay"), &json!({})).await;
+    assert!(status == 201 || status == 202, "{replay}");
+    let replayed = server.wait_done(replay["id"].as_str().unwrap()).await;
+    assert_eq!(artifact_hashes(&replayed), artifact_hashes(&raised), "the replay differs");
+}
+
+/// Volume (in metres over cells) that a Priority-Flood from `outlets` raises `h` by: zero when
+/// every other cell has a way down to an outlet that never climbs.
+fn flood_depth(h: &[f32], cols: usize, outlets: &[bool]) -> f64 {
+    use std::cmp::Reverse;
+    use std::collections::BinaryHeap;
+    let rows = h.len() / cols;
+    let mut level: Vec<f64> = h.iter().map(|&x| f64::from(x)).collect();
+    let mut closed = outlets.to_vec();
+    let mut heap: BinaryHeap<Reverse<(i64, usize)>> =
+        (0..h.len()).filter(|&i| outlets[i]).map(|i| Reverse(((level[i] * 1e6) as i64, i))).collect();
+    let mut added = 0.0;
+    while let Some(Reverse((_, i))) = heap.pop() {
+        let (c, r) = ((i % cols) as isize, (i / cols) as isize);
+        for (dc, dr) in [(-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)] {
+            let (nc, nr) = (c + dc, r + dr);
+            if nc < 0 || nr < 0 || nc as usize >= cols || nr as usize >= rows {
+                continue;
+            }
+            let n = nr as usize * cols + nc as usize;
+            if closed[n] {
+                continue;
+            }
+            closed[n] = true;
+            if level[n] < level[i] {
+                added += level[i] - level[n];
+                level[n] = level[i];
+            }
+            heap.push(Reverse(((level[n] * 1e6) as i64, n)));
+        }
+    }
+    added
+}
+
+#[tokio::test]
+async fn the_base_level_is_the_border_and_sea_the_sea_or_a_closed_basin_s_floor() {
+    let server = TestServer::start().await;
+    // A 65² range at 2 m whose lowest fifth is sea, land on every border.
+    let terrain = json!({"fractal": {"size": 65, "cell_size": 2.0, "relief": 40.0, "seed": 5}});
+    let run = |base: &str, sea: f64| {
+        let body = json!({"terrain": terrain, "sea_level": sea, "iterations": 30, "base_level": base,
+                          "hydraulic": {"k": 2e-4}});
+        let server = &server;
+        async move { server.run("erode", &body).await }
+    };
+    let input =
+        run_heights(&server, &json!({"terrain": terrain, "iterations": 1, "hydraulic": {"k": 0.0}, "thermal": false}))
+            .await;
+    let mut sorted = input.clone();
+    sorted.sort_by(f32::total_cmp);
+    let sea = f64::from(sorted[sorted.len() / 5]);
+    let border = |i: usize| i % 65 == 0 || i / 65 == 0 || i % 65 == 64 || i / 65 == 64;
+    // The sea only: every land cell has a way down to the sea, none to the land border.
+    let mut depths = Vec::new();
+    for base in ["all", "sea"] {
+        let job = run(base, sea).await;
+        let h = heights(&server, job["id"].as_str().unwrap()).await;
+        let sea_cells: Vec<bool> = h.iter().map(|&x| f64::from(x) <= sea).collect();
+        assert!(sea_cells.iter().any(|&s| s), "{base}: no sea left");
+        depths.push(flood_depth(&h, 65, &sea_cells));
+        let land_border_cut =
+            (0..h.len()).filter(|&i| border(i) && h[i] as f64 > sea && h[i] < input[i] - 1e-3).count();
+        eprintln!("base_level {base}: flooding from the sea alone adds {:.3} m over cells; {land_border_cut} land border cells cut", depths.last().unwrap());
+        if base == "all" {
+            assert_eq!(land_border_cut, 0, "the border is base level: rivers do not cut it");
+        }
+    }
+    let eps_budget = 1e-3 * 65.0 * 65.0;
+    assert!(depths[1] <= eps_budget, "base_level sea left {} m of depressions against the sea", depths[1]);
+    assert!(
+        depths[0] > 10.0 * eps_budget,
+        "base_level all drains to the border too: {} m (the test shows nothing)",
+        depths[0]
+    );
+    // A closed basin: nothing leaves, the floor gathers a level bed, everything drains to it.
+    let job = run("none", -1000.0).await;
+    let h = heights(&server, job["id"].as_str().unwrap()).await;
+    let mass = &job["result"]["mass_balance"];
+    assert_eq!(mass["exported_m3"].as_f64(), Some(0.0), "{mass}");
+    assert_eq!(mass["settled_in_sea_by_rivers_m3"].as_f64(), Some(0.0), "{mass}");
+    assert!(mass["eroded_m3"].as_f64().unwrap() > 100.0, "{mass}");
+    let low = h.iter().copied().fold(f32::INFINITY, f32::min);
+    let floor = h.iter().position(|&x| x == low).unwrap();
+    let outlet: Vec<bool> = (0..h.len()).map(|i| i == floor).collect();
+    let depth = flood_depth(&h, 65, &outlet);
+    let bed = h.iter().filter(|&&x| x - low < 0.01).count();
+    eprintln!(
+        "base_level none: flooding from the floor adds {depth:.3} m; a bed of {bed} cells within 1 cm of the floor"
+    );
+    assert!(depth <= eps_budget, "the closed basin has {depth} m of depressions that do not drain to its floor");
+    assert!(bed >= 4, "the floor holds no bed of sediment ({bed} cells)");
+    // The sea only on a terrain without sea: refused, naming the field.
+    let body = json!({"terrain": terrain, "sea_level": -1000.0, "iterations": 2, "base_level": "sea"});
+    let job = server.submit("erode", &body).await;
+    let done = server.wait_done(job["id"].as_str().unwrap()).await;
+    assert_eq!(done["status"], "failed", "{done}");
+    assert!(done.to_string().contains("base_level"), "{done}");
 }

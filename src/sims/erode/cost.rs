@@ -25,6 +25,9 @@ const FLOOD_BYTES_PER_CELL: u64 = 4 + 8 + 1 + 1 + 16;
 /// (heights, area, sediment, zeros in f64 and 6 more), then the landform measures (D8: 57).
 const FINISH_BYTES_PER_CELL: u64 = 8 + 14 + 4 * 8 + 6;
 const METRICS_BYTES_PER_CELL: u64 = 57;
+/// Decoding a painted map: the PNG's pixels as decoded (up to 8 bytes, RGBA16), as 16-bit grey or
+/// 8-bit RGBA (4), and as f32 (4).
+const MAP_BYTES_PER_PIXEL: u64 = 16;
 /// Sequence bytes per iteration (a checksum and its JSON).
 const ITERATION_BYTES: u64 = 64;
 
@@ -34,8 +37,21 @@ pub fn estimate(params: &ErodeParams, terrain: &dyn TerrainLookup) -> Result<Cos
     let span = |n: u64| (n.max(1) - 1) as f64 * extent.cell_size_m;
     super::keep::check_jobs(&params.keep, terrain, span(extent.cols), span(extent.rows))?;
     let (cols, rows) = (extent.cols, extent.rows);
+    let mut decoding = 0u64;
     let cells = cols.saturating_mul(rows);
     let fluvial = params.hydraulic.on().is_some();
+    // Painted maps: checked against the terrain now; each is decoded (at most
+    // MAP_BYTES_PER_PIXEL a pixel) and kept as an f32 a cell.
+    let mut painted = 0u64;
+    if let Some(h) = params.hydraulic.on() {
+        for (field, map) in [("erodibility_map", &h.erodibility_map), ("uplift_map", &h.uplift_map)] {
+            if let Some(map) = map {
+                let pixels = map.check(&format!("hydraulic.{field}"), terrain, cols, rows, extent.cell_size_m)?;
+                painted = painted.saturating_add(cells.saturating_mul(4));
+                decoding = decoding.max(pixels.saturating_mul(MAP_BYTES_PER_PIXEL));
+            }
+        }
+    }
     // The hillslope step: two implicit line solves and a few failure sweeps, about two cell
     // updates (or one with creep off).
     let hill = params.thermal.on().map_or(0, |t| if t.diffusivity_m2_per_yr > 0.0 { 8 } else { 4 });
@@ -49,7 +65,7 @@ pub fn estimate(params: &ErodeParams, terrain: &dyn TerrainLookup) -> Result<Cos
     let mut cost = CostBuilder::new();
     cost.lods(heightfield_lod_triangles(cols, rows, params.tiles.is_some()), HEIGHTFIELD_LOD_BYTES_PER_TRIANGLE);
     cost.memory("", BASE_BYTES).memory("iterations", iterations * ITERATION_BYTES);
-    cost.memory("terrain", eroding.max(flood).max(finish));
+    cost.memory("terrain", (eroding + painted + decoding).max(flood).max(finish));
     // Per iteration: the fluvial step (1 per cell) and the hillslope step; loading,
     // measures and exports visit every cell a few dozen times.
     let per_iteration = cells.saturating_mul(4 * u64::from(fluvial) + hill) / 4;

@@ -10,7 +10,7 @@ use super::flow::Flow;
 use super::grid::Grid;
 use super::hillslope::Hillslope;
 use super::marine::Marine;
-use super::params::ErodeParams;
+use super::params::{BaseLevel, ErodeParams};
 use super::stream_power::StreamPower;
 use crate::terrain::Heightfield;
 
@@ -22,6 +22,10 @@ struct Fluvial {
     power: StreamPower,
     /// Metres of uplift per iteration on land.
     uplift_m: f64,
+    /// Painted uplift, metres per iteration on land, added to `uplift_m`.
+    uplift_map: Option<Vec<f32>>,
+    /// Painted erodibility: each cell's factor on k.
+    k_factor: Option<Vec<f32>>,
     flow: Flow,
     /// Each cell's net loss in the last iteration, m³ (negative where it gained).
     eroded: Vec<f64>,
@@ -35,8 +39,10 @@ pub struct Erosion {
     pub grid: Grid,
     /// Heights, m; f64 while eroding, f32 only at the end (and in each checksum).
     pub heights: Vec<f64>,
-    /// The grid's border and the sea (at or below the sea level), found again each iteration.
+    /// Where water leaves the land (the grid's border and the sea, at or below the sea level,
+    /// by default), found again each iteration.
     outlets: Vec<bool>,
+    base: Base,
     /// Rivers cut down to it, not to the sea floor.
     sea_level: f64,
     dt_years: f64,
@@ -78,8 +84,16 @@ impl Erosion {
         let grid = Grid::new(hf.cols, hf.rows, f64::from(hf.cell_size_m));
         let mut heights: Vec<f64> = hf.heights_m.par_iter().map(|&h| f64::from(h)).collect();
         let sea_level = f64::from(params.sea_level);
+        let base = match params.base_level {
+            BaseLevel::All => Base::BorderAndSea,
+            BaseLevel::Sea => Base::Sea,
+            // The lowest sample (the first of equals): the basin's floor.
+            BaseLevel::None => {
+                Base::Floor((0..heights.len()).fold(0, |best, i| if heights[i] < heights[best] { i } else { best }))
+            }
+        };
         let mut outlets = vec![false; grid.cells()];
-        find_outlets(&grid, &heights, sea_level, &mut outlets);
+        find_outlets(&grid, &heights, sea_level, base, &mut outlets);
         let mut totals = Totals::default();
         let dt = params.time_step_years;
         let fluvial = params.hydraulic.on().map(|h| {
@@ -94,18 +108,68 @@ impl Erosion {
                     flow_exponent: h.flow_exponent,
                 },
                 uplift_m: h.uplift_m_per_yr * dt,
+                uplift_map: None,
+                k_factor: None,
                 flow: Flow::new(grid.cells()),
                 eroded: vec![0.0; grid.cells()],
                 next: vec![0.0; grid.cells()],
                 marine: Marine::new(grid.cells()),
             }
         });
-        let hillslope = params
-            .thermal
-            .on()
-            .map(|t| Hillslope::new(&grid, t.diffusivity_m2_per_yr, t.talus_angle_deg, fluvial.is_some()));
+        let hillslope = params.thermal.on().map(|t| {
+            let fixed_border = fluvial.is_some() && base == Base::BorderAndSea;
+            Hillslope::new(&grid, t.diffusivity_m2_per_yr, t.talus_angle_deg, fixed_border)
+        });
         let scratch = if fluvial.is_some() { vec![0.0; grid.cells()] } else { Vec::new() };
-        Self { grid, heights, outlets, sea_level, dt_years: dt, fluvial, hillslope, scratch, held: Vec::new(), totals }
+        Self {
+            grid,
+            heights,
+            outlets,
+            base,
+            sea_level,
+            dt_years: dt,
+            fluvial,
+            hillslope,
+            scratch,
+            held: Vec::new(),
+            totals,
+        }
+    }
+
+    /// Vary the fluvial step over the grid: each cell's factor on k, and each cell's painted
+    /// uplift in m/yr (both on this grid; None leaves the request's single values).
+    pub fn paint(&mut self, k_factor: Option<Vec<f32>>, uplift_m_per_yr: Option<Vec<f32>>) {
+        let dt = self.dt_years;
+        if let Some(f) = &mut self.fluvial {
+            f.k_factor = k_factor;
+            f.uplift_map = uplift_m_per_yr.map(|u| u.into_iter().map(|x| (f64::from(x) * dt) as f32).collect());
+        }
+    }
+
+    /// Refuse a base level the terrain does not have: the sea only, on a terrain with no sea.
+    pub fn check_base_level(&self) -> Result<(), crate::jobs::SimError> {
+        if self.fluvial.is_some() && !self.outlets.iter().any(|&o| o) {
+            return Err(crate::jobs::SimError::Invalid {
+                field: "base_level".into(),
+                message: format!(
+                    "the terrain has no sample at or below sea_level ({} m) for its rivers to reach: lower the \
+                     terrain or raise sea_level, or choose base_level all or none",
+                    self.sea_level
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// The uplift each land cell received over the run, m: one value when it is `uniform_m_per_yr`
+    /// everywhere, else one a cell.
+    pub fn uplift_total_m(&self, uniform_m_per_yr: f64) -> Vec<f32> {
+        let years = self.dt_years * f64::from(self.totals.iterations);
+        let n = f64::from(self.totals.iterations);
+        match self.fluvial.as_ref().and_then(|f| f.uplift_map.as_ref()) {
+            None => vec![(uniform_m_per_yr * years) as f32],
+            Some(map) => map.iter().map(|&u| (uniform_m_per_yr * years + f64::from(u) * n) as f32).collect(),
+        }
     }
 
     /// Hold the cells of `weights` (0–1 each, on this grid) at `start`'s heights: after every
@@ -122,7 +186,7 @@ impl Erosion {
     /// One iteration.
     pub fn step(&mut self) {
         if self.fluvial.is_some() {
-            find_outlets(&self.grid, &self.heights, self.sea_level, &mut self.outlets);
+            find_outlets(&self.grid, &self.heights, self.sea_level, self.base, &mut self.outlets);
             self.totals.drain_raise_m3 += self.drain_pits();
             self.fluvial_step();
         }
@@ -151,20 +215,27 @@ impl Erosion {
     fn fluvial_step(&mut self) {
         let grid = &self.grid;
         let Some(f) = &mut self.fluvial else { return };
-        if f.uplift_m > 0.0 {
-            let u = f.uplift_m;
-            let raised: usize = self
+        if f.uplift_m > 0.0 || f.uplift_map.is_some() {
+            let (u, map) = (f.uplift_m, f.uplift_map.as_deref());
+            // Per row, then the rows in order: the same sum with any thread count.
+            let rows: Vec<f64> = self
                 .heights
-                .par_iter_mut()
-                .zip(&self.outlets)
-                .map(|(h, &o)| {
-                    if !o {
-                        *h += u;
+                .par_chunks_mut(grid.cols)
+                .zip(self.outlets.par_chunks(grid.cols))
+                .enumerate()
+                .map(|(r, (hs, os))| {
+                    let mut raised = 0.0;
+                    for (c, (h, &o)) in hs.iter_mut().zip(os).enumerate() {
+                        if !o {
+                            let du = u + map.map_or(0.0, |m| f64::from(m[r * grid.cols + c]));
+                            *h += du;
+                            raised += du;
+                        }
                     }
-                    usize::from(!o)
+                    raised
                 })
-                .sum();
-            self.totals.uplift_m3 += raised as f64 * u * grid.cell * grid.cell;
+                .collect();
+            self.totals.uplift_m3 += rows.iter().sum::<f64>() * grid.cell * grid.cell;
         }
         // Outlets stand at least at the sea level while the step runs: the base level rivers
         // cut down to, not the sea floor below it. They never erode, so their entries of
@@ -183,7 +254,7 @@ impl Erosion {
         // What reaches each outlet, in index order: settled after the step, on the real heights.
         let mut arrivals: Vec<(usize, f64)> = collect_arrivals(&self.outlets, &f.flow.sediment);
         merge_arrivals(&mut arrivals, &own);
-        f.power.psi(&f.flow.area, &self.outlets, grid.cell * grid.cell, &mut self.scratch);
+        f.power.psi(&f.flow.area, &self.outlets, grid.cell * grid.cell, f.k_factor.as_deref(), &mut self.scratch);
         f.power.solve(grid, &self.heights, &self.outlets, &f.flow, &self.scratch, &mut f.next);
         let area = grid.cell * grid.cell;
         f.eroded.par_iter_mut().zip(&mut f.next).zip(&self.heights).zip(&self.outlets).for_each(
@@ -197,7 +268,7 @@ impl Erosion {
             },
         );
         std::mem::swap(&mut self.heights, &mut f.next);
-        deliver(grid, &mut self.heights, sea, &self.outlets, &mut f.marine, &arrivals, &mut self.totals);
+        deliver(grid, &mut self.heights, sea, self.base, &self.outlets, &mut f.marine, &arrivals, &mut self.totals);
     }
 
     /// Carry the last iteration's sediment to the outlets and settle it, so that nothing is left
@@ -205,13 +276,14 @@ impl Erosion {
     pub fn flush(&mut self) {
         let grid = &self.grid;
         let Some(f) = &mut self.fluvial else { return };
-        find_outlets(grid, &self.heights, self.sea_level, &mut self.outlets);
+        find_outlets(grid, &self.heights, self.sea_level, self.base, &mut self.outlets);
         let own = collect_arrivals(&self.outlets, &f.eroded);
         f.flow.route(grid, &self.heights, &self.outlets, &f.eroded, f.power.flow_exponent);
         let mut arrivals = collect_arrivals(&self.outlets, &f.flow.sediment);
         merge_arrivals(&mut arrivals, &own);
         f.eroded.iter_mut().for_each(|e| *e = 0.0);
-        deliver(grid, &mut self.heights, self.sea_level, &self.outlets, &mut f.marine, &arrivals, &mut self.totals);
+        let (sea, base) = (self.sea_level, self.base);
+        deliver(grid, &mut self.heights, sea, base, &self.outlets, &mut f.marine, &arrivals, &mut self.totals);
     }
 
     /// Raise every land cell that has no lower neighbour (land the hillslope raised from the
@@ -287,13 +359,29 @@ fn sha256_f32(values: impl Iterator<Item = f32>) -> [u8; 32] {
     hasher.finalize().into()
 }
 
-/// The grid's border and every cell at or below `sea_level`: water that reaches one leaves the
-/// land, and the fluvial step does not cut it.
-fn find_outlets(grid: &Grid, heights: &[f64], sea_level: f64, outlets: &mut [bool]) {
+/// Where water leaves the land, from the request's `base_level`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Base {
+    /// The grid's border and every cell at or below the sea level.
+    BorderAndSea,
+    /// Every cell at or below the sea level.
+    Sea,
+    /// This one cell, the lowest of the input: a closed basin's floor.
+    Floor(usize),
+}
+
+/// The outlets of `base`: water that reaches one leaves the land, and the fluvial step does not
+/// cut it.
+fn find_outlets(grid: &Grid, heights: &[f64], sea_level: f64, base: Base, outlets: &mut [bool]) {
     let cols = grid.cols;
     outlets.par_chunks_mut(cols).enumerate().for_each(|(r, row)| {
         for (c, o) in row.iter_mut().enumerate() {
-            *o = heights[r * cols + c] <= sea_level || grid.on_border(r * cols + c);
+            let i = r * cols + c;
+            *o = match base {
+                Base::BorderAndSea => heights[i] <= sea_level || grid.on_border(i),
+                Base::Sea => heights[i] <= sea_level,
+                Base::Floor(floor) => i == floor,
+            };
         }
     });
 }
@@ -320,12 +408,15 @@ fn merge_arrivals(arrivals: &mut Vec<(usize, f64)>, more: &[(usize, f64)]) {
     });
 }
 
-/// Settle each arrival in the sea at its outlet (a delta), or send it off the grid at the
-/// border; a negative arrival (a net gain upstream) is counted, not taken back.
+/// Settle each arrival in the sea at its outlet (a delta), on a closed basin's floor (a level
+/// lake bed), or send it off the grid at the border; a negative arrival (a net gain upstream)
+/// is counted, not taken back.
+#[allow(clippy::too_many_arguments)]
 fn deliver(
     grid: &Grid,
     heights: &mut [f64],
     sea_level: f64,
+    base: Base,
     outlets: &[bool],
     marine: &mut Marine,
     arrivals: &[(usize, f64)],
@@ -334,6 +425,8 @@ fn deliver(
     for &(i, v) in arrivals {
         if v < 0.0 {
             totals.unsettled_m3 -= v;
+        } else if let Base::Floor(_) = base {
+            fill_basin(grid, heights, i, v);
         } else if grid.on_border(i) {
             totals.exported_m3 += v;
         } else {
@@ -341,5 +434,40 @@ fn deliver(
             totals.settled_in_sea_m3 += v - left;
             totals.exported_m3 += left;
         }
+    }
+}
+
+/// Spread `volume` m³ over the basin around `floor` as a level bed: the cells the water would
+/// reach first (lowest first, outwards from the floor) are raised to the one level that holds
+/// the volume.
+fn fill_basin(grid: &Grid, heights: &mut [f64], floor: usize, volume: f64) {
+    use std::cmp::Reverse;
+    use std::collections::BinaryHeap;
+    let depth = volume / (grid.cell * grid.cell);
+    let mut seen = std::collections::HashSet::from([floor]);
+    let mut heap = BinaryHeap::from([super::flood::key(heights[floor], floor)]);
+    // The cells taken so far and the sum of their heights: they fill to level L with
+    // n·L − sum of depth; the next cell's height caps L until the depth runs out.
+    let (mut taken, mut sum) = (Vec::new(), 0.0);
+    let mut level = heights[floor];
+    while let Some(Reverse((_, c))) = heap.pop() {
+        let c = c as usize;
+        let next = heights[c];
+        if !taken.is_empty() && next * taken.len() as f64 - sum >= depth {
+            break;
+        }
+        taken.push(c);
+        sum += next;
+        level = (depth + sum) / taken.len() as f64;
+        for k in 0..8 {
+            if let Some(n) = grid.neighbour(c, k) {
+                if seen.insert(n) {
+                    heap.push(super::flood::key(heights[n], n));
+                }
+            }
+        }
+    }
+    for c in taken {
+        heights[c] = level;
     }
 }

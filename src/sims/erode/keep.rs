@@ -143,19 +143,33 @@ fn job_field(i: usize) -> String {
 /// `depth_m` (within a cell of either grid).
 pub fn check_jobs(keep: &[Keep], terrain: &dyn TerrainLookup, width_m: f64, depth_m: f64) -> Result<(), SimError> {
     for (i, k) in keep.iter().enumerate() {
-        let Some(id) = k.job() else { continue };
-        let e = terrain.job_extent(id).map_err(|message| SimError::Invalid { field: job_field(i), message })?;
-        let (w, d) = ((e.cols.max(1) - 1) as f64 * e.cell_size_m, (e.rows.max(1) - 1) as f64 * e.cell_size_m);
-        let slack = e.cell_size_m.max(width_m / 4096.0) * 1.01;
-        if (w - width_m).abs() > slack || (d - depth_m).abs() > slack {
-            return Err(SimError::Invalid {
-                field: job_field(i),
-                message: format!(
-                    "job {id}'s terrain is {w} × {d} m; this erosion's is {width_m} × {depth_m} m: a kept area must come \
-                     from a job on the same extent"
-                ),
-            });
+        if let Some(id) = k.job() {
+            check_extent(terrain, id, &job_field(i), width_m, depth_m)?;
         }
+    }
+    Ok(())
+}
+
+/// Check that job `id` is there and its terrain covers `width_m` × `depth_m` (within a cell of
+/// either grid); errors name `field`.
+pub fn check_extent(
+    terrain: &dyn TerrainLookup,
+    id: &str,
+    field: &str,
+    width_m: f64,
+    depth_m: f64,
+) -> Result<(), SimError> {
+    let e = terrain.job_extent(id).map_err(|message| SimError::Invalid { field: field.into(), message })?;
+    let (w, d) = ((e.cols.max(1) - 1) as f64 * e.cell_size_m, (e.rows.max(1) - 1) as f64 * e.cell_size_m);
+    let slack = e.cell_size_m.max(width_m / 4096.0) * 1.01;
+    if (w - width_m).abs() > slack || (d - depth_m).abs() > slack {
+        return Err(SimError::Invalid {
+            field: field.into(),
+            message: format!(
+                "job {id}'s terrain is {w} × {d} m; this erosion's is {width_m} × {depth_m} m: a map or kept area \
+                 must come from a job on the same extent"
+            ),
+        });
     }
     Ok(())
 }

@@ -27,16 +27,24 @@ pub struct Maps {
 }
 
 impl Maps {
-    /// Wear and deposition are measured from the input raised by `uplift_m` on land (the rock
-    /// the rivers had to cut), so a rising range shows its valleys, not its rise.
-    pub fn new(input: &Heightfield, output: &Heightfield, sea_level: f32, flow_exponent: f64, uplift_m: f64) -> Self {
+    /// Wear and deposition are measured from the input raised on land by `uplift_m` (each
+    /// cell's, or one for all; the rock the rivers had to cut), so a rising range shows its
+    /// valleys, not its rise.
+    pub fn new(
+        input: &Heightfield,
+        output: &Heightfield,
+        sea_level: f32,
+        flow_exponent: f64,
+        uplift_m: &[f32],
+    ) -> Self {
         let grid = Grid::new(output.cols, output.rows, f64::from(output.cell_size_m));
         let (wear, deposition) = (0..grid.cells())
             .into_par_iter()
             .map(|i| {
                 let a = f64::from(input.heights_m[i]);
                 let land = a > f64::from(sea_level) && !grid.on_border(i);
-                let reference = if land { a + uplift_m } else { a };
+                let u = f64::from(if uplift_m.len() == 1 { uplift_m[0] } else { uplift_m[i] });
+                let reference = if land { a + u } else { a };
                 let b = f64::from(output.heights_m[i]);
                 ((reference - b).max(0.0) as f32, (b - reference).max(0.0) as f32)
             })

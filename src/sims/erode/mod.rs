@@ -25,6 +25,7 @@ mod keep;
 mod maps;
 mod marine;
 pub mod metrics;
+mod painted;
 mod params;
 mod sequence;
 mod stream_power;
@@ -37,7 +38,8 @@ use serde_json::{json, Map, Value};
 
 pub use erosion::{input_sha256, Erosion};
 pub use keep::{Keep, KeepPoint, KeepPolygon, KeepWorked};
-pub use params::{ErodeParams, Hydraulic, Switch, Thermal, MAX_ITERATIONS};
+pub use painted::{Channel, PaintedMap, SplatChannel};
+pub use params::{BaseLevel, ErodeParams, Hydraulic, Switch, Thermal, MAX_ITERATIONS};
 pub use sequence::ErodeSequence;
 
 use crate::export::{short_decimal, HeightfieldExport};
@@ -74,6 +76,18 @@ impl Simulation for Erode {
         vec![("terrain".to_string(), &mut params.terrain)]
     }
 
+    fn image_uploads(params: &mut ErodeParams) -> Vec<(String, &mut crate::terrain::ImageUpload)> {
+        let Switch::On(h) = &mut params.hydraulic else { return Vec::new() };
+        let mut out = Vec::new();
+        if let Some(png) = h.erodibility_map.as_mut().and_then(|m| m.png.as_mut()) {
+            out.push(("hydraulic.erodibility_map.png".to_string(), png));
+        }
+        if let Some(png) = h.uplift_map.as_mut().and_then(|m| m.png.as_mut()) {
+            out.push(("hydraulic.uplift_map.png".to_string(), png));
+        }
+        out
+    }
+
     fn estimate(params: &ErodeParams, _seed: u64, terrain: &dyn TerrainLookup) -> Result<Cost, SimError> {
         cost::estimate(params, terrain)
     }
@@ -89,6 +103,7 @@ impl Simulation for Erode {
             time_step_years: params.time_step_years,
             hydraulic: params.hydraulic.clone(),
             thermal: params.thermal.clone(),
+            base_level: params.base_level,
             keep: params.keep.clone(),
             checksums,
         };
@@ -127,6 +142,14 @@ fn erode(
 ) -> Result<(Erosion, Vec<String>), SimError> {
     let held = keep::weights(&params.keep, input, ctx.terrain)?;
     let mut erosion = Erosion::new(input, params);
+    if let Some(h) = params.hydraulic.on() {
+        let grid = erosion.grid;
+        let sample = |map: &Option<PaintedMap>, field: &str| {
+            map.as_ref().map(|m| m.sample(&format!("hydraulic.{field}"), &grid, ctx.terrain)).transpose()
+        };
+        erosion.paint(sample(&h.erodibility_map, "erodibility_map")?, sample(&h.uplift_map, "uplift_map")?);
+    }
+    erosion.check_base_level()?;
     if let Some(weights) = held {
         erosion.hold(input, &weights);
     }
@@ -165,15 +188,12 @@ fn finish(
 ) -> Result<Outcome<ErodeSequence>, SimError> {
     let totals = erosion.totals;
     let steep_share = erosion.steep_share();
+    let uplift_m = erosion.uplift_total_m(params.hydraulic.on().map_or(0.0, |h| h.uplift_m_per_yr));
     let output = erosion.heightfield();
     drop(erosion);
     check_heights(&output)?;
     let exponent = params.hydraulic.on().map_or(1.0, |h| h.flow_exponent);
-    let uplift_m = params
-        .hydraulic
-        .on()
-        .map_or(0.0, |h| h.uplift_m_per_yr * params.time_step_years * f64::from(totals.iterations));
-    let maps = Maps::new(input, &output, params.sea_level, exponent, uplift_m);
+    let maps = Maps::new(input, &output, params.sea_level, exponent, &uplift_m);
     let mut figures = figures(input, &output, params, &maps, totals);
     if let Some(share) = steep_share {
         figures.insert("steeper_than_talus_share".into(), json!(round6(share)));

@@ -8,6 +8,7 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use utoipa::ToSchema;
 
 use super::keep::{self, Keep};
+use super::painted::PaintedMap;
 use crate::export::TileGrid;
 use crate::terrain::TerrainSource;
 use crate::validate::{Limits, Validate, Validator};
@@ -90,6 +91,13 @@ pub struct ErodeParams {
     #[serde(default)]
     #[schema(value_type = Option<Thermal>, nullable = true)]
     pub thermal: Switch<Thermal>,
+    /// Where water leaves the map: `all` (the default) — the grid's border and the sea;
+    /// `sea` — the sea only, so rivers that reach the map's edge on land turn back (an island
+    /// or a coast cut from a larger map; the terrain must have sea); `none` — nothing leaves: a
+    /// closed basin whose water gathers at its lowest point, where the sediment settles as a
+    /// level lake bed (a playa), and the sea level only draws the exports' coast.
+    #[serde(default, skip_serializing_if = "BaseLevel::is_all")]
+    pub base_level: BaseLevel,
     /// Areas kept at their starting heights, each with a shoulder over which the erosion fades
     /// back in: polygons, or the cells an earlier job worked (a road a bulldozer or
     /// deform-terrain laid down). At most 16.
@@ -134,7 +142,41 @@ pub struct Hydraulic {
     #[serde(default = "default_flow_exponent")]
     #[schema(default = 1.0, minimum = 0.0, maximum = 10.0)]
     pub flow_exponent: f64,
+    /// Erodibility painted over the terrain: k is multiplied by the map's value (`black` and
+    /// `white` from 0 to 100; 0 leaves rock the rivers cannot cut, 10 soft sediment).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub erodibility_map: Option<PaintedMap>,
+    /// Uplift painted over the terrain, metres a year (`black` and `white` from 0 to 0.1), added
+    /// to `uplift_m_per_yr` on land: raise a range where it is painted, and the rivers carve it
+    /// as it rises (Cordonnier et al. 2016).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uplift_map: Option<PaintedMap>,
 }
+
+/// Where water leaves the map.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+#[schema(as = ErodeBaseLevel)]
+pub enum BaseLevel {
+    /// The grid's border and the sea.
+    #[default]
+    All,
+    /// The sea only: the border is a wall where it is land.
+    Sea,
+    /// Nothing: a closed basin draining to its lowest point.
+    None,
+}
+
+impl BaseLevel {
+    pub fn is_all(&self) -> bool {
+        *self == BaseLevel::All
+    }
+}
+
+/// Largest factor an erodibility map multiplies k by.
+pub const MAX_ERODIBILITY_FACTOR: f64 = 100.0;
+/// Largest painted uplift, m/yr (as `uplift_m_per_yr`).
+pub const MAX_UPLIFT_M_PER_YR: f64 = 0.1;
 
 /// Hillslope transport: soil creep q = −κ∇z / (1 − (|∇z|/S_c)²), which grows without bound as
 /// the slope nears the talus slope S_c (Roering, Kirchner & Dietrich 1999), and failure of
@@ -147,13 +189,13 @@ pub struct Hydraulic {
 pub struct Thermal {
     /// Steepest stable slope, degrees (1 to 89): nothing stays steeper after a step.
     #[serde(default = "default_talus")]
-    #[schema(default = 35.0, minimum = 1.0, maximum = 89.0)]
+    #[schema(default = 45.0, minimum = 1.0, maximum = 89.0)]
     pub talus_angle_deg: f64,
     /// Creep diffusivity κ, m²/yr (0 to 10): how fast gentle slopes round off. Measured soil
     /// creep is 0.002–0.04 m²/yr (Roering et al. 1999: 0.003); 0 leaves only failure.
     #[serde(default = "default_diffusivity")]
     // 10 = MAX_DIFFUSIVITY
-    #[schema(default = 0.002, minimum = 0.0, maximum = 10.0)]
+    #[schema(default = 0.0, minimum = 0.0, maximum = 10.0)]
     pub diffusivity_m2_per_yr: f64,
 }
 
@@ -254,6 +296,9 @@ impl Validate for ErodeParams {
             v.field("tiles", |v| tiles.validate(v, limits));
         }
         keep::validate(&self.keep, v);
+        if self.base_level != BaseLevel::All && self.hydraulic.on().is_none() {
+            v.error("base_level", "only the rivers have a base level: turn hydraulic on, or leave base_level at all");
+        }
         if self.hydraulic.on().is_none() && self.thermal.on().is_none() {
             v.error("hydraulic", "hydraulic and thermal are both off: turn on at least one");
         }
@@ -265,6 +310,12 @@ impl Validate for ErodeParams {
                 v.in_range("uplift_m_per_yr", h.uplift_m_per_yr, 0.0, 0.1);
                 v.in_range("deposition_g", h.deposition_g, 0.0, 5.0);
                 v.in_range("flow_exponent", h.flow_exponent, 0.0, 10.0);
+                if let Some(map) = &h.erodibility_map {
+                    v.field("erodibility_map", |v| map.validate(v, limits, 0.0, MAX_ERODIBILITY_FACTOR));
+                }
+                if let Some(map) = &h.uplift_map {
+                    v.field("uplift_map", |v| map.validate(v, limits, 0.0, MAX_UPLIFT_M_PER_YR));
+                }
             });
         }
         if let Switch::On(t) = &self.thermal {

@@ -5,7 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::keep::Keep;
-use super::params::{ErodeParams, Hydraulic, Switch, Thermal};
+use super::params::{BaseLevel, ErodeParams, Hydraulic, Switch, Thermal};
 use crate::jobs::Sequence;
 use crate::terrain::TerrainSource;
 
@@ -21,6 +21,9 @@ pub struct ErodeSequence {
     pub time_step_years: f64,
     pub hydraulic: Switch<Hydraulic>,
     pub thermal: Switch<Thermal>,
+    /// Where water left the map.
+    #[serde(default, skip_serializing_if = "BaseLevel::is_all")]
+    pub base_level: BaseLevel,
     /// The areas kept at their starting heights.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub keep: Vec<Keep>,
@@ -45,6 +48,7 @@ impl ErodeSequence {
             time_step_years: self.time_step_years,
             hydraulic: self.hydraulic.clone(),
             thermal: self.thermal.clone(),
+            base_level: self.base_level,
             keep: self.keep.clone(),
             tiles,
         }

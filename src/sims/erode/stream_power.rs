@@ -31,16 +31,20 @@ impl StreamPower {
     /// Outlets (never solved) are skipped, and a cell that drains only itself (a ridge, half
     /// the land) takes the one power of a cell's area worked out once: the same bits as its own
     /// `pow` would give, for a fraction of the time.
-    pub fn psi(&self, area: &[f64], outlets: &[bool], cell_area: f64, psi: &mut [f64]) {
+    /// `factor`, when given, multiplies each cell's k (a painted erodibility).
+    pub fn psi(&self, area: &[f64], outlets: &[bool], cell_area: f64, factor: Option<&[f32]>, psi: &mut [f64]) {
         let (k_dt, m) = (self.k_dt, self.m);
         let single = k_dt * libm::pow(cell_area, m);
-        psi.par_iter_mut().zip(area).zip(outlets).for_each(|((p, &a), &o)| {
+        psi.par_iter_mut().zip(area).zip(outlets).enumerate().for_each(|(i, ((p, &a), &o))| {
             *p = if o {
                 0.0
             } else if a == cell_area {
                 single
             } else {
                 k_dt * libm::pow(a, m)
+            };
+            if let Some(f) = factor {
+                *p *= f64::from(f[i]);
             }
         });
     }
@@ -106,8 +110,15 @@ impl StreamPower {
             return heights[i];
         }
         let mut cap = heights[i];
+        // A land cell on the border (when the border is not base level) lacks some neighbours.
+        let border = grid.on_border(i);
         for k in 0..8 {
-            let n = grid.inner(i, k);
+            let n = if border {
+                let Some(n) = grid.neighbour(i, k) else { continue };
+                n
+            } else {
+                grid.inner(i, k)
+            };
             // N8 is symmetric: neighbour k's neighbour 7 − k is this cell.
             if flow.receivers[n] & (1 << (7 - k)) != 0 {
                 cap = cap.max(heights[n] + self.deposit(grid, flow, n));

@@ -2077,6 +2077,16 @@ export interface components {
         };
         /** @enum {string} */
         DripInterval: "dry" | "standard" | "wet" | "random" | "pluviometric";
+        /**
+         * @description Where water leaves the map.
+         * @enum {string}
+         */
+        ErodeBaseLevel: "all" | "sea" | "none";
+        /**
+         * @description A colour channel of an RGBA image.
+         * @enum {string}
+         */
+        ErodeChannel: "r" | "g" | "b" | "a";
         /** @description Stream-power erosion E = k·A^m·S^n (A drainage area in m², S slope) with deposition. */
         ErodeHydraulic: {
             /**
@@ -2118,6 +2128,8 @@ export interface components {
              * @default 1
              */
             flow_exponent?: number;
+            erodibility_map?: null | components["schemas"]["ErodePaintedMap"];
+            uplift_map?: null | components["schemas"]["ErodePaintedMap"];
         };
         /** @description An area the erosion keeps at its starting heights. */
         ErodeKeep: {
@@ -2172,6 +2184,21 @@ export interface components {
              */
             shoulder_m?: number;
         };
+        /** @description A map over the terrain: exactly one of `png` and `splat_of`, and what black and white mean. */
+        ErodePaintedMap: {
+            png?: null | components["schemas"]["ImageUpload"];
+            splat_of?: null | components["schemas"]["ErodeSplatChannel"];
+            /**
+             * Format: double
+             * @description What black (0) stands for.
+             */
+            black: number;
+            /**
+             * Format: double
+             * @description What white (full) stands for.
+             */
+            white: number;
+        };
         /**
          * @description Erode a heightfield: stream-power fluvial erosion with sediment deposition on a surface
          *     kept free of pits, and talus-angle slope relaxation.
@@ -2213,6 +2240,14 @@ export interface components {
             time_step_years?: number;
             hydraulic?: null | components["schemas"]["ErodeHydraulic"];
             thermal?: null | components["schemas"]["ErodeThermal"];
+            /**
+             * @description Where water leaves the map: `all` (the default) — the grid's border and the sea;
+             *     `sea` — the sea only, so rivers that reach the map's edge on land turn back (an island
+             *     or a coast cut from a larger map; the terrain must have sea); `none` — nothing leaves: a
+             *     closed basin whose water gathers at its lowest point, where the sediment settles as a
+             *     level lake bed (a playa), and the sea level only draws the exports' coast.
+             */
+            base_level?: components["schemas"]["ErodeBaseLevel"];
             /**
              * @description Areas kept at their starting heights, each with a shoulder over which the erosion fades
              *     back in: polygons, or the cells an earlier job worked (a road a bulldozer or
@@ -2263,6 +2298,14 @@ export interface components {
             hydraulic?: null | components["schemas"]["ErodeHydraulic"];
             thermal?: null | components["schemas"]["ErodeThermal"];
             /**
+             * @description Where water leaves the map: `all` (the default) — the grid's border and the sea;
+             *     `sea` — the sea only, so rivers that reach the map's edge on land turn back (an island
+             *     or a coast cut from a larger map; the terrain must have sea); `none` — nothing leaves: a
+             *     closed basin whose water gathers at its lowest point, where the sediment settles as a
+             *     level lake bed (a playa), and the sea level only draws the exports' coast.
+             */
+            base_level?: components["schemas"]["ErodeBaseLevel"];
+            /**
              * @description Areas kept at their starting heights, each with a shoulder over which the erosion fades
              *     back in: polygons, or the cells an earlier job worked (a road a bulldozer or
              *     deform-terrain laid down). At most 16.
@@ -2297,6 +2340,13 @@ export interface components {
              */
             lods?: number[];
         };
+        /** @description One channel of an earlier job's splat map. */
+        ErodeSplatChannel: {
+            /** @description The earlier job's id (a succeeded job that made a heightfield). */
+            job: string;
+            /** @description The channel: `r`, `g`, `b` or `a`. */
+            channel: components["schemas"]["ErodeChannel"];
+        };
         /**
          * @description Hillslope transport: soil creep q = −κ∇z / (1 − (|∇z|/S_c)²), which grows without bound as
          *     the slope nears the talus slope S_c (Roering, Kirchner & Dietrich 1999), and failure of
@@ -2308,14 +2358,14 @@ export interface components {
             /**
              * Format: double
              * @description Steepest stable slope, degrees (1 to 89): nothing stays steeper after a step.
-             * @default 35
+             * @default 45
              */
             talus_angle_deg?: number;
             /**
              * Format: double
              * @description Creep diffusivity κ, m²/yr (0 to 10): how fast gentle slopes round off. Measured soil
              *     creep is 0.002–0.04 m²/yr (Roering et al. 1999: 0.003); 0 leaves only failure.
-             * @default 0.002
+             * @default 0
              */
             diffusivity_m2_per_yr?: number;
         };

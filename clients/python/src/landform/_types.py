@@ -829,6 +829,10 @@ DeformTileable = TypedDict(
 
 DripInterval = Literal['dry', 'standard', 'wet', 'random', 'pluviometric']
 
+ErodeBaseLevel = Literal['all', 'sea', 'none']
+
+ErodeChannel = Literal['r', 'g', 'b', 'a']
+
 ErodeHydraulic = TypedDict(
     'ErodeHydraulic',
     {
@@ -838,6 +842,8 @@ ErodeHydraulic = TypedDict(
         'uplift_m_per_yr': NotRequired[float],
         'deposition_g': NotRequired[float],
         'flow_exponent': NotRequired[float],
+        'erodibility_map': NotRequired[Union['ErodePaintedMap', None]],
+        'uplift_map': NotRequired[Union['ErodePaintedMap', None]],
     },
 )
 
@@ -881,6 +887,16 @@ ErodeKeepWorkedBy = TypedDict(
     },
 )
 
+ErodePaintedMap = TypedDict(
+    'ErodePaintedMap',
+    {
+        'png': NotRequired[Union['ImageUpload', None]],
+        'splat_of': NotRequired[Union['ErodeSplatChannel', None]],
+        'black': float,
+        'white': float,
+    },
+)
+
 ErodeParamsBody = TypedDict(
     'ErodeParamsBody',
     {
@@ -890,12 +906,21 @@ ErodeParamsBody = TypedDict(
         'time_step_years': NotRequired[float],
         'hydraulic': NotRequired[Union['ErodeHydraulic', None]],
         'thermal': NotRequired[Union['ErodeThermal', None]],
+        'base_level': NotRequired['ErodeBaseLevel'],
         'keep': NotRequired[list['ErodeKeep']],
         'tiles': NotRequired[Union['TileGrid', None]],
         'seed': NotRequired[int],
         'label': NotRequired[str],
         'compression': NotRequired[Literal['none', 'quantize', 'meshopt']],
         'lods': NotRequired[list[float]],
+    },
+)
+
+ErodeSplatChannel = TypedDict(
+    'ErodeSplatChannel',
+    {
+        'job': str,
+        'channel': 'ErodeChannel',
     },
 )
 
