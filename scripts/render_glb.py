@@ -47,6 +47,9 @@ def to_blender(p):
 
 camera_data = bpy.data.cameras.new("camera")
 camera_data.lens = 18
+# A new camera sees 100 m; terrain is kilometres across.
+camera_data.clip_start = 0.1
+camera_data.clip_end = 100000.0
 camera = bpy.data.objects.new("camera", camera_data)
 bpy.context.scene.collection.objects.link(camera)
 camera.location = to_blender(eye)
