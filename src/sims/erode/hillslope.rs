@@ -56,6 +56,10 @@ pub struct Hillslope {
     blocks: Vec<f64>,
 }
 
+/// Each side neighbour of [`super::grid::N8`] (its index) with the two corners beside it, in
+/// the order the triangles are tried: east, west, south, north.
+const SIDE_CORNERS: [(usize, [usize; 2]); 4] = [(4, [2, 7]), (3, [0, 5]), (6, [5, 7]), (1, [0, 2])];
+
 impl Hillslope {
     pub fn new(grid: &Grid, kappa: f64, talus_angle_deg: f64, fixed_border: bool) -> Self {
         let sc = libm::tan(talus_angle_deg.to_radians());
@@ -116,23 +120,27 @@ impl Hillslope {
         // otherwise S_c·ℓ above a single neighbour.
         let diagonal = d * std::f64::consts::SQRT_2;
         let allowed = |h: &[f64], i: usize| {
-            let (r, c) = ((i / cols) as isize, (i % cols) as isize);
-            let at = |dc: isize, dr: isize| {
-                let (nc, nr) = (c + dc, r + dr);
-                if nc < 0 || nr < 0 || nc >= cols as isize || nr >= rows as isize {
-                    f64::INFINITY
-                } else {
-                    h[nr as usize * cols + nc as usize]
+            // The eight neighbours' heights, N8's order (+∞ off the grid): read once each.
+            let (r, c) = (i / cols, i % cols);
+            let mut nb = [f64::INFINITY; 8];
+            if r > 0 && c > 0 && r + 1 < rows && c + 1 < cols {
+                for (k, n) in nb.iter_mut().enumerate() {
+                    *n = h[grid.inner(i, k)];
                 }
-            };
+            } else {
+                for (k, n) in nb.iter_mut().enumerate() {
+                    if let Some(j) = grid.neighbour(i, k) {
+                        *n = h[j];
+                    }
+                }
+            }
             let mut best = f64::INFINITY;
-            for (sc, sr) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
-                let a = at(sc, sr);
+            // Each side (N8 index) with the two corners beside it.
+            for (side, corners) in SIDE_CORNERS {
+                let a = nb[side];
                 best = best.min(a + d);
-                for turn in [-1, 1] {
-                    // The corner beside this side: one step across it.
-                    let (dc, dr) = if sc != 0 { (sc, turn) } else { (turn, sr) };
-                    let b = at(dc, dr);
+                for corner in corners {
+                    let b = nb[corner];
                     best = best.min(b + diagonal);
                     let drop = a - b;
                     if drop >= 0.0 && drop <= d * std::f64::consts::FRAC_1_SQRT_2 {
@@ -177,8 +185,14 @@ impl Hillslope {
             }
             // Whatever this cell now allows a neighbour is at least `clear` above it.
             let floor = h[i] + clear;
+            let interior = i >= cols && i + cols < h.len() && i % cols != 0 && i % cols != cols - 1;
             for k in 0..8 {
-                let Some(n) = grid.neighbour(i, k) else { continue };
+                let n = if interior {
+                    grid.inner(i, k)
+                } else {
+                    let Some(n) = grid.neighbour(i, k) else { continue };
+                    n
+                };
                 if outlets[n] || h[n] <= floor {
                     continue;
                 }
