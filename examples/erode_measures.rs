@@ -91,7 +91,9 @@ fn main() {
         }
         v
     };
-    let talus = extra["thermal"]["talus_angle_deg"].as_f64().unwrap_or(35.0);
+    let talus = extra["thermal"]["talus_angle_deg"]
+        .as_f64()
+        .unwrap_or(landform::sims::erode::Thermal::default().talus_angle_deg);
     let relief: f32 = std::env::var("RELIEF").ok().map_or(120.0, |r| r.parse().unwrap());
     let hf = island(size, 2.0, relief, seed);
     if what == "defaults" || what == "all" {

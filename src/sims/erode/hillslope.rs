@@ -172,13 +172,29 @@ impl Hillslope {
         if seeds.is_empty() {
             return;
         }
-        let mut heap = BinaryHeap::with_capacity(seeds.len());
+        // The seeds in order (a parallel sort), beside a heap for the cells they lower: the
+        // lowest of the two goes next, as from one heap, but the heap stays small.
+        let mut sorted: Vec<(u64, u32)> = seeds.iter().map(|&(i, u)| (ordered(u), i as u32)).collect();
+        sorted.par_sort_unstable();
         for (i, u) in seeds {
             debris[i] += (h[i] - u) * area;
             h[i] = u;
-            heap.push(key(u, i));
         }
-        while let Some(Reverse((k, i))) = heap.pop() {
+        let mut heap: BinaryHeap<Reverse<(u64, u32)>> = BinaryHeap::new();
+        let mut next_seed = 0;
+        loop {
+            let from_seeds = match (sorted.get(next_seed), heap.peek()) {
+                (None, None) => break,
+                (Some(_), None) => true,
+                (None, Some(_)) => false,
+                (Some(s), Some(Reverse(top))) => s < top,
+            };
+            let (k, i) = if from_seeds {
+                next_seed += 1;
+                sorted[next_seed - 1]
+            } else {
+                heap.pop().map(|Reverse(t)| t).unwrap_or_default()
+            };
             let i = i as usize;
             if ordered(h[i]) != k {
                 continue;

@@ -60,9 +60,35 @@ impl Marine {
         }
         let visit = self.visit;
         let (mut at, mut d) = (mouth, 0.0);
+        let (cols, rows) = (grid.cols, grid.rows);
         for _ in 0..MAX_CELLS {
             self.stamp[at] = visit;
-            let front = grid.lowest_neighbour(heights, at) + FRONT_SLOPE * grid.cell;
+            // One look at the neighbours: the lowest of them all (the front's foot), and the
+            // lowest sea cell off the border not yet crossed (ties to the lower index: the first
+            // in N8's order), where the path goes next. Filling `at` changes neither.
+            let (c, r) = (at % cols, at / cols);
+            let inside = c > 0 && r > 0 && c + 1 < cols && r + 1 < rows;
+            // No neighbour of a cell two in from every edge lies on the border.
+            let clear_of_border = c > 1 && r > 1 && c + 2 < cols && r + 2 < rows;
+            let mut lowest = f64::INFINITY;
+            let mut next: Option<(usize, usize)> = None;
+            for k in 0..8 {
+                let n = if inside {
+                    grid.inner(at, k)
+                } else {
+                    let Some(n) = grid.neighbour(at, k) else { continue };
+                    n
+                };
+                let hn = heights[n];
+                lowest = lowest.min(hn);
+                if self.stamp[n] == visit || !sea(n) || (!clear_of_border && grid.on_border(n)) {
+                    continue;
+                }
+                if next.is_none_or(|(m, _)| hn < heights[m]) {
+                    next = Some((n, k));
+                }
+            }
+            let front = lowest + FRONT_SLOPE * grid.cell;
             let top = (sea_level - TOP_DEPTH_M - SHOREFACE_SLOPE * d).min(front);
             if heights[at] < top {
                 let fill = (top - heights[at]).min(left);
@@ -70,16 +96,6 @@ impl Marine {
                 left -= fill;
                 if left <= 0.0 {
                     return 0.0;
-                }
-            }
-            let mut next: Option<(usize, usize)> = None;
-            for k in 0..8 {
-                let Some(n) = grid.neighbour(at, k) else { continue };
-                if self.stamp[n] == visit || !sea(n) || grid.on_border(n) {
-                    continue;
-                }
-                if next.is_none_or(|(m, _)| heights[n] < heights[m]) {
-                    next = Some((n, k));
                 }
             }
             let Some((n, k)) = next else { break };
