@@ -63,6 +63,49 @@ fn the_same_years_in_fewer_longer_steps_make_the_same_landform() {
 }
 
 #[test]
+fn a_draft_shows_the_job_s_landform() {
+    // The draft rule runs the request's years in at most 50 iterations, on the terrain read at
+    // 129 samples a side. On that terrain, the drafted request and the request itself: mean
+    // change within 5 %, RMS of the difference within 10 % of the mean |change| — for the
+    // eroded island (100 × 500 years, drafted 50 × 1 000) and the rising range (150 × 2 000
+    // years, drafted 50 × 6 000).
+    for name in ["eroded-island", "uplift-range"] {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("api/erode/{name}.json"));
+        let mut body: Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+        let obj = body.as_object_mut().unwrap();
+        obj.remove("label");
+        obj.remove("seed");
+        let full: ErodeParams = serde_json::from_value(body).unwrap();
+        let mut drafted = full.clone();
+        Erode::draft(&mut drafted);
+        assert!(
+            drafted.iterations == 50 && full.iterations > 50,
+            "{name}: the draft runs {} iterations",
+            drafted.iterations
+        );
+        let input = support::with_context(|ctx| resolve(&full.terrain, ctx.terrain, ctx.limits).unwrap());
+        let input = input.resampled(input.cell_size_m * 2.0);
+        assert_eq!(input.cols, 129, "{name}: the draft's grid");
+        let run = |p: &ErodeParams| {
+            let mut e = Erosion::new(&input, p);
+            for _ in 0..p.iterations {
+                e.step();
+            }
+            e.flush();
+            Surface::of(&e.heightfield())
+        };
+        let a = Surface::of(&input);
+        let land = a.land(full.sea_level as f64);
+        let (mean_full, map_full) = lowering(&a, &run(&full), &land);
+        let (mean_draft, map_draft) = lowering(&a, &run(&drafted), &land);
+        let rms = rms_share(&map_full, &map_draft, &land);
+        eprintln!("{name}: mean change {mean_full:.3} m as asked, {mean_draft:.3} m drafted; RMS difference {rms:.3} of the mean");
+        assert!((mean_full - mean_draft).abs() <= 0.05 * mean_full.abs(), "{name}: {mean_full} against {mean_draft}");
+        assert!(rms <= 0.10, "{name}: the draft differs by {rms:.3} RMS of the mean change");
+    }
+}
+
+#[test]
 fn the_same_island_at_half_the_cell_size_wears_the_same() {
     // One island at 1 m cells and the same sampled every 2 m: mean erosion within 15 %, channel
     // concavity within 0.15 (each from the test's own slope–area fit, channels from 400 m²).

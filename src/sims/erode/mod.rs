@@ -51,6 +51,8 @@ use maps::Maps;
 pub struct Erode;
 
 const STAGE: &str = "eroding";
+/// Most iterations a draft runs: the request's years, in longer steps.
+const DRAFT_ITERATIONS: u32 = 50;
 /// Grids up to this many cells get the landform measures in their result (their D8 routing
 /// sorts every cell; larger grids would spend more time on it than on a short erosion).
 pub const METRICS_MAX_CELLS: u64 = 1025 * 1025;
@@ -66,10 +68,18 @@ impl Simulation for Erode {
     type Params = ErodeParams;
     type Sequence = ErodeSequence;
 
-    const DRAFT_RULE: &'static str = "no tiles are cut; every iteration runs, on the draft terrain";
+    const DRAFT_RULE: &'static str = "no tiles are cut; the same years run in at most 50 iterations (each longer: \
+        the landform does not depend on the time step beyond a few per cent), on the draft terrain";
 
     fn draft(params: &mut Self::Params) {
         params.tiles = None;
+        // Every rate is per year, so fewer, longer steps make the same landform (the time step
+        // test: 50 × 1 000 against 200 × 250 years, 5 % RMS of the mean erosion).
+        let years = f64::from(params.iterations) * params.time_step_years;
+        if params.iterations > DRAFT_ITERATIONS && years / f64::from(DRAFT_ITERATIONS) <= params::MAX_TIME_STEP_YEARS {
+            params.iterations = DRAFT_ITERATIONS;
+            params.time_step_years = years / f64::from(DRAFT_ITERATIONS);
+        }
     }
 
     fn terrain_sources(params: &mut ErodeParams) -> Vec<(String, &mut TerrainSource)> {

@@ -15,6 +15,8 @@ use crate::validate::{Limits, Validate, Validator};
 
 /// Most iterations one job may run.
 pub const MAX_ITERATIONS: u32 = 10_000;
+/// Longest time step, years.
+pub const MAX_TIME_STEP_YEARS: f64 = 1e6;
 /// Largest creep diffusivity, m²/yr (a hundred times the fastest soil creep measured).
 pub const MAX_DIFFUSIVITY: f64 = 10.0;
 
@@ -285,7 +287,7 @@ impl Validate for ErodeParams {
             v.too_large("iterations", format!("must be at most {MAX_ITERATIONS} (got {})", self.iterations));
         }
         if v.finite("time_step_years", self.time_step_years)
-            && !(self.time_step_years > 0.0 && self.time_step_years <= 1e6)
+            && !(self.time_step_years > 0.0 && self.time_step_years <= MAX_TIME_STEP_YEARS)
         {
             v.error(
                 "time_step_years",
