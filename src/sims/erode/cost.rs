@@ -1,7 +1,7 @@
 //! What an erode job costs before it runs: memory from the grid (the erosion's arrays, then
 //! the maps, the measures and the exports), work from cells × iterations.
 
-use super::params::ErodeParams;
+use super::params::{BaseLevel, ErodeParams};
 use super::METRICS_MAX_CELLS;
 use crate::export::{heightfield_artifacts_peak_bytes, heightfield_lod_triangles, HEIGHTFIELD_LOD_BYTES_PER_TRIANGLE};
 use crate::jobs::{Cost, CostBuilder, SimError};
@@ -28,6 +28,9 @@ const METRICS_BYTES_PER_CELL: u64 = 57;
 /// Decoding a painted map: the PNG's pixels as decoded (up to 8 bytes, RGBA16), as 16-bit grey or
 /// 8-bit RGBA (4), and as f32 (4).
 const MAP_BYTES_PER_PIXEL: u64 = 16;
+/// A closed basin's bed (`base_level: none`) at its widest, a cell each: the set of cells seen
+/// (a hash set, grown by doubling), the heap of its front and the cells taken.
+const BASIN_BYTES_PER_CELL: u64 = 48 + 16 + 16;
 /// Sequence bytes per iteration (a checksum and its JSON).
 const ITERATION_BYTES: u64 = 64;
 
@@ -65,7 +68,9 @@ pub fn estimate(params: &ErodeParams, terrain: &dyn TerrainLookup) -> Result<Cos
     let mut cost = CostBuilder::new();
     cost.lods(heightfield_lod_triangles(cols, rows, params.tiles.is_some()), HEIGHTFIELD_LOD_BYTES_PER_TRIANGLE);
     cost.memory("", BASE_BYTES).memory("iterations", iterations * ITERATION_BYTES);
-    cost.memory("terrain", (eroding + painted + decoding).max(flood).max(finish));
+    let basin =
+        if params.base_level == BaseLevel::None && fluvial { cells.saturating_mul(BASIN_BYTES_PER_CELL) } else { 0 };
+    cost.memory("terrain", (eroding + painted + decoding + basin).max(flood).max(finish));
     // Per iteration: the fluvial step (1 per cell) and the hillslope step; loading,
     // measures and exports visit every cell a few dozen times.
     let per_iteration = cells.saturating_mul(4 * u64::from(fluvial) + hill) / 4;
