@@ -151,14 +151,14 @@ pub fn check_jobs(keep: &[Keep], terrain: &dyn TerrainLookup, width_m: f64, dept
 }
 
 /// Check that job `id` is there and its terrain covers `width_m` × `depth_m` (within a cell of
-/// either grid); errors name `field`.
+/// either grid); errors name `field`. Returns the job's extent.
 pub fn check_extent(
     terrain: &dyn TerrainLookup,
     id: &str,
     field: &str,
     width_m: f64,
     depth_m: f64,
-) -> Result<(), SimError> {
+) -> Result<crate::terrain::TerrainExtent, SimError> {
     let e = terrain.job_extent(id).map_err(|message| SimError::Invalid { field: field.into(), message })?;
     let (w, d) = ((e.cols.max(1) - 1) as f64 * e.cell_size_m, (e.rows.max(1) - 1) as f64 * e.cell_size_m);
     let slack = e.cell_size_m.max(width_m / 4096.0) * 1.01;
@@ -171,7 +171,7 @@ pub fn check_extent(
             ),
         });
     }
-    Ok(())
+    Ok(e)
 }
 
 /// Each cell's keep weight on `hf`'s grid (0 where nothing is kept), or None when nothing is.

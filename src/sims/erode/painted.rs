@@ -110,10 +110,7 @@ impl PaintedMap {
         }
         let Some(s) = &self.splat_of else { return Ok(0) };
         let span = |n: u64| (n.max(1) - 1) as f64 * cell_m;
-        super::keep::check_extent(lookup, &s.job, &format!("{field}.splat_of.job"), span(cols), span(rows))?;
-        let e = lookup
-            .job_extent(&s.job)
-            .map_err(|message| SimError::Invalid { field: format!("{field}.splat_of.job"), message })?;
+        let e = super::keep::check_extent(lookup, &s.job, &format!("{field}.splat_of.job"), span(cols), span(rows))?;
         Ok(e.cols.saturating_mul(e.rows))
     }
 
