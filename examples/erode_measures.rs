@@ -45,6 +45,12 @@ fn run(hf: &Heightfield, extra: Value) -> (Heightfield, f64) {
         e.step();
     }
     e.flush();
+    if std::env::var("TOTALS").is_ok() {
+        println!(
+            "    totals: settled in sea {:.0} m³, exported {:.0} m³",
+            e.totals.settled_in_sea_m3, e.totals.exported_m3
+        );
+    }
     (e.heightfield(), t.elapsed().as_secs_f64())
 }
 
@@ -119,13 +125,119 @@ fn main() {
         describe("1 m", &fine, &a, sa, talus);
         describe("2 m", &coarse, &b, sb, talus);
     }
+    if what == "wavy" {
+        for deg in [0.0, 30.0] {
+            let (mut pts, mut length, mut area, mut lowered, mut before, mut after) = (vec![], 0.0, 0.0, 0.0, 0.0, 0.0);
+            for seed in seed..seed + 4 {
+                let hf = wavy_island(size as usize, 2.0, f64::from(relief), seed, deg);
+                let (out, secs) = run(&hf, with(json!({})));
+                describe(&format!("wavy {seed} {deg}°"), &hf, &out, secs, talus);
+                let (a, b) = (Surface::of(&hf), Surface::of(&out));
+                let land = a.land(0.0);
+                let d = Drainage::new(&b, 0.0);
+                pts.extend(d.slope_area(400.0));
+                let (l, s) = d.channel_length_and_land(&b, 400.0);
+                length += l;
+                area += s;
+                lowered += lowering(&a, &b, &land).0;
+                before += a.aspect_harmonic(&land);
+                after += b.aspect_harmonic(&land);
+            }
+            println!(
+                "pooled {deg}°: θ {:?}, density {:.5}, mean lowering {:.3}, aspect {:.3} → {:.3}",
+                concavity_of(&pts),
+                length / area,
+                lowered / 4.0,
+                before / 4.0,
+                after / 4.0
+            );
+        }
+    }
+    if what == "fan" {
+        fan(&extra);
+    }
     if what == "rotation" || what == "all" {
         let turned = rotated(&hf, 30.0, hf.min_max().0);
         let (a, sa) = run(&hf, with(json!({})));
         let (b, sb) = run(&turned, with(json!({})));
         describe("0°", &hf, &a, sa, talus);
         describe("30°", &turned, &b, sb, talus);
+        let commuted = rotated(&a, 30.0, a.min_max().0);
+        describe("eroded, then turned 30°", &turned, &commuted, 0.0, talus);
+        describe("input 0°", &hf, &hf, 0.0, talus);
+        describe("input 30°", &turned, &turned, 0.0, talus);
+        let twice = rotated(&rotated(&hf, 30.0, hf.min_max().0), -30.0, hf.min_max().0);
+        let (c, sc) = run(&twice, with(json!({})));
+        describe("turned 30° and back", &twice, &c, sc, talus);
+        for deg in [15.0, 45.0, 60.0] {
+            let t = rotated(&hf, deg, hf.min_max().0);
+            let (d, sd) = run(&t, with(json!({})));
+            describe(&format!("{deg}°"), &t, &d, sd, talus);
+        }
     }
+}
+
+/// The unit test's mountain front (a rough block falling 6 m a row to row 48, then a plain
+/// sloping 0.2 % south), eroded for 100 iterations; prints the channels crossing each row of the
+/// plain by the test's own steepest-descent drainage and writes hillshades.
+fn fan(extra: &Value) {
+    const FRONT: usize = 48;
+    let (cols, rows, cell) = (97usize, 129usize, 10.0f32);
+    let mut s = 17u64;
+    let mut hf = Heightfield::flat(cols, rows, cell, 0.0);
+    for r in 0..rows {
+        for c in 0..cols {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let noise = (s >> 40) as f64 / (1u64 << 24) as f64 * 10.0;
+            let plain = 0.002 * (rows - 1 - r) as f64 * f64::from(cell);
+            hf.heights_m[r * cols + c] =
+                if r <= FRONT { (plain + 40.0 + 6.0 * (FRONT - r) as f64 + 3.0 * noise) as f32 } else { plain as f32 };
+        }
+    }
+    let mut body = json!({"sea_level": -1000.0, "iterations": 100, "thermal": null,
+        "hydraulic": {"deposition_g": 1.0, "k": 2e-4}});
+    for (k, v) in extra.as_object().unwrap() {
+        body[k] = v.clone();
+    }
+    let (out, secs) = run(&hf, body);
+    hillshade(&out, "target/erode-measures/fan.png");
+    let (a, b) = (Surface::of(&hf), Surface::of(&out));
+    // Channels across each row: runs of cells draining at least 20 cells (steepest descent).
+    let d = Drainage::new(&b, -1000.0);
+    let mut line = String::new();
+    for r in (FRONT + 1..rows - 5).step_by(4) {
+        let mut runs = 0;
+        let mut inside = false;
+        for c in 2..cols - 2 {
+            let ch = d.area[r * cols + c] >= 20.0 * f64::from(cell * cell);
+            if ch && !inside {
+                runs += 1;
+            }
+            inside = ch;
+        }
+        let gain: f64 = (2..cols - 2).map(|c| b.h[r * cols + c] - a.h[r * cols + c]).sum::<f64>() / (cols - 4) as f64;
+        line += &format!(" r{r}:{runs}/{gain:.1}m");
+    }
+    println!("fan: {secs:.2} s, channels/deposit by row:{line}");
+    // Troughs: along each row, a cell lower than the cells two columns either side by 0.2 m.
+    let trough = |r: usize, c: usize| {
+        let h = |c: usize| b.h[r * cols + c];
+        h(c) < h(c - 1) && h(c) <= h(c + 1) && h(c) + 0.2 < h(c - 2).min(h(c + 2))
+    };
+    let (mut splits, mut joins, mut count) = (0, 0, 0);
+    for r in FRONT + 2..rows - 10 {
+        for c in 3..cols - 3 {
+            if !trough(r, c) || b.h[r * cols + c] - a.h[r * cols + c] < 0.5 {
+                continue;
+            }
+            count += 1;
+            let down = (c - 2..=c + 2).filter(|&k| trough(r + 1, k)).count();
+            let up = (c - 2..=c + 2).filter(|&k| trough(r - 1, k)).count();
+            splits += down.saturating_sub(1);
+            joins += up.saturating_sub(1);
+        }
+    }
+    println!("fan: trough cells {count}, splits downstream {splits}, joins {joins}");
 }
 
 /// A hillshade with the sun low in the north-west, as a greyscale PNG.

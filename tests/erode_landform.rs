@@ -145,30 +145,49 @@ fn the_same_island_at_half_the_cell_size_wears_the_same() {
 }
 
 #[test]
-fn a_turned_island_erodes_as_much_and_its_slopes_do_not_turn_to_the_grid() {
-    // The same island turned by 30° about its centre (sampled bilinearly on the same grid; the
-    // sea floor at the island's lowest height fills the corners). Slopes that follow the grid
-    // show as a four-fold aspect harmonic; before the hillslope step measured the gradient it
-    // was 0.15–0.23 after erosion against at most 0.07 before.
-    let hf = island(257, 2.0, 120.0, 3);
-    let turned = rotated(&hf, 30.0, hf.min_max().0);
-    let measure = |input: &Heightfield| {
-        let out = erode(input, json!({}));
-        let (a, b) = (Surface::of(input), Surface::of(&out));
-        let land = a.land(0.0);
-        let (mean, _) = lowering(&a, &b, &land);
-        let drainage = Drainage::new(&b, 0.0);
-        let (density, theta) = (drainage.density(&b, 400.0), drainage.concavity(400.0));
-        let (before, after) = (a.aspect_harmonic(&land), b.aspect_harmonic(&land));
+fn turned_islands_erode_as_much_with_the_same_channels_and_their_slopes_do_not_turn_to_the_grid() {
+    // Four islands, each sampled straight and turned by 30° about its centre: the same function
+    // sampled on the grid (`wavy_island`), not a resampled copy — bilinear resampling smooths
+    // the input, and a channel network is chaotic enough that one island's θ moves by 15 %
+    // with a resampling alone (turned 30° and back). θ and drainage density are therefore
+    // pooled over the four islands; mean erosion must hold island by island. Slopes that
+    // follow the grid show as a four-fold aspect harmonic (before the hillslope step measured
+    // the gradient it was 0.15–0.23 after erosion against at most 0.07 before).
+    let mut pooled = Vec::new();
+    for deg in [0.0, 30.0] {
+        let (mut pts, mut length, mut land_area, mut means, mut before, mut after) =
+            (Vec::new(), 0.0, 0.0, Vec::new(), 0.0, 0.0);
+        for seed in 1..=4 {
+            let input = wavy_island(257, 2.0, 120.0, seed, deg);
+            let out = erode(&input, json!({}));
+            let (a, b) = (Surface::of(&input), Surface::of(&out));
+            let land = a.land(0.0);
+            let drainage = Drainage::new(&b, 0.0);
+            pts.extend(drainage.slope_area(400.0));
+            let (l, s) = drainage.channel_length_and_land(&b, 400.0);
+            (length, land_area) = (length + l, land_area + s);
+            means.push(lowering(&a, &b, &land).0);
+            let (h0, h1) = (a.aspect_harmonic(&land), b.aspect_harmonic(&land));
+            (before, after) = (before + h0 / 4.0, after + h1 / 4.0);
+            eprintln!(
+                "island {seed} at {deg}°: mean lowering {:.3} m, aspect harmonic {h0:.3} → {h1:.3}",
+                means[seed as usize - 1]
+            );
+        }
+        let theta = concavity_of(&pts).expect("enough channel cells for θ");
         eprintln!(
-            "rotation: mean lowering {mean:.3} m, aspect harmonic {before:.3} → {after:.3}, drainage density {density:.5} per m, θ {theta:?}"
+            "{deg}°: θ {theta:.3}, drainage density {:.5} per m, aspect harmonic {before:.3} → {after:.3}",
+            length / land_area
         );
-        (mean, before, after)
-    };
-    let (m0, in0, out0) = measure(&hf);
-    let (m30, in30, out30) = measure(&turned);
-    assert!((m0 - m30).abs() <= 0.05 * m0, "mean erosion {m0} against {m30} turned");
-    assert!(out0 <= in0 + 0.05 && out30 <= in30 + 0.05, "aspect harmonic {in0} → {out0}, turned {in30} → {out30}");
+        assert!(after <= before + 0.05, "{deg}°: aspect harmonic {before} → {after}");
+        pooled.push((means, theta, length / land_area));
+    }
+    let ((m0, t0, d0), (m30, t30, d30)) = (&pooled[0], &pooled[1]);
+    for (i, (a, b)) in m0.iter().zip(m30).enumerate() {
+        assert!((a - b).abs() <= 0.05 * a, "island {}: mean erosion {a} m against {b} m turned", i + 1);
+    }
+    assert!((t0 - t30).abs() <= 0.05 * t0, "θ {t0} against {t30} turned");
+    assert!((d0 - d30).abs() <= 0.05 * d0, "drainage density {d0} against {d30} turned");
 }
 
 #[test]

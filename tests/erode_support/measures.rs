@@ -195,9 +195,23 @@ impl Drainage {
     /// Channel concavity θ: S ∝ A^−θ, a least-squares line through the medians of log S in
     /// bins of a tenth of a decade of A (at least 10 cells a bin), on channel cells.
     pub fn concavity(&self, min_area_m2: f64) -> Option<f64> {
-        let pts: Vec<(f64, f64)> =
-            self.channels(min_area_m2).map(|i| (self.area[i].log10(), self.slope[i].log10())).collect();
-        binned_fit(&pts).map(|b| -b)
+        concavity_of(&self.slope_area(min_area_m2))
+    }
+
+    /// (log₁₀ A, log₁₀ S) of every channel cell, to pool over several terrains.
+    pub fn slope_area(&self, min_area_m2: f64) -> Vec<(f64, f64)> {
+        self.channels(min_area_m2).map(|i| (self.area[i].log10(), self.slope[i].log10())).collect()
+    }
+
+    /// Channel length (m) and land area (m²), to pool drainage density over several terrains.
+    pub fn channel_length_and_land(&self, s: &Surface, min_area_m2: f64) -> (f64, f64) {
+        let mut length = 0.0;
+        for i in self.channels(min_area_m2) {
+            let j = self.receiver[i].unwrap();
+            let diag = (i % s.cols) != (j % s.cols) && (i / s.cols) != (j / s.cols);
+            length += if diag { s.cell * std::f64::consts::SQRT_2 } else { s.cell };
+        }
+        (length, self.land.iter().filter(|&&l| l).count() as f64 * s.cell * s.cell)
     }
 
     /// Hack's exponent: L ∝ A^h on channel cells, binned the same way.
@@ -213,15 +227,14 @@ impl Drainage {
     /// Drainage density: channel length (each channel cell's link to its receiver) per land
     /// area, 1/m.
     pub fn density(&self, s: &Surface, min_area_m2: f64) -> f64 {
-        let mut length = 0.0;
-        for i in self.channels(min_area_m2) {
-            let j = self.receiver[i].unwrap();
-            let diag = (i % s.cols) != (j % s.cols) && (i / s.cols) != (j / s.cols);
-            length += if diag { s.cell * std::f64::consts::SQRT_2 } else { s.cell };
-        }
-        let land = self.land.iter().filter(|&&l| l).count() as f64 * s.cell * s.cell;
+        let (length, land) = self.channel_length_and_land(s, min_area_m2);
         length / land
     }
+}
+
+/// θ of (log₁₀ A, log₁₀ S) points, fitted as [`Drainage::concavity`] fits one terrain's.
+pub fn concavity_of(pts: &[(f64, f64)]) -> Option<f64> {
+    binned_fit(pts).map(|b| -b)
 }
 
 /// Slope of the least-squares line through the bins' medians.
@@ -294,4 +307,53 @@ pub fn rotated(hf: &Heightfield, deg: f64, outside: f32) -> Heightfield {
         }
     }
     out
+}
+
+/// An island that can be turned exactly: a cone falling from `relief` m at the centre to the sea
+/// floor (−0.2 × `relief`) at 0.46 of the grid's width (land to 0.38), roughened by 96 plane waves of random
+/// direction and phase with wavelengths from 8 cells to half the grid (amplitude ∝ wavelength^1.5,
+/// a fractal's spectrum), evaluated at each sample turned by `deg` about the centre. Sampled,
+/// never resampled: the 30° island is the same function as the 0° one, not a smoothed copy.
+/// The island stays inside the inscribed circle, so no corner of the turned grid is land.
+pub fn wavy_island(size: usize, cell: f64, relief: f64, seed: u64, deg: f64) -> Heightfield {
+    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut next = || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let width = (size - 1) as f64 * cell;
+    let waves: Vec<(f64, f64, f64, f64)> = (0..96)
+        .map(|_| {
+            let lambda = 8.0 * cell * (width / 2.0 / (8.0 * cell)).powf(next());
+            let dir = next() * std::f64::consts::TAU;
+            let amp = lambda.powf(1.5);
+            (
+                dir.cos() * std::f64::consts::TAU / lambda,
+                dir.sin() * std::f64::consts::TAU / lambda,
+                amp,
+                next() * std::f64::consts::TAU,
+            )
+        })
+        .collect();
+    let norm = (waves.iter().map(|w| w.2 * w.2 / 2.0).sum::<f64>()).sqrt();
+    let (sin, cos) = deg.to_radians().sin_cos();
+    let centre = width / 2.0;
+    let radius = 0.38 * width;
+    let mut hf = Heightfield::flat(size, size, cell as f32, 0.0);
+    for r in 0..size {
+        for c in 0..size {
+            let (x, y) = (c as f64 * cell - centre, r as f64 * cell - centre);
+            // Where this sample lies on the unturned island.
+            let (u, v) = (cos * x + sin * y, -sin * x + cos * y);
+            let rough: f64 = waves.iter().map(|&(kx, ky, a, p)| a * (kx * u + ky * v + p).cos()).sum::<f64>() / norm;
+            let d = (u * u + v * v).sqrt() / radius;
+            let cone = 1.0 - d;
+            let taper = (1.0 - d * d).max(0.0);
+            let h = relief * (cone + 0.25 * rough * taper).max(-0.2);
+            hf.heights_m[r * size + c] = h as f32;
+        }
+    }
+    hf
 }
