@@ -2,6 +2,11 @@
 //! 25, 6 and 75 minutes) with prediction on and off, and the star island at 1025 × 1025. Each
 //! configuration first prints its final figures (fitness, iterations, operations, evaluations), so speed
 //! and quality can be read side by side. Run with `cargo bench --bench deform_terrain`.
+//!
+//! First, every example with the limits at their defaults and off (`max_free_change` 1,
+//! `max_slope_ratio` 100, `keep_weight` 0), interleaved three times, the median of each and
+//! their ratio (issue 50: the defaults ≤ 1.5 × the limits off). `-- nothing-matches` prints
+//! only these and the figures.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use serde_json::Value;
@@ -37,6 +42,9 @@ fn star_1025() -> (DeformTerrainParams, u64) {
     (p, seed)
 }
 
+const EXAMPLES: [&str; 6] =
+    ["star-island.json", "s-road.json", "merge-edges.json", "star-island-roads.json", "tileable.json", "terraces.json"];
+
 fn run(p: &DeformTerrainParams, seed: u64) -> Value {
     support::with_context(|ctx| DeformTerrain::run(p, seed, ctx).expect("runs").result)
 }
@@ -60,17 +68,36 @@ fn report(label: &str, p: &DeformTerrainParams, seed: u64) {
     );
 }
 
+/// The median wall time of three runs of each, interleaved so that a busy moment hits both.
+fn limits_on_and_off(name: &str) {
+    let (on, seed) = example(name);
+    let mut off = on.clone();
+    off.max_free_change = 1.0;
+    off.max_slope_ratio = 100.0;
+    off.keep_weight = 0.0;
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    for _ in 0..3 {
+        for (p, times) in [(&on, &mut a), (&off, &mut b)] {
+            let started = std::time::Instant::now();
+            run(p, seed);
+            times.push(started.elapsed().as_secs_f64());
+        }
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[1]
+    };
+    let (a, b) = (median(&mut a), median(&mut b));
+    eprintln!("{name}: limits at their defaults {a:.2} s, off {b:.2} s, {:.1} ×", a / b);
+}
+
 fn bench(c: &mut Criterion) {
+    for name in EXAMPLES {
+        limits_on_and_off(name);
+    }
     let mut group = c.benchmark_group("deform_terrain_257");
     group.sample_size(10);
-    for name in [
-        "star-island.json",
-        "s-road.json",
-        "merge-edges.json",
-        "star-island-roads.json",
-        "tileable.json",
-        "terraces.json",
-    ] {
+    for name in EXAMPLES {
         for prediction in [true, false] {
             let (mut p, seed) = example(name);
             p.prediction = prediction;
