@@ -56,7 +56,8 @@ impl Simulation for DeformTerrain {
         "Deform a terrain by stochastic local search over Gaussian operations until it satisfies constraints";
     /// 2: the limits' projection after the search (a sequence recorded with the limits on
     /// replays to other heights than version 1's).
-    const GENERATOR_VERSION: u32 = 2;
+    /// 3: the search stops when it stalls (`stall_iterations`, `stall_gain`).
+    const GENERATOR_VERSION: u32 = 3;
     type Params = DeformTerrainParams;
     type Sequence = DeformSequence;
 
@@ -323,6 +324,8 @@ impl<'p> Problem<'p> {
         Ok(Settings {
             max_iterations: p.max_iterations,
             epsilon: p.epsilon,
+            stall_iterations: p.stall_iterations,
+            stall_gain: p.stall_gain,
             p: p.p,
             top_fraction: p.top_fraction,
             prediction: p.prediction,
@@ -517,6 +520,7 @@ fn finish(
                 Stop::Epsilon => "epsilon",
                 Stop::MaxIterations => "max_iterations",
                 Stop::NoImprovement => "no_improvement",
+                Stop::Stalled => "stalled",
             }),
         );
     }

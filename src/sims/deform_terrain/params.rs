@@ -37,6 +37,12 @@ fn default_max_iterations() -> u32 {
 fn default_epsilon() -> f64 {
     1e-6
 }
+fn default_stall_iterations() -> u32 {
+    50
+}
+fn default_stall_gain() -> f64 {
+    0.01
+}
 fn default_p() -> f64 {
     0.65
 }
@@ -106,6 +112,19 @@ pub struct DeformTerrainParams {
     #[serde(default = "default_epsilon")]
     #[schema(default = 1e-6, minimum = 0.0)]
     pub epsilon: f64,
+    /// Stop when F has fallen by less than `stall_gain` of itself over the last
+    /// `stall_iterations` iterations: the search has stalled, and the projection finishes the
+    /// constraints (`stopped`: `stalled`). With the limits on, F keeps a floor of penalties
+    /// that further deformations barely lower, and a search that ran to `max_iterations`
+    /// spent most of its time there. 0: never.
+    #[serde(default = "default_stall_iterations")]
+    // 20000 = MAX_ITERATIONS
+    #[schema(default = 50, minimum = 0, maximum = 20000)]
+    pub stall_iterations: u32,
+    /// See `stall_iterations`: the share of F it must fall by to go on.
+    #[serde(default = "default_stall_gain")]
+    #[schema(default = 0.01, minimum = 0.0, maximum = 1.0)]
+    pub stall_gain: f64,
     /// Probability of taking the best deformation; otherwise one of the top fraction (§3.3).
     #[serde(default = "default_p")]
     #[schema(default = 0.65, minimum = 0.0, maximum = 1.0)]
@@ -688,6 +707,13 @@ impl Validate for DeformTerrainParams {
             v.too_large("max_iterations", format!("must be at most {MAX_ITERATIONS} (got {})", self.max_iterations));
         }
         v.non_negative("epsilon", self.epsilon);
+        if self.stall_iterations > MAX_ITERATIONS {
+            v.too_large(
+                "stall_iterations",
+                format!("must be at most {MAX_ITERATIONS} (got {})", self.stall_iterations),
+            );
+        }
+        v.in_range("stall_gain", self.stall_gain, 0.0, 1.0);
         v.in_range("p", self.p, 0.0, 1.0);
         v.in_range("top_fraction", self.top_fraction, 0.0, 1.0);
         if !(1..=MAX_AMPLITUDES).contains(&self.amplitudes) {

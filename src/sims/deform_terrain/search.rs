@@ -40,6 +40,9 @@ use super::sequence::Deformation;
 pub struct Settings {
     pub max_iterations: u32,
     pub epsilon: f64,
+    /// Stop when F fell by less than `stall_gain` of itself over this many iterations (0: never).
+    pub stall_iterations: u32,
+    pub stall_gain: f64,
     pub p: f64,
     pub top_fraction: f64,
     pub prediction: bool,
@@ -178,6 +181,7 @@ pub enum Stop {
     Epsilon,
     MaxIterations,
     NoImprovement,
+    Stalled,
 }
 
 /// What the search did.
@@ -311,12 +315,25 @@ pub fn search<W: Watch>(
     let mut confidence = vec![1.0f64; table.len()];
     let mut missed = vec![false; table.len()];
     let mut waiting = prediction::Waiting::new(s.prediction_constant, s.max_iterations as u64);
+    let mut totals: std::collections::VecDeque<f64> = std::collections::VecDeque::new();
 
     for iteration in 1..=s.max_iterations as u64 {
         watch.check()?;
         if tracker.total() <= s.epsilon {
             stop = Stop::Epsilon;
             break;
+        }
+        // F at the start of each of the last `stall_iterations` iterations, oldest first.
+        if s.stall_iterations > 0 {
+            let window = s.stall_iterations as usize;
+            if totals.len() == window {
+                let then = totals.pop_front().unwrap_or(f64::INFINITY);
+                if then - tracker.total() < s.stall_gain * then {
+                    stop = Stop::Stalled;
+                    break;
+                }
+            }
+            totals.push_back(tracker.total());
         }
         // Choose (§3.3), re-checking estimated entries exactly before applying.
         let top = ((s.top_fraction * table.len() as f64).ceil() as usize).max(1);

@@ -1702,6 +1702,22 @@ export interface components {
              */
             epsilon?: number;
             /**
+             * Format: int32
+             * @description Stop when F has fallen by less than `stall_gain` of itself over the last
+             *     `stall_iterations` iterations: the search has stalled, and the projection finishes the
+             *     constraints (`stopped`: `stalled`). With the limits on, F keeps a floor of penalties
+             *     that further deformations barely lower, and a search that ran to `max_iterations`
+             *     spent most of its time there. 0: never.
+             * @default 50
+             */
+            stall_iterations?: number;
+            /**
+             * Format: double
+             * @description See `stall_iterations`: the share of F it must fall by to go on.
+             * @default 0.01
+             */
+            stall_gain?: number;
+            /**
              * Format: double
              * @description Probability of taking the best deformation; otherwise one of the top fraction (§3.3).
              * @default 0.65
@@ -1880,6 +1896,22 @@ export interface components {
              * @default 0.000001
              */
             epsilon?: number;
+            /**
+             * Format: int32
+             * @description Stop when F has fallen by less than `stall_gain` of itself over the last
+             *     `stall_iterations` iterations: the search has stalled, and the projection finishes the
+             *     constraints (`stopped`: `stalled`). With the limits on, F keeps a floor of penalties
+             *     that further deformations barely lower, and a search that ran to `max_iterations`
+             *     spent most of its time there. 0: never.
+             * @default 50
+             */
+            stall_iterations?: number;
+            /**
+             * Format: double
+             * @description See `stall_iterations`: the share of F it must fall by to go on.
+             * @default 0.01
+             */
+            stall_gain?: number;
             /**
              * Format: double
              * @description Probability of taking the best deformation; otherwise one of the top fraction (§3.3).

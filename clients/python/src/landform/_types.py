@@ -792,6 +792,8 @@ DeformTerrainParamsBody = TypedDict(
         'constraints': list['DeformConstraint'],
         'max_iterations': NotRequired[int],
         'epsilon': NotRequired[float],
+        'stall_iterations': NotRequired[int],
+        'stall_gain': NotRequired[float],
         'p': NotRequired[float],
         'top_fraction': NotRequired[float],
         'amplitudes': NotRequired[int],
