@@ -185,7 +185,11 @@ async fn replay_cancel_and_problems_are_typed() {
     assert!(problem.fields().contains(&"terrain.fractal.size"), "{problem:?}");
 
     // Cancel a running job: wait() answers Ended with the cancelled document.
-    let mut slow = client.submit_json("bulldoze", &seconds_bulldoze(2), &Submit::default()).await.unwrap();
+    // The usual "seconds" job on a 1025² grid, sixteen times its work: on a busy machine the
+    // 257² one (under a second here) once ended before the cancel reached the server.
+    let mut body = seconds_bulldoze(2);
+    body["terrain"]["fractal"]["size"] = json!(1025);
+    let mut slow = client.submit_json("bulldoze", &body, &Submit::default()).await.unwrap();
     let after = slow.cancel().await.unwrap();
     assert!(
         matches!(after.status, JobStatus::Cancelled | JobStatus::Running | JobStatus::Queued),
