@@ -1,6 +1,7 @@
 //! What the search must not do, whatever the constraints' fitness says: move a sample no
 //! constraint needs by more than `max_free_change` of the relief, or make any step between
-//! neighbouring samples steeper than the input's steepest (times `max_slope_ratio`).
+//! neighbouring samples steeper than a high percentile of the input's steps (times
+//! `max_slope_ratio`) or than the input's own step there.
 //!
 //! The paper limits each operation's displacement to a share of its radius "to avoid
 //! unwanted spikes" (§3.4), but nothing limits operations stacked on one another: a kernel
@@ -11,8 +12,9 @@
 //!
 //! What a constraint needs at a sample is read off the constraints: its samples' targets (a
 //! quadratic target, a mask's side of the water, a tiled edge's partner) are the sources of
-//! an earthwork whose faces climb or fall from them at 0.8 × the slope limit until they meet
-//! the input ground, as a road's cutting daylights. That change, with headroom, spreads as a
+//! an earthwork whose faces climb or fall from them until they meet the input ground, as a
+//! road's cutting daylights: a target's at the request's cut and fill slopes (the faces the
+//! projection builds), a mask's or a seam's at 0.8 × the slope limit. That change, with headroom, spreads as a
 //! cone falling by half the steepest allowed step per cell, so transitions have room; the
 //! cone is a constraint's footprint. Inside a footprint only the slope is limited; outside
 //! every footprint a sample may move by `max_free_change` of the relief. A seam band's wants
@@ -47,10 +49,68 @@ pub struct Bounds {
     pub asked: Vec<bool>,
 }
 
-/// The steepest slope a result of `original` may have, metres per metre: the input's steepest
-/// step times `max_slope_ratio`, and at least 5 % (a flat input).
-pub fn slope_limit(original: &[f64], cols: usize, rows: usize, cell_m: f64, max_slope_ratio: f64) -> f64 {
-    (steepest_step(original, cols, rows) / cell_m * max_slope_ratio).max(FLAT_SLOPE)
+/// The steepest slope a result of `original` may have, metres per metre: the input's steps'
+/// `percentile` (100: its steepest) times `max_slope_ratio`, and at least 5 % (a flat input).
+/// A percentile rather than the single steepest step: on a fractal that one step is 57–60°,
+/// and every face built to it was a wall.
+pub fn slope_limit(
+    original: &[f64],
+    cols: usize,
+    rows: usize,
+    cell_m: f64,
+    max_slope_ratio: f64,
+    percentile: f64,
+) -> f64 {
+    (step_percentile(original, cols, rows, percentile) / cell_m * max_slope_ratio).max(FLAT_SLOPE)
+}
+
+/// The `percentile` of the steps between row or column neighbours (nearest rank), metres.
+pub fn step_percentile(h: &[f64], cols: usize, rows: usize, percentile: f64) -> f64 {
+    let mut steps = Vec::with_capacity(2 * h.len());
+    for r in 0..rows {
+        for c in 0..cols {
+            let i = r * cols + c;
+            if c + 1 < cols {
+                steps.push((h[i + 1] - h[i]).abs());
+            }
+            if r + 1 < rows {
+                steps.push((h[i + cols] - h[i]).abs());
+            }
+        }
+    }
+    if steps.is_empty() {
+        return 0.0;
+    }
+    let k = ((percentile / 100.0).clamp(0.0, 1.0) * (steps.len() - 1) as f64).round() as usize;
+    *steps.select_nth_unstable_by(k, f64::total_cmp).1
+}
+
+/// Per sample, the largest step allowed to its right and to the row below (infinite past the
+/// grid's edge): `step`, or the input's own step there where that is steeper — the limit keeps
+/// the result from growing steeper than it or than the input was, and leaves the input's own
+/// crags alone.
+pub struct EdgeLimits {
+    pub right: Vec<f64>,
+    pub down: Vec<f64>,
+}
+
+impl EdgeLimits {
+    pub fn new(original: &[f64], cols: usize, rows: usize, step: f64) -> Self {
+        let n = cols * rows;
+        let (mut right, mut down) = (vec![f64::INFINITY; n], vec![f64::INFINITY; n]);
+        for r in 0..rows {
+            for c in 0..cols {
+                let i = r * cols + c;
+                if c + 1 < cols {
+                    right[i] = step.max((original[i + 1] - original[i]).abs());
+                }
+                if r + 1 < rows {
+                    down[i] = step.max((original[i + cols] - original[i]).abs());
+                }
+            }
+        }
+        Self { right, down }
+    }
 }
 
 /// The steepest step between row or column neighbours, metres.
@@ -79,13 +139,18 @@ pub fn steepest_step(h: &[f64], cols: usize, rows: usize) -> f64 {
 fn wanted(fields: &[Field], grid: &Grid, slope: f64) -> (Vec<f64>, Vec<f64>) {
     let n = grid.cells();
     let o = grid.original;
-    // The lowest and highest heights the sources' cones allow (NEG_INFINITY: none).
+    // The lowest and highest heights the sources' cones allow (NEG_INFINITY: none): a target's
+    // (a road's, a point's, a terrace's) fall at the fill and cut slopes, the projection's
+    // embankments and cuttings ([`super::projection`]); a mask's and a seam's at `slope`.
     let (mut floor, mut ceiling) = (vec![f64::NEG_INFINITY; n], vec![f64::NEG_INFINITY; n]);
+    let (mut target_floor, mut target_ceiling) = (vec![f64::NEG_INFINITY; n], vec![f64::NEG_INFINITY; n]);
     let mut own = vec![0.0f64; n];
     // A target summed from several terms that equals the input comes back a rounding away
     // from it: that is no change wanted.
     let least = 1e-6 * grid.relief;
-    let mut source = |i: usize, lowest: Option<f64>, highest: Option<f64>| {
+    let mut source = |i: usize, lowest: Option<f64>, highest: Option<f64>, target: bool| {
+        let (floor, ceiling) =
+            if target { (&mut target_floor, &mut target_ceiling) } else { (&mut floor, &mut ceiling) };
         if let Some(t) = lowest.filter(|&t| t - o[i] > least) {
             floor[i] = floor[i].max(t);
         }
@@ -109,15 +174,15 @@ fn wanted(fields: &[Field], grid: &Grid, slope: f64) -> (Vec<f64>, Vec<f64>) {
         if let Some(q) = &f.quadratic {
             for i in 0..n {
                 if q.w[i] > 0.0 {
-                    source(i, Some(q.t[i]), Some(q.t[i]));
+                    source(i, Some(q.t[i]), Some(q.t[i]), true);
                 }
             }
         }
         if let Some(m) = &f.one_sided {
             for i in 0..n {
                 match m.side[i] {
-                    1 => source(i, Some(m.lo), None),
-                    -1 => source(i, None, Some(m.hi)),
+                    1 => source(i, Some(m.lo), None, false),
+                    -1 => source(i, None, Some(m.hi), false),
                     _ => {}
                 }
             }
@@ -128,7 +193,7 @@ fn wanted(fields: &[Field], grid: &Grid, slope: f64) -> (Vec<f64>, Vec<f64>) {
                     if j != NO_PARTNER {
                         // Either side may move by the mismatch: the heights between are unknown.
                         let w = (o[i] - o[j as usize]).abs();
-                        source(i, Some(o[i] + w), Some(o[i] - w));
+                        source(i, Some(o[i] + w), Some(o[i] - w), false);
                     }
                 }
             }
@@ -136,7 +201,15 @@ fn wanted(fields: &[Field], grid: &Grid, slope: f64) -> (Vec<f64>, Vec<f64>) {
     }
     cone(&mut floor, grid.cols, grid.rows, slope);
     cone(&mut ceiling, grid.cols, grid.rows, slope);
-    let mut spread: Vec<f64> = (0..n).map(|i| (floor[i] - o[i]).max(o[i] + ceiling[i]).max(0.0)).collect();
+    cone(&mut target_floor, grid.cols, grid.rows, grid.fill * grid.cell_m);
+    cone(&mut target_ceiling, grid.cols, grid.rows, grid.cut * grid.cell_m);
+    let mut spread: Vec<f64> = (0..n)
+        .map(|i| {
+            let raise = floor[i].max(target_floor[i]) - o[i];
+            let lower = o[i] + ceiling[i].max(target_ceiling[i]);
+            raise.max(lower).max(0.0)
+        })
+        .collect();
     for w in spread.iter_mut().chain(own.iter_mut()) {
         if *w <= least {
             *w = 0.0;
@@ -225,13 +298,16 @@ impl Bounds {
     }
 
     /// The limits as the search's penalties, each metre of excess weighing `scale` per metre²,
-    /// the steps' from `slope_share` of the steepest allowed.
-    pub fn soft(self, scale: f64, slope_share: f64) -> SoftLimits {
+    /// the steps' from `slope_share` of the steepest allowed (or the input's own step there,
+    /// where steeper: [`EdgeLimits`]).
+    pub fn soft(self, grid: &Grid, scale: f64, slope_share: f64) -> SoftLimits {
+        let steps = EdgeLimits::new(grid.original, grid.cols, grid.rows, self.step_max * slope_share);
         SoftLimits {
             lo: self.lo,
             hi: self.hi,
             band_scale: scale,
-            step_max: self.step_max * slope_share,
+            step_right: steps.right,
+            step_down: steps.down,
             step_scale: scale,
         }
     }

@@ -1,7 +1,8 @@
 //! What a deformation leaves alone, measured on the heights independently of the search: the
 //! terrain no constraint asks about stays near its input, nothing grows steeper than the input's
 //! steepest step (plus a tenth), nothing past a seam band moves more than the band itself, and
-//! a graded road keeps its grade.
+//! a graded road keeps its grade. The earthworks' slopes and the mask's sea are measured in
+//! `tests/deform_earthworks.rs`.
 
 use serde_json::{json, Value};
 
@@ -134,32 +135,46 @@ fn free_terrain_stays_near_its_input_and_nothing_grows_steeper_than_the_input() 
     let cell = 2.0;
     let xz = |i: usize| ((i % n) as f64 * cell, (i / n) as f64 * cell);
     let input_steepest = steepest(&o, n);
-    let step_max = 1.1 * input_steepest; // max_slope_ratio 1.1, metres per cell
-                                         // Sources: (sample, lowest height wanted, highest height wanted).
+    // max_slope_ratio 1.1 times the 99th percentile of the input's row and column steps
+    // (nearest rank), metres per cell.
+    let mut steps: Vec<f64> = (0..n * n)
+        .flat_map(|i| {
+            let right = (i % n + 1 < n).then(|| (o[i + 1] - o[i]).abs());
+            let down = (i / n + 1 < n).then(|| (o[i + n] - o[i]).abs());
+            right.into_iter().chain(down)
+        })
+        .collect();
+    steps.sort_by(f64::total_cmp);
+    let step_max = 1.1 * steps[(0.99 * (steps.len() - 1) as f64).round() as usize];
+    // Sources: (sample, lowest height wanted, highest height wanted, a target's earthwork):
+    // the road's and the point's faces at the default cut (1V:1.5H) and fill (1V:2H) slopes,
+    // the mask's at 0.8 × the slope limit.
     let point = (130.0 / cell) as usize * n + (96.0 / cell) as usize;
-    let mut sources: Vec<(usize, f64, f64)> = vec![(point, mid, mid)];
+    let mut sources: Vec<(usize, f64, f64, bool)> = vec![(point, mid, mid, true)];
     for (i, &oi) in o.iter().enumerate() {
         let (x, z) = xz(i);
         if to_path(&path, x, z) <= 3.0 {
-            sources.push((i, mid, mid));
+            sources.push((i, mid, mid, true));
         }
         if inside(&island, x, z) {
             if oi < water + margin {
-                sources.push((i, water + margin, f64::INFINITY));
+                sources.push((i, water + margin, f64::INFINITY, false));
             }
         } else if oi > water - margin {
-            sources.push((i, f64::NEG_INFINITY, water - margin));
+            sources.push((i, f64::NEG_INFINITY, water - margin, false));
         }
     }
     let face = 0.8 * step_max;
+    let (cut, fill) = (cell / 1.5, cell / 2.0);
     let distance = |i: usize, j: usize| ((i % n) as f64 - (j % n) as f64).hypot((i / n) as f64 - (j / n) as f64);
     let wanted: Vec<f64> = (0..n * n)
         .map(|i| {
             let (mut floor, mut ceiling) = (f64::NEG_INFINITY, f64::INFINITY);
-            for &(j, low, high) in &sources {
+            for &(j, low, high, target) in &sources {
                 let d = distance(i, j);
-                floor = floor.max(low - face * d);
-                ceiling = ceiling.min(high + face * d);
+                let (down, up) = if target { (fill, cut) } else { (face, face) };
+                floor = floor.max(low - down * d);
+                ceiling = ceiling.min(high + up * d);
             }
             (floor - o[i]).max(o[i] - ceiling).max(0.0)
         })
@@ -194,10 +209,13 @@ fn free_terrain_stays_near_its_input_and_nothing_grows_steeper_than_the_input() 
     let worst = outside.iter().fold(0.0f64, |m, &i| m.max((h[i] - o[i]).abs()));
     eprintln!("{} outside, {share} within a tenth, worst {worst} m of relief {relief}", outside.len());
     assert!(share >= 0.95, "{share} of {} free samples within a tenth of the relief (worst {worst} m)", outside.len());
+    // Nothing steeper than the input's steepest (plus a tenth), but for the earthworks' faces
+    // at their slopes: on these gentle hills (29° at their steepest) a cutting at the default
+    // 1V:1.5H (33.7°, 1.33 m a 2 m cell) is the steepest thing in the result.
     let result_steepest = steepest(&h, n);
     assert!(
-        result_steepest <= 1.1 * input_steepest,
-        "steepest step {result_steepest} m against the input's {input_steepest} m"
+        result_steepest <= (1.1 * input_steepest).max(cut) + 1e-4,
+        "steepest step {result_steepest} m against the input's {input_steepest} m and the cut's {cut} m"
     );
     // And the constraints are fitted within the limits. (With the limits held as bounds on
     // each deformation instead of penalties, this case reached 68 % of the mask's samples on

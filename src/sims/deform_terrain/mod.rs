@@ -57,7 +57,9 @@ impl Simulation for DeformTerrain {
     /// 2: the limits' projection after the search (a sequence recorded with the limits on
     /// replays to other heights than version 1's).
     /// 3: the search stops when it stalls (`stall_iterations`, `stall_gain`).
-    const GENERATOR_VERSION: u32 = 3;
+    /// 4: earthworks at their cut and fill slopes, the slope limit from a percentile of the
+    /// input's steps, targets held by priority.
+    const GENERATOR_VERSION: u32 = 4;
     type Params = DeformTerrainParams;
     type Sequence = DeformSequence;
 
@@ -109,7 +111,7 @@ impl Simulation for DeformTerrain {
             }
             if params.limited() {
                 let scale = LIMIT_WEIGHT * fitness.heaviest();
-                fitness = fitness.with_limits(bounds.soft(scale, LIMIT_SLOPE_SHARE));
+                fitness = fitness.with_limits(bounds.soft(&grid, scale, LIMIT_SLOPE_SHARE));
             }
         }
         let interest = constraints::interest(&fields, grid.cells());
@@ -243,8 +245,15 @@ impl<'p> Problem<'p> {
     }
 
     fn grid(&self) -> Grid<'_> {
-        let slope_limit =
-            bounds::slope_limit(&self.original, self.cols, self.rows, self.cell_m, self.params.max_slope_ratio);
+        let p = self.params;
+        let slope_limit = bounds::slope_limit(
+            &self.original,
+            self.cols,
+            self.rows,
+            self.cell_m,
+            p.max_slope_ratio,
+            p.slope_percentile,
+        );
         Grid {
             cols: self.cols,
             rows: self.rows,
@@ -252,6 +261,8 @@ impl<'p> Problem<'p> {
             original: &self.original,
             relief: self.relief,
             slope_limit,
+            cut: p.earthworks.cut_slope.gradient(),
+            fill: p.earthworks.fill_slope.gradient(),
         }
     }
 
@@ -452,7 +463,13 @@ fn finish(
     // pins are then held exactly, and the seam filter follows (a 3-tap mean keeps every step
     // within the limit), in run and replay alike.
     let searched = h;
-    let held = problem.params.limited().then(|| hold_limits(fields, &grid, settings, h));
+    let (held, conflicts) = match problem.params.limited() {
+        true => {
+            let (held, conflicts) = hold_limits(fields, &grid, settings, h);
+            (Some(held), conflicts)
+        }
+        false => (None, Vec::new()),
+    };
     let h = held.as_deref().unwrap_or(h);
     let filtered = filter_seams(problem, h);
     let h = filtered.as_deref().unwrap_or(h);
@@ -529,6 +546,7 @@ fn finish(
         far_cells(h, &problem.original, &asked, grid.cols, grid.rows, 2 * max_radius, grid.relief),
     );
     result.insert("limits".into(), limits);
+    result.insert("conflicts".into(), conflicts_json(&conflicts, fields, &grid));
     result.insert("sequence_bytes".into(), json!(sequence_bytes));
     result.insert(
         "sequence_bin".into(),
@@ -578,16 +596,39 @@ fn limits_figures(fields: &[Field], grid: &Grid, max_free_change: f64, h: &[f64]
     (figures, b.asked)
 }
 
-/// `h` within the slope limit everywhere, each held sample within its bounds
-/// ([`projection`]), a tiled terrain's opposite edges then set to their mean.
-fn hold_limits(fields: &[Field], grid: &Grid, settings: &Settings, h: &[f64]) -> Vec<f64> {
+/// `h` within the slope limit everywhere, each held sample within its bounds by priority
+/// ([`projection`]), a tiled terrain's opposite edges then set to their mean; and the held
+/// targets it could not meet.
+fn hold_limits(fields: &[Field], grid: &Grid, settings: &Settings, h: &[f64]) -> (Vec<f64>, Vec<projection::Conflict>) {
     let (cols, rows) = (grid.cols, grid.rows);
     // Held a few f32 steps of the highest height inside the limit, so the f32 heights the
     // artifacts carry keep to it too.
     let highest = h.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let step_max = grid.slope_limit * grid.cell_m - 4.0 * f64::from(f32::EPSILON) * highest;
-    let (loose, firm) = constraints::held(fields);
-    let mut out = projection::hold(h, cols, rows, step_max.max(0.0), &loose, &firm);
+    let margin = 4.0 * f64::from(f32::EPSILON) * highest;
+    let step_max = (grid.slope_limit * grid.cell_m - margin).max(0.0);
+    let limits = bounds::EdgeLimits::new(grid.original, cols, rows, step_max);
+    let held = constraints::held(fields);
+    let face = |slope: f64| (slope * grid.cell_m - margin).max(0.0);
+    let tiers: Vec<projection::Tier> = constraints::Priority::ALL
+        .iter()
+        .zip(&held)
+        .map(|(p, held)| match p.earthwork() {
+            true => projection::Tier { held, cut: face(grid.cut), fill: face(grid.fill), pin: p.pinned() },
+            false => projection::Tier { held, cut: step_max, fill: step_max, pin: p.pinned() },
+        })
+        .collect();
+    // A mask's sea floor no lower than the input's (or the sea's bound, where the input stands
+    // above it): the pits the search's kernels dug pushing the sea under are filled back, and
+    // the projection lowers only what stands too high.
+    let mut undug = h.to_vec();
+    for b in &held[constraints::Priority::Mask as usize] {
+        if b.lo == f64::NEG_INFINITY {
+            let i = b.sample;
+            undug[i] = undug[i].max(grid.original[i].min(b.hi));
+        }
+    }
+    let mut out = projection::hold(&undug, cols, rows, &limits, &tiers);
+    let conflicts = projection::conflicts(&out, cols, &tiers, CONFLICT_TOLERANCE_M.max(1e-6 * grid.relief));
     let mut pair = |a: usize, b: usize| {
         let m = 0.5 * (out[a] + out[b]);
         out[a] = m;
@@ -603,7 +644,34 @@ fn hold_limits(fields: &[Field], grid: &Grid, settings: &Settings, h: &[f64]) ->
             pair(c, (rows - 1) * cols + c);
         }
     }
-    out
+    (out, conflicts)
+}
+
+/// A held target missed by less than this is met (a centimetre).
+const CONFLICT_TOLERANCE_M: f64 = 0.01;
+
+/// `conflicts`: each constraint a held target of which the result misses, where it misses
+/// worst, by how much, and the constraint that won there.
+fn conflicts_json(conflicts: &[projection::Conflict], fields: &[Field], grid: &Grid) -> Value {
+    let at =
+        |i: usize| json!({"x_m": (i % grid.cols) as f64 * grid.cell_m, "z_m": (i / grid.cols) as f64 * grid.cell_m});
+    let bound = |v: f64| if v.is_finite() { json!(v) } else { Value::Null };
+    Value::Array(
+        conflicts
+            .iter()
+            .map(|c| {
+                json!({
+                    "constraint": c.source,
+                    "kind": fields[c.source as usize].name,
+                    "at": at(c.sample),
+                    "wanted_min_m": bound(c.target_lo),
+                    "wanted_max_m": bound(c.target_hi),
+                    "missed_by_m": c.missed_m,
+                    "held_by": {"constraint": c.by, "kind": fields[c.by as usize].name, "at": at(c.by_sample)},
+                })
+            })
+            .collect(),
+    )
 }
 
 /// The heights with the 3 × 1 seam filter of every `edge_match` that asks for it, if any does.

@@ -234,19 +234,107 @@ pub struct DeformTerrainParams {
     #[schema(default = 0.1, minimum = 0.0, maximum = 1.0)]
     pub max_free_change: f64,
     /// The steepest step between row or column neighbours the result may have, as a multiple
-    /// of the input's steepest (on a flat input, 5 %). The search penalises steps from 90 % of
-    /// it; then, after the search, every step is held within it exactly, every road cell,
-    /// point, terrace sample and seam edge is set on its target and a mask's land and sea on
-    /// their sides of the water (the samples beside them moved as little as that takes: a
-    /// cutting or embankment at the limit where the search left one short). Targets that ask
-    /// for a step steeper than the limit between them (abutting terraces far apart in level, a
-    /// point high above a road beside it) meet halfway instead, and a target wins over a
-    /// mask's side. 1: never
-    /// steeper than the input anywhere; raise it for sharp terraces, cliffs or a seam band
-    /// narrower than its mismatch needs. 100 with `max_free_change` 1: no limits.
+    /// of the input's steps' `slope_percentile` (on a flat input, 5 %); where the input's own
+    /// step is steeper, that step. The search penalises steps from 90 % of it; then, after the
+    /// search, every step is held within it exactly, every road cell, point, terrace sample
+    /// and seam edge is set on its target and a mask's land and sea on their sides of the
+    /// water, the samples beside them moved as little as that takes: a cutting or an
+    /// embankment at the `earthworks` slopes from a target, a shore at the limit from a mask.
+    /// Where two targets cannot both be met (a point high above a road beside it), the one of
+    /// higher priority holds — a seam over a road over a terrace over a point over a mask's
+    /// side — and the result names the other in `conflicts`. 1: never steeper than the input's
+    /// percentile; raise it for sharp terraces, cliffs or a seam band narrower than its
+    /// mismatch needs. 100 with `max_free_change` 1: no limits.
     #[serde(default = "default_max_slope_ratio")]
     #[schema(default = 1.1, minimum = 1.0, maximum = 100.0)]
     pub max_slope_ratio: f64,
+    /// Which of the input's steps the slope limit is a multiple of: this percentile of their
+    /// steepness (100: the single steepest step). The input's own steps steeper than the limit
+    /// stay as they are; no step is made steeper than the limit or than it was.
+    #[serde(default = "default_slope_percentile")]
+    #[schema(default = 99.0, minimum = 50.0, maximum = 100.0)]
+    pub slope_percentile: f64,
+    /// The faces cut into the ground or built up on it beside a road, a terrace or a point
+    /// (with the limits on): their slopes.
+    #[serde(default)]
+    pub earthworks: Earthworks,
+}
+
+/// The faces the projection builds from the held targets (roads, terraces, points, seams)
+/// to the ground: a cutting where the ground stood above its target, an embankment where it
+/// lay below, each at its slope until it daylights, the ground beyond as the search left it.
+/// Road practice (AASHTO, FHWA): cuts at 1V:1.5H to 2H, fills at 1V:2H to 3H; loose material
+/// rests at 34–37°.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = DeformEarthworks)]
+pub struct Earthworks {
+    /// The slope of a cutting's face. Default 1V:1.5H (33.7°).
+    #[serde(default = "default_cut_slope")]
+    #[schema(default = json!({"h_per_v": 1.5}))]
+    pub cut_slope: Slope,
+    /// The slope of an embankment's face (a terrace's or mesa's talus apron too). Default
+    /// 1V:2H (26.6°).
+    #[serde(default = "default_fill_slope")]
+    #[schema(default = json!({"h_per_v": 2.0}))]
+    pub fill_slope: Slope,
+}
+
+impl Default for Earthworks {
+    fn default() -> Self {
+        Self { cut_slope: default_cut_slope(), fill_slope: default_fill_slope() }
+    }
+}
+
+/// A slope, as run over rise (`{"h_per_v": 1.5}` is 1V:1.5H) or in degrees from level
+/// (`{"degrees": 30}`): exactly one of the two.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = DeformSlope)]
+pub struct Slope {
+    /// Horizontal metres per vertical metre.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 0.05, maximum = 100.0)]
+    pub h_per_v: Option<f64>,
+    /// Degrees from level.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 0.5, maximum = 87.0)]
+    pub degrees: Option<f64>,
+}
+
+impl Slope {
+    pub fn h_per_v(h: f64) -> Self {
+        Self { h_per_v: Some(h), degrees: None }
+    }
+
+    /// Metres of rise per metre of run (validated: exactly one form, within its range).
+    pub fn gradient(self) -> f64 {
+        match (self.h_per_v, self.degrees) {
+            (Some(h), _) => 1.0 / h,
+            (None, Some(d)) => d.to_radians().tan(),
+            (None, None) => 1.0,
+        }
+    }
+
+    fn validate(self, v: &mut Validator, field: &str) {
+        v.field(field, |v| match (self.h_per_v, self.degrees) {
+            (Some(h), None) => v.in_range("h_per_v", h, 0.05, 100.0),
+            (None, Some(d)) => v.in_range("degrees", d, 0.5, 87.0),
+            _ => v.error("", "give exactly one of h_per_v and degrees"),
+        });
+    }
+}
+
+fn default_cut_slope() -> Slope {
+    Slope::h_per_v(1.5)
+}
+
+fn default_fill_slope() -> Slope {
+    Slope::h_per_v(2.0)
+}
+
+fn default_slope_percentile() -> f64 {
+    99.0
 }
 
 fn default_max_free_change() -> f64 {
@@ -790,6 +878,11 @@ impl Validate for DeformTerrainParams {
         }
         v.in_range("max_free_change", self.max_free_change, 0.0, 1.0);
         v.in_range("max_slope_ratio", self.max_slope_ratio, 1.0, 100.0);
+        v.in_range("slope_percentile", self.slope_percentile, 50.0, 100.0);
+        v.field("earthworks", |v| {
+            self.earthworks.cut_slope.validate(v, "cut_slope");
+            self.earthworks.fill_slope.validate(v, "fill_slope");
+        });
     }
 }
 

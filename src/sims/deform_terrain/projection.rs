@@ -27,81 +27,198 @@
 //! a rounder path length (diagonal and knight's moves too), still within the limit a row or
 //! column step, so a cutting beside a road at an angle to the grid has a straight face.
 
+use super::bounds::EdgeLimits;
+
 /// A sample the result must hold between `lo` and `hi` (equal for a target; infinite on a
-/// side without a bound).
+/// side without a bound), for constraint `source`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Held {
     pub sample: usize,
     pub lo: f64,
     pub hi: f64,
+    pub source: u32,
 }
 
 impl Held {
     pub fn at(sample: usize, target: f64) -> Self {
-        Self { sample, lo: target, hi: target }
+        Self { sample, lo: target, hi: target, source: 0 }
+    }
+
+    pub fn between(sample: usize, lo: f64, hi: f64) -> Self {
+        Self { sample, lo, hi, source: 0 }
+    }
+
+    /// The same, held for constraint `source`.
+    pub fn of(self, source: usize) -> Self {
+        Self { source: source as u32, ..self }
     }
 }
 
-/// `h` with every row and column step within `step_max` and each held sample within its
-/// bounds (where the bounds allow both): `loose` first, then `firm`, which win where the two
-/// conflict (a road asked for at a height the mask calls sea keeps its height).
-pub fn hold(h: &[f64], cols: usize, rows: usize, step_max: f64, loose: &[Held], firm: &[Held]) -> Vec<f64> {
+/// Held samples of one priority, and the faces built from them: the ground above a
+/// sample's `hi` is cut down to a face rising `cut` metres a cell, the ground below its `lo`
+/// filled up to one falling `fill` metres a cell.
+pub struct Tier<'a> {
+    pub held: &'a [Held],
+    pub cut: f64,
+    pub fill: f64,
+    /// Set each held sample within its own bounds last, even where the tier's own faces cross
+    /// (a road's two legs at a hairpin, a seam's two rows): such a tier's targets are its
+    /// shape, not wishes to meet halfway.
+    pub pin: bool,
+}
+
+/// `h` with every row and column step within `limits` and each held sample within its
+/// bounds (where the bounds allow both), tier by tier: a later tier wins where two conflict
+/// (a road asked for at a height the mask calls sea keeps its height). The faces from the
+/// held samples are at their tier's slopes, which may be steeper than `limits` (an
+/// embankment a designer asked for on a plain).
+pub fn hold(h: &[f64], cols: usize, rows: usize, limits: &EdgeLimits, tiers: &[Tier]) -> Vec<f64> {
     let mut upper = h.to_vec();
-    envelope(&mut upper, cols, rows, step_max);
+    envelope(&mut upper, cols, rows, limits);
     let mut lower: Vec<f64> = h.iter().map(|v| -v).collect();
-    envelope(&mut lower, cols, rows, step_max);
+    envelope(&mut lower, cols, rows, limits);
     let mut out: Vec<f64> = upper.iter().zip(&lower).map(|(u, d)| 0.5 * (u - d)).collect();
-    for held in [loose, firm] {
-        clamp(&mut out, cols, rows, step_max, held);
+    for tier in tiers {
+        clamp(&mut out, cols, rows, tier);
     }
     out
 }
 
-/// Clamp `h` (already within the step limit) between the cones of the held samples' bounds.
-fn clamp(h: &mut [f64], cols: usize, rows: usize, step_max: f64, held: &[Held]) {
-    if held.is_empty() {
+/// Clamp `h` between the cones of the held samples' bounds.
+fn clamp(h: &mut [f64], cols: usize, rows: usize, tier: &Tier) {
+    if tier.held.is_empty() {
         return;
     }
     let mut ceiling = vec![f64::INFINITY; h.len()];
     let mut floor = vec![f64::INFINITY; h.len()];
-    for b in held {
+    for b in tier.held {
         ceiling[b.sample] = ceiling[b.sample].min(b.hi);
         floor[b.sample] = floor[b.sample].min(-b.lo);
     }
-    round_envelope(&mut ceiling, cols, rows, step_max);
-    round_envelope(&mut floor, cols, rows, step_max);
+    round_envelope(&mut ceiling, cols, rows, tier.cut);
+    round_envelope(&mut floor, cols, rows, tier.fill);
     for ((v, &c), &f) in h.iter_mut().zip(&ceiling).zip(&floor) {
         let lowest = -f;
         *v = if lowest <= c { v.clamp(lowest, c) } else { 0.5 * (lowest + c) };
     }
-}
-
-/// `a[x] = min over y of (a[y] + step × d(x, y))`, d the row-and-column step count.
-fn envelope(a: &mut [f64], cols: usize, rows: usize, step: f64) {
-    for r in 0..rows {
-        for c in 0..cols {
-            let i = r * cols + c;
-            let mut v = a[i];
-            if c > 0 {
-                v = v.min(a[i - 1] + step);
-            }
-            if r > 0 {
-                v = v.min(a[i - cols] + step);
-            }
-            a[i] = v;
+    if tier.pin {
+        for b in tier.held {
+            h[b.sample] = h[b.sample].clamp(b.lo, b.hi);
         }
     }
-    for r in (0..rows).rev() {
-        for c in (0..cols).rev() {
-            let i = r * cols + c;
-            let mut v = a[i];
-            if c + 1 < cols {
-                v = v.min(a[i + 1] + step);
+}
+
+/// A held sample's constraint the result could not meet there: the worst miss of each
+/// constraint, and the constraint whose face held it off (of the same or a later tier).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Conflict {
+    pub source: u32,
+    pub sample: usize,
+    /// The result's height less the nearest bound (negative: below it).
+    pub missed_m: f64,
+    pub target_lo: f64,
+    pub target_hi: f64,
+    pub by: u32,
+    pub by_sample: usize,
+}
+
+/// Every constraint whose held samples `out` misses by more than `tolerance` metres.
+pub fn conflicts(out: &[f64], cols: usize, tiers: &[Tier], tolerance: f64) -> Vec<Conflict> {
+    let mut worst: Vec<(usize, Held, f64)> = Vec::new();
+    for (t, tier) in tiers.iter().enumerate() {
+        for b in tier.held {
+            let v = out[b.sample];
+            let miss = if v < b.lo {
+                v - b.lo
+            } else if v > b.hi {
+                v - b.hi
+            } else {
+                0.0
+            };
+            if miss.abs() <= tolerance {
+                continue;
             }
-            if r + 1 < rows {
-                v = v.min(a[i + cols] + step);
+            match worst.iter_mut().find(|w| w.1.source == b.source) {
+                Some(w) if w.2.abs() < miss.abs() => *w = (t, *b, miss),
+                Some(_) => {}
+                None => worst.push((t, *b, miss)),
             }
-            a[i] = v;
+        }
+    }
+    let at = |i: usize| ((i % cols) as f64, (i / cols) as f64);
+    worst
+        .into_iter()
+        .map(|(t, b, miss)| {
+            let (x, z) = at(b.sample);
+            // The face that bound it: the lowest ceiling over it (it came out too low) or the
+            // highest floor under it (too high), from the samples of its own tier on.
+            let mut by = (b.source, b.sample, if miss < 0.0 { f64::INFINITY } else { f64::NEG_INFINITY });
+            for tier in &tiers[t..] {
+                for o in tier.held.iter().filter(|o| o.sample != b.sample) {
+                    let (ox, oz) = at(o.sample);
+                    let d = (x - ox).hypot(z - oz);
+                    if miss < 0.0 {
+                        let c = o.hi + tier.cut * d;
+                        if c < by.2 {
+                            by = (o.source, o.sample, c);
+                        }
+                    } else {
+                        let f = o.lo - tier.fill * d;
+                        if f > by.2 {
+                            by = (o.source, o.sample, f);
+                        }
+                    }
+                }
+            }
+            Conflict {
+                source: b.source,
+                sample: b.sample,
+                missed_m: miss,
+                target_lo: b.lo,
+                target_hi: b.hi,
+                by: by.0,
+                by_sample: by.1,
+            }
+        })
+        .collect()
+}
+
+/// `a[x] = min over y of (a[y] + the cost of the path from y to x)`, a path's cost the sum of
+/// its row and column steps' limits: sweeps both ways until nothing changes (two suffice when
+/// every limit is the same; the input's own steeper steps bend the paths, a few more).
+fn envelope(a: &mut [f64], cols: usize, rows: usize, limits: &EdgeLimits) {
+    loop {
+        let mut changed = false;
+        let mut lower = |a: &mut [f64], i: usize, v: f64| {
+            if v < a[i] {
+                a[i] = v;
+                changed = true;
+            }
+        };
+        for r in 0..rows {
+            for c in 0..cols {
+                let i = r * cols + c;
+                if c > 0 {
+                    lower(a, i, a[i - 1] + limits.right[i - 1]);
+                }
+                if r > 0 {
+                    lower(a, i, a[i - cols] + limits.down[i - cols]);
+                }
+            }
+        }
+        for r in (0..rows).rev() {
+            for c in (0..cols).rev() {
+                let i = r * cols + c;
+                if c + 1 < cols {
+                    lower(a, i, a[i + 1] + limits.right[i]);
+                }
+                if r + 1 < rows {
+                    lower(a, i, a[i + cols] + limits.down[i]);
+                }
+            }
+        }
+        if !changed {
+            return;
         }
     }
 }
@@ -148,6 +265,17 @@ fn round_envelope(a: &mut [f64], cols: usize, rows: usize, step: f64) {
 mod tests {
     use super::*;
 
+    /// The projection with every step limited to `step` and two tiers, `loose` then `firm`,
+    /// whose faces are at the same slope.
+    fn hold_uniform(h: &[f64], cols: usize, rows: usize, step: f64, loose: &[Held], firm: &[Held]) -> Vec<f64> {
+        let limits = EdgeLimits::new(&vec![0.0; h.len()], cols, rows, step);
+        let tiers = [
+            Tier { held: loose, cut: step, fill: step, pin: false },
+            Tier { held: firm, cut: step, fill: step, pin: false },
+        ];
+        hold(h, cols, rows, &limits, &tiers)
+    }
+
     /// The steepest row or column step (the limit's own measure, not the projection's code).
     fn steepest(h: &[f64], cols: usize) -> f64 {
         super::super::bounds::steepest_step(h, cols, h.len() / cols)
@@ -161,7 +289,7 @@ mod tests {
         let mut h: Vec<f64> = (0..cols * rows).map(plane).collect();
         let spike = 7 * cols + 7;
         h[spike] += 4.0;
-        let out = hold(&h, cols, rows, 1.0, &[], &[]);
+        let out = hold_uniform(&h, cols, rows, 1.0, &[], &[]);
         assert!(steepest(&out, cols) <= 1.0 + 1e-12);
         // By hand: U lowers the spike to its lowest neighbour + 1 (3.0 + 1 = 4.0 against 7.5);
         // D raises the spike's neighbours to 7.5 − 1 and so on while that is above the plane.
@@ -185,7 +313,7 @@ mod tests {
         let (cols, rows) = (9, 21);
         let h = vec![10.0; cols * rows];
         let pins: Vec<Held> = (0..cols).map(|c| Held::at(10 * cols + c, 4.0)).collect();
-        let out = hold(&h, cols, rows, 1.5, &[], &pins);
+        let out = hold_uniform(&h, cols, rows, 1.5, &[], &pins);
         assert!(steepest(&out, cols) <= 1.5 + 1e-12);
         for r in 0..rows {
             // The cutting's face by hand: 4 + 1.5 per row from the road, up to the ground.
@@ -199,13 +327,13 @@ mod tests {
     #[test]
     fn pins_that_ask_for_a_cliff_meet_halfway() {
         let (cols, rows) = (3, 1);
-        let out = hold(&[0.0, 0.0, 0.0], cols, rows, 1.0, &[], &[Held::at(0, 0.0), Held::at(2, 10.0)]);
+        let out = hold_uniform(&[0.0, 0.0, 0.0], cols, rows, 1.0, &[], &[Held::at(0, 0.0), Held::at(2, 10.0)]);
         // The cones cross at the middle: 0 + 1 against 10 − 1 → their mean; the pins' own cones
         // cross at the pins too, so they take means there.
         assert!((out[1] - 5.0).abs() < 1e-12, "{out:?}");
         // A surface that already keeps to the limit is left exactly as it is.
         let gentle: Vec<f64> = (0..40).map(|i| (i as f64 * 0.37).sin()).collect();
-        assert_eq!(hold(&gentle, 40, 1, 0.4, &[], &[]), gentle);
+        assert_eq!(hold_uniform(&gentle, 40, 1, 0.4, &[], &[]), gentle);
     }
 
     #[test]
@@ -213,16 +341,17 @@ mod tests {
         // A 1-D coast: land (≥ 1 m) on samples 0–4 falling to a sea (≤ −1 m) at −2 m, with a
         // rock rising to 2 m at sample 10; 2.5 m steps allowed, none steeper to begin with.
         let mut h = vec![9.0, 7.0, 5.0, 3.0, 1.0, -1.4, -2.0, -2.0, -1.0, 0.5, 2.0, 0.5, -1.0, -2.0, -2.0];
-        let held: Vec<Held> = (0..h.len())
-            .map(|i| {
-                if i < 5 {
-                    Held { sample: i, lo: 1.0, hi: f64::INFINITY }
-                } else {
-                    Held { sample: i, lo: f64::NEG_INFINITY, hi: -1.0 }
-                }
-            })
-            .collect();
-        let out = hold(&h, h.len(), 1, 2.5, &held, &[]);
+        let held: Vec<Held> =
+            (0..h.len())
+                .map(|i| {
+                    if i < 5 {
+                        Held::between(i, 1.0, f64::INFINITY)
+                    } else {
+                        Held::between(i, f64::NEG_INFINITY, -1.0)
+                    }
+                })
+                .collect();
+        let out = hold_uniform(&h, h.len(), 1, 2.5, &held, &[]);
         // By hand: the rock's three samples above the sea's bound come down to it, shallows at
         // −1 m; nothing else moves (the land's cones from the sea, −1 + 2.5 per step, stay
         // above it).
@@ -237,8 +366,8 @@ mod tests {
         // Sea (≤ −1 m) everywhere on a flat at −2 m, and a causeway sample asked for at 1 m:
         // it keeps its height, its neighbours rise to 1 − 1.5 = −0.5... then −2 again.
         let h = vec![-2.0; 7];
-        let sea: Vec<Held> = (0..7).map(|i| Held { sample: i, lo: f64::NEG_INFINITY, hi: -1.0 }).collect();
-        let out = hold(&h, 7, 1, 1.5, &sea, &[Held::at(3, 1.0)]);
+        let sea: Vec<Held> = (0..7).map(|i| Held::between(i, f64::NEG_INFINITY, -1.0)).collect();
+        let out = hold_uniform(&h, 7, 1, 1.5, &sea, &[Held::at(3, 1.0)]);
         assert_eq!(out, vec![-2.0, -2.0, -0.5, 1.0, -0.5, -2.0, -2.0]);
     }
 
@@ -254,7 +383,7 @@ mod tests {
         let on_road = |c: usize, r: usize| ((r as f64 - 10.0 - slope * c as f64).abs()) <= 1.5;
         let road: Vec<Held> =
             (0..cols * rows).filter(|&i| on_road(i % cols, i / cols)).map(|i| Held::at(i, 0.0)).collect();
-        let out = hold(&vec![20.0; cols * rows], cols, rows, 1.0, &[], &road);
+        let out = hold_uniform(&vec![20.0; cols * rows], cols, rows, 1.0, &[], &road);
         assert!(steepest(&out, cols) <= 1.0 + 1e-12);
         for (i, &got) in out.iter().enumerate() {
             let (c, r) = ((i % cols) as f64, (i / cols) as f64);
@@ -265,5 +394,91 @@ mod tests {
             let want = d.min(20.0);
             assert!(got >= want - 1e-9 && got <= want * 1.03 + 1e-9, "({c}, {r}): {got} for {want}");
         }
+    }
+
+    #[test]
+    fn a_cutting_rises_at_the_cut_slope_and_an_embankment_falls_at_the_fill_slope() {
+        // A road row at 5 m across ground at 12 m north of it (rows 0–9) and at 0 m south of it
+        // (rows 11–20); steps up to 3 m allowed, faces at 1 m a cell cut and 0.5 m fill.
+        let (cols, rows) = (7, 21);
+        let h: Vec<f64> = (0..cols * rows).map(|i| if i / cols < 10 { 12.0 } else { 0.0 }).collect();
+        let road: Vec<Held> = (0..cols).map(|c| Held::at(10 * cols + c, 5.0)).collect();
+        let limits = EdgeLimits::new(&vec![0.0; h.len()], cols, rows, 3.0);
+        let out = hold(&h, cols, rows, &limits, &[Tier { held: &road, cut: 1.0, fill: 0.5, pin: false }]);
+        // By hand: the envelope first lays the 12 m step at the road's row back to 3 m steps
+        // on both sides (the mean of U and D), then the road's cones bound it.
+        let mut env = vec![0.0; rows];
+        for (r, e) in env.iter_mut().enumerate() {
+            // U: min over rows of h + 3·d; D: max of h − 3·d; mean.
+            let u = (0..rows).map(|y| h[y * cols] + 3.0 * (r as f64 - y as f64).abs()).fold(f64::INFINITY, f64::min);
+            let d =
+                (0..rows).map(|y| h[y * cols] - 3.0 * (r as f64 - y as f64).abs()).fold(f64::NEG_INFINITY, f64::max);
+            *e = 0.5 * (u + d);
+        }
+        for r in 0..rows {
+            let d = (r as f64 - 10.0).abs();
+            let want = env[r].clamp(5.0 - 0.5 * d, 5.0 + 1.0 * d);
+            for c in 0..cols {
+                assert!((out[r * cols + c] - want).abs() < 1e-12, "({c}, {r}): {} for {want}", out[r * cols + c]);
+            }
+        }
+        // The cutting's face: 1 m a row above the road until it meets the ground at 12 m.
+        assert_eq!(out[9 * cols], 6.0);
+        assert_eq!(out[5 * cols], 10.0);
+        assert_eq!(out[2 * cols], 12.0);
+        // The embankment's: 0.5 m a row below it, meeting the ground at 0 m ten rows on.
+        assert_eq!(out[11 * cols], 4.5);
+        assert_eq!(out[16 * cols], 2.0);
+        assert_eq!(out[20 * cols], 0.0);
+    }
+
+    #[test]
+    fn the_inputs_own_steeper_steps_are_left_and_no_step_grows_past_its_limit() {
+        // A ramp rising 1 m a column with a 6 m cliff between columns 9 and 10; the limit 1.5 m,
+        // the cliff's own step allowed where it is. The input is kept exactly; a spike added on
+        // the ramp comes down to the limit while the cliff stays.
+        let (cols, rows) = (20, 5);
+        let o: Vec<f64> =
+            (0..cols * rows).map(|i| (i % cols) as f64 + if i % cols >= 10 { 6.0 } else { 0.0 }).collect();
+        let limits = EdgeLimits::new(&o, cols, rows, 1.5);
+        assert_eq!(hold(&o, cols, rows, &limits, &[]), o);
+        let mut h = o.clone();
+        h[2 * cols + 4] += 5.0;
+        let out = hold(&h, cols, rows, &limits, &[]);
+        for r in 0..rows {
+            for c in 0..cols - 1 {
+                let i = r * cols + c;
+                assert!((out[i + 1] - out[i]).abs() <= limits.right[i] + 1e-12, "({c}, {r})");
+            }
+            // The cliff keeps its 7 m step and the ramp beyond the spike's reach its heights.
+            assert_eq!(out[r * cols + 10] - out[r * cols + 9], 7.0);
+            assert_eq!(out[r * cols + 15], o[r * cols + 15]);
+        }
+        // The spike: U = its neighbours + 1.5 = 3 + 1.5 + ... by hand: 4.5 against 9 → mean
+        // with D (9) is 6.75.
+        assert!((out[2 * cols + 4] - 6.75).abs() < 1e-12, "{}", out[2 * cols + 4]);
+    }
+
+    #[test]
+    fn a_point_high_above_a_road_beside_it_is_named_and_the_road_holds() {
+        // Flat ground at 0 m; a road row at 0 m (tier 2) and a point (tier 1) 6 rows away asked
+        // at 40 m; faces at 1 m a cell. The road keeps its height; the point gets what the cut
+        // face from the road allows, 6 m, and is reported missed by 34 m because of the road.
+        let (cols, rows) = (15, 15);
+        let road: Vec<Held> = (0..cols).map(|c| Held::at(4 * cols + c, 0.0).of(0)).collect();
+        let point = [Held::at(10 * cols + 7, 40.0).of(1)];
+        let limits = EdgeLimits::new(&vec![0.0; cols * rows], cols, rows, 1.0);
+        let tiers = [
+            Tier { held: &point, cut: 1.0, fill: 1.0, pin: false },
+            Tier { held: &road, cut: 1.0, fill: 1.0, pin: true },
+        ];
+        let out = hold(&vec![0.0; cols * rows], cols, rows, &limits, &tiers);
+        assert!(road.iter().all(|b| out[b.sample] == 0.0));
+        assert!((out[10 * cols + 7] - 6.0).abs() < 1e-12, "{}", out[10 * cols + 7]);
+        let found = conflicts(&out, cols, &tiers, 1e-6);
+        assert_eq!(found.len(), 1, "{found:?}");
+        let c = found[0];
+        assert_eq!((c.source, c.sample, c.by, c.by_sample), (1, 10 * cols + 7, 0, 4 * cols + 7));
+        assert!((c.missed_m + 34.0).abs() < 1e-12, "{}", c.missed_m);
     }
 }

@@ -571,6 +571,7 @@ fn terraces_hold_each_region_at_its_level() {
         {"preserve": {"weight": 0.05}}
     ], "max_iterations": 1500, "max_slope_ratio": 10.0});
     let out = run_with(&params(req), 3);
+    assert_eq!(out.result["conflicts"], json!([]));
     let f = out.result["constraints"].as_array().unwrap().iter().find(|c| c["kind"] == "terraces").unwrap().clone();
     let regions = f["regions"].as_array().unwrap();
     // By hand, with the even-odd rule's half-open edges (a sample on a left or top edge is in,

@@ -1446,6 +1446,27 @@ export interface components {
             terraces: components["schemas"]["DeformTerraces"];
         };
         /**
+         * @description The faces the projection builds from the held targets (roads, terraces, points, seams)
+         *     to the ground: a cutting where the ground stood above its target, an embankment where it
+         *     lay below, each at its slope until it daylights, the ground beyond as the search left it.
+         *     Road practice (AASHTO, FHWA): cuts at 1V:1.5H to 2H, fills at 1V:2H to 3H; loose material
+         *     rests at 34–37°.
+         */
+        DeformEarthworks: {
+            /**
+             * @default {
+             *       "h_per_v": 1.5
+             *     }
+             */
+            cut_slope?: components["schemas"]["DeformSlope"];
+            /**
+             * @default {
+             *       "h_per_v": 2
+             *     }
+             */
+            fill_slope?: components["schemas"]["DeformSlope"];
+        };
+        /**
          * @description An edge of the grid: west = column 0, east = last column, north = row 0, south = last row.
          * @enum {string}
          */
@@ -1633,6 +1654,22 @@ export interface components {
              * @default 1
              */
             weight?: number;
+        };
+        /**
+         * @description A slope, as run over rise (`{"h_per_v": 1.5}` is 1V:1.5H) or in degrees from level
+         *     (`{"degrees": 30}`): exactly one of the two.
+         */
+        DeformSlope: {
+            /**
+             * Format: double
+             * @description Horizontal metres per vertical metre.
+             */
+            h_per_v?: number | null;
+            /**
+             * Format: double
+             * @description Degrees from level.
+             */
+            degrees?: number | null;
         };
         /** @description One level of a terrace mask. */
         DeformTerraceRegion: {
@@ -1845,19 +1882,33 @@ export interface components {
             /**
              * Format: double
              * @description The steepest step between row or column neighbours the result may have, as a multiple
-             *     of the input's steepest (on a flat input, 5 %). The search penalises steps from 90 % of
-             *     it; then, after the search, every step is held within it exactly, every road cell,
-             *     point, terrace sample and seam edge is set on its target and a mask's land and sea on
-             *     their sides of the water (the samples beside them moved as little as that takes: a
-             *     cutting or embankment at the limit where the search left one short). Targets that ask
-             *     for a step steeper than the limit between them (abutting terraces far apart in level, a
-             *     point high above a road beside it) meet halfway instead, and a target wins over a
-             *     mask's side. 1: never
-             *     steeper than the input anywhere; raise it for sharp terraces, cliffs or a seam band
-             *     narrower than its mismatch needs. 100 with `max_free_change` 1: no limits.
+             *     of the input's steps' `slope_percentile` (on a flat input, 5 %); where the input's own
+             *     step is steeper, that step. The search penalises steps from 90 % of it; then, after the
+             *     search, every step is held within it exactly, every road cell, point, terrace sample
+             *     and seam edge is set on its target and a mask's land and sea on their sides of the
+             *     water, the samples beside them moved as little as that takes: a cutting or an
+             *     embankment at the `earthworks` slopes from a target, a shore at the limit from a mask.
+             *     Where two targets cannot both be met (a point high above a road beside it), the one of
+             *     higher priority holds — a seam over a road over a terrace over a point over a mask's
+             *     side — and the result names the other in `conflicts`. 1: never steeper than the input's
+             *     percentile; raise it for sharp terraces, cliffs or a seam band narrower than its
+             *     mismatch needs. 100 with `max_free_change` 1: no limits.
              * @default 1.1
              */
             max_slope_ratio?: number;
+            /**
+             * Format: double
+             * @description Which of the input's steps the slope limit is a multiple of: this percentile of their
+             *     steepness (100: the single steepest step). The input's own steps steeper than the limit
+             *     stay as they are; no step is made steeper than the limit or than it was.
+             * @default 99
+             */
+            slope_percentile?: number;
+            /**
+             * @description The faces cut into the ground or built up on it beside a road, a terrace or a point
+             *     (with the limits on): their slopes.
+             */
+            earthworks?: components["schemas"]["DeformEarthworks"];
         };
         /**
          * @description Deform a terrain by stochastic local search over truncated-Gaussian deformations until it
@@ -2040,19 +2091,33 @@ export interface components {
             /**
              * Format: double
              * @description The steepest step between row or column neighbours the result may have, as a multiple
-             *     of the input's steepest (on a flat input, 5 %). The search penalises steps from 90 % of
-             *     it; then, after the search, every step is held within it exactly, every road cell,
-             *     point, terrace sample and seam edge is set on its target and a mask's land and sea on
-             *     their sides of the water (the samples beside them moved as little as that takes: a
-             *     cutting or embankment at the limit where the search left one short). Targets that ask
-             *     for a step steeper than the limit between them (abutting terraces far apart in level, a
-             *     point high above a road beside it) meet halfway instead, and a target wins over a
-             *     mask's side. 1: never
-             *     steeper than the input anywhere; raise it for sharp terraces, cliffs or a seam band
-             *     narrower than its mismatch needs. 100 with `max_free_change` 1: no limits.
+             *     of the input's steps' `slope_percentile` (on a flat input, 5 %); where the input's own
+             *     step is steeper, that step. The search penalises steps from 90 % of it; then, after the
+             *     search, every step is held within it exactly, every road cell, point, terrace sample
+             *     and seam edge is set on its target and a mask's land and sea on their sides of the
+             *     water, the samples beside them moved as little as that takes: a cutting or an
+             *     embankment at the `earthworks` slopes from a target, a shore at the limit from a mask.
+             *     Where two targets cannot both be met (a point high above a road beside it), the one of
+             *     higher priority holds — a seam over a road over a terrace over a point over a mask's
+             *     side — and the result names the other in `conflicts`. 1: never steeper than the input's
+             *     percentile; raise it for sharp terraces, cliffs or a seam band narrower than its
+             *     mismatch needs. 100 with `max_free_change` 1: no limits.
              * @default 1.1
              */
             max_slope_ratio?: number;
+            /**
+             * Format: double
+             * @description Which of the input's steps the slope limit is a multiple of: this percentile of their
+             *     steepness (100: the single steepest step). The input's own steps steeper than the limit
+             *     stay as they are; no step is made steeper than the limit or than it was.
+             * @default 99
+             */
+            slope_percentile?: number;
+            /**
+             * @description The faces cut into the ground or built up on it beside a road, a terrace or a point
+             *     (with the limits on): their slopes.
+             */
+            earthworks?: components["schemas"]["DeformEarthworks"];
             /**
              * Format: int64
              * @description Seed of every random choice the kind makes (default 0): the same request gives the same bytes. A fractal terrain source has its own `seed`.

@@ -652,6 +652,14 @@ DeformConstraintTileable = TypedDict(
     },
 )
 
+DeformEarthworks = TypedDict(
+    'DeformEarthworks',
+    {
+        'cut_slope': NotRequired['DeformSlope'],
+        'fill_slope': NotRequired['DeformSlope'],
+    },
+)
+
 DeformEdge = Literal['west', 'east', 'north', 'south']
 
 DeformEdgeMatch = TypedDict(
@@ -769,6 +777,14 @@ DeformShapeMask = TypedDict(
     },
 )
 
+DeformSlope = TypedDict(
+    'DeformSlope',
+    {
+        'h_per_v': NotRequired[Union[float, None]],
+        'degrees': NotRequired[Union[float, None]],
+    },
+)
+
 DeformTerraceRegion = TypedDict(
     'DeformTerraceRegion',
     {
@@ -811,6 +827,8 @@ DeformTerrainParamsBody = TypedDict(
         'keep_weight': NotRequired[float],
         'max_free_change': NotRequired[float],
         'max_slope_ratio': NotRequired[float],
+        'slope_percentile': NotRequired[float],
+        'earthworks': NotRequired['DeformEarthworks'],
         'seed': NotRequired[int],
         'label': NotRequired[str],
         'compression': NotRequired[Literal['none', 'quantize', 'meshopt']],

@@ -10,7 +10,7 @@
 use super::MAX_DELTAS;
 
 /// The limits as penalties: a sample outside [`lo`, `hi`], or a step between row or column
-/// neighbours steeper than `step_max` metres, costs its squared excess times `band_scale` or
+/// neighbours steeper than its `step_right` or `step_down` metres, costs its squared excess times `band_scale` or
 /// `step_scale`. The search weighs them; no constraint reports them.
 ///
 /// They are penalties and not bounds on each deformation: a kernel whose flank crosses a step
@@ -23,7 +23,9 @@ pub struct SoftLimits {
     pub lo: Vec<f64>,
     pub hi: Vec<f64>,
     pub band_scale: f64,
-    pub step_max: f64,
+    /// Per sample, the largest step to its right and to the row below before a penalty.
+    pub step_right: Vec<f64>,
+    pub step_down: Vec<f64>,
     pub step_scale: f64,
 }
 
@@ -39,8 +41,10 @@ impl SoftLimits {
                 let i = r * cols + c;
                 let out = (h[i] - self.hi[i]).max(self.lo[i] - h[i]).max(0.0);
                 sum += self.band_scale * out * out;
-                for j in [(c + 1 < cols).then_some(i + 1), (r + 1 < rows).then_some(i + cols)].into_iter().flatten() {
-                    let steep = ((h[i] - h[j]).abs() - self.step_max).max(0.0);
+                let right = (c + 1 < cols).then(|| (i + 1, self.step_right[i]));
+                let down = (r + 1 < rows).then(|| (i + cols, self.step_down[i]));
+                for (j, max) in right.into_iter().chain(down) {
+                    let steep = ((h[i] - h[j]).abs() - max).max(0.0);
                     sum += self.step_scale * steep * steep;
                 }
             }

@@ -41,6 +41,9 @@ pub struct Grid<'a> {
     pub relief: f64,
     /// The steepest slope the result may have, metres per metre ([`super::bounds`]).
     pub slope_limit: f64,
+    /// The earthworks' cut and fill slopes, metres per metre.
+    pub cut: f64,
+    pub fill: f64,
 }
 
 impl Grid<'_> {
@@ -190,10 +193,18 @@ pub enum Anchors {
 /// What a constraint's figures are computed from.
 pub enum Detail {
     MatchHeightmap,
-    ShapeMask { water_level: f64, margin: f64 },
+    /// `shore`: per sample, the share of the margin the projection holds it by.
+    ShapeMask {
+        water_level: f64,
+        margin: f64,
+        shore: Vec<f64>,
+    },
     Road(road::RoadDetail),
     EdgeMatch(edge_match::EdgeDetail),
-    Tileable { x: bool, z: bool },
+    Tileable {
+        x: bool,
+        z: bool,
+    },
     Points(Vec<(usize, f64)>),
     Preserve,
     Terraces(terraces::TerraceDetail),
@@ -320,7 +331,7 @@ impl Field {
         out.insert("fitness".into(), json!(self.value(h, grid.cols, grid.rows)));
         let extra = match &self.detail {
             Detail::MatchHeightmap => match_heightmap::figures(self, h, grid),
-            Detail::ShapeMask { water_level, margin } => shape_mask::figures(self, h, *water_level, *margin),
+            Detail::ShapeMask { water_level, margin, .. } => shape_mask::figures(self, h, *water_level, *margin),
             Detail::Road(d) => road::figures(d, h, grid),
             Detail::EdgeMatch(d) => edge_match::figures(d, h, grid),
             Detail::Tileable { x, z } => tileable::figures(*x, *z, h, grid),
@@ -646,14 +657,14 @@ impl Fitness {
                         hinges.add(l.band_scale, h[i] - l.hi[i], k);
                         hinges.add(l.band_scale, l.lo[i] - h[i], -k);
                     }
-                    // The steps to the right and lower neighbours: |Δ + e·d| ≤ step_max.
+                    // The steps to the right and lower neighbours: |Δ + e·d| ≤ their limit.
                     let c = i % cols;
-                    let right = (c + 1 < cols).then(|| (i + 1, at(c + 1, r)));
-                    let down = (r + 1 < self.rows).then(|| (i + cols, at(c, r + 1)));
-                    for (j, kj) in right.into_iter().chain(down) {
+                    let right = (c + 1 < cols).then(|| (i + 1, at(c + 1, r), l.step_right[i]));
+                    let down = (r + 1 < self.rows).then(|| (i + cols, at(c, r + 1), l.step_down[i]));
+                    for (j, kj, max) in right.into_iter().chain(down) {
                         let (e, step) = (k - kj, h[i] - h[j]);
-                        hinges.add(l.step_scale, step - l.step_max, e);
-                        hinges.add(l.step_scale, -step - l.step_max, -e);
+                        hinges.add(l.step_scale, step - max, e);
+                        hinges.add(l.step_scale, -step - max, -e);
                     }
                 }
             }
@@ -831,31 +842,69 @@ pub fn road_material(fields: &[Field], cells: usize) -> Option<Vec<u8>> {
     out
 }
 
-/// The samples the result must hold when the limits are on ([`super::projection`]), loose and
-/// firm: a mask's land above its water level plus the margin and its sea below it less the
-/// margin; then, winning where they meet, each road's cells, each point's sample, each terrace
-/// region's samples, each seam's shared edge samples and the samples one step in (continuing
-/// the neighbour) on their targets.
-pub fn held(fields: &[Field]) -> (Vec<Held>, Vec<Held>) {
-    let (mut loose, mut firm) = (Vec::new(), Vec::new());
-    let targets = |list: &[(usize, f64)]| list.iter().map(|&(i, t)| Held::at(i, t)).collect::<Vec<_>>();
-    for f in fields {
+/// The samples the result must hold when the limits are on ([`super::projection`]), by
+/// priority, lowest first ([`Priority`]): a mask's land above its water level plus the margin
+/// and its sea below it less the margin (less of it within a cell of the coast); each point's sample; each terrace region's samples;
+/// each road's cells; each seam's shared edge samples and the samples one step in (continuing
+/// the neighbour) on their targets. Each held sample names its constraint.
+pub fn held(fields: &[Field]) -> [Vec<Held>; PRIORITIES] {
+    let mut tiers: [Vec<Held>; PRIORITIES] = Default::default();
+    for (k, f) in fields.iter().enumerate() {
+        let targets = |list: &[(usize, f64)]| list.iter().map(|&(i, t)| Held::at(i, t).of(k)).collect::<Vec<_>>();
         match &f.detail {
-            Detail::Road(d) => firm.extend(targets(road::cells(d))),
-            Detail::Points(p) => firm.extend(targets(p)),
-            Detail::Terraces(d) => firm.extend(targets(terraces::targets(d))),
-            Detail::EdgeMatch(d) => firm.extend(edge_match::seam(d).map(|(i, t)| Held::at(i, t))),
+            Detail::Road(d) => tiers[Priority::Road as usize].extend(targets(road::cells(d))),
+            Detail::Points(p) => tiers[Priority::Point as usize].extend(targets(p)),
+            Detail::Terraces(d) => tiers[Priority::Terrace as usize].extend(targets(terraces::targets(d))),
+            Detail::EdgeMatch(d) => {
+                tiers[Priority::Seam as usize].extend(edge_match::seam(d).map(|(i, t)| Held::at(i, t).of(k)))
+            }
             _ => {}
         }
-        if let Some(m) = &f.one_sided {
-            loose.extend(m.side.iter().enumerate().filter_map(|(i, &s)| match s {
-                1 => Some(Held { sample: i, lo: m.lo, hi: f64::INFINITY }),
-                -1 => Some(Held { sample: i, lo: f64::NEG_INFINITY, hi: m.hi }),
+        if let (Some(m), Detail::ShapeMask { water_level, shore, .. }) = (&f.one_sided, &f.detail) {
+            // The margin, less within a cell of the coast ([`shape_mask`]'s `shore`).
+            let lo = |i: usize| water_level + (m.lo - water_level) * shore[i];
+            let hi = |i: usize| water_level - (water_level - m.hi) * shore[i];
+            tiers[Priority::Mask as usize].extend(m.side.iter().enumerate().filter_map(|(i, &s)| match s {
+                1 => Some(Held::between(i, lo(i), f64::INFINITY).of(k)),
+                -1 => Some(Held::between(i, f64::NEG_INFINITY, hi(i)).of(k)),
                 _ => None,
             }));
         }
     }
-    (loose, firm)
+    tiers
+}
+
+/// Which held target wins where two cannot both be met, lowest first: a mask's coast gives way
+/// to a point, a point to a terrace, a terrace to a road, and a road to a tile's seam (which
+/// must meet its neighbour exactly). Within a tier, targets whose faces cross meet halfway
+/// unless the tier is pinned ([`Priority::pinned`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Priority {
+    Mask,
+    Point,
+    Terrace,
+    Road,
+    Seam,
+}
+
+pub const PRIORITIES: usize = 5;
+
+impl Priority {
+    /// Whether the tier's faces are earthworks (at the cut and fill slopes) rather than a coast
+    /// or a seam's transition (at the slope limit).
+    pub fn earthwork(self) -> bool {
+        matches!(self, Priority::Point | Priority::Terrace | Priority::Road)
+    }
+
+    /// Whether its samples take their targets even where its own faces cross (a road's legs
+    /// at a hairpin, a terrace's riser to the next level, a seam's two rows on a slope steeper
+    /// than the limit): the target is the shape asked for, not a wish to meet halfway.
+    pub fn pinned(self) -> bool {
+        matches!(self, Priority::Terrace | Priority::Road | Priority::Seam)
+    }
+
+    pub const ALL: [Priority; PRIORITIES] =
+        [Priority::Mask, Priority::Point, Priority::Terrace, Priority::Road, Priority::Seam];
 }
 
 /// `road.json`: every road constraint (its index among the constraints) as a game places it,

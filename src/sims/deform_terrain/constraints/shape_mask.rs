@@ -27,7 +27,7 @@ pub fn build(m: &ShapeMask, image: Option<&Heightfield>, grid: &Grid) -> Field {
     };
     let water_level = m.water_level.unwrap_or_else(|| median(grid.original));
     let margin = m.margin.unwrap_or(0.01 * grid.relief);
-    let side = land.iter().map(|&l| if l { 1 } else { -1 }).collect();
+    let side: Vec<i8> = land.iter().map(|&l| if l { 1 } else { -1 }).collect();
     let mut interest = vec![false; n];
     let b = BOUNDARY_BAND_CELLS;
     for r in 0..rows {
@@ -38,6 +38,7 @@ pub fn build(m: &ShapeMask, image: Option<&Heightfield>, grid: &Grid) -> Field {
             interest[r * cols + c] = (r0..=r1).any(|rr| (c0..=c1).any(|cc| land[rr * cols + cc] != here));
         }
     }
+    let shore = shore(m, &land, &interest, grid);
     Field {
         name: "shape_mask",
         weight: m.weight,
@@ -51,8 +52,63 @@ pub fn build(m: &ShapeMask, image: Option<&Heightfield>, grid: &Grid) -> Field {
         pairs: None,
         interest,
         anchors: Anchors::None,
-        detail: Detail::ShapeMask { water_level, margin },
+        detail: Detail::ShapeMask { water_level, margin, shore },
     }
+}
+
+/// Per sample, the share of the margin its bound keeps when the projection holds the mask
+/// ([`super::held`]): its distance to the coast in cells, up to 1 (and at least a hundredth, so
+/// each side stays strictly on its side). The bounds then cross the water level on the
+/// coast itself, so where the projection sets the samples beside it on their bounds the
+/// shoreline runs along the polygon between them, not along a staircase of whole cells.
+/// Polygons: the distance to their outlines; an image: to the nearest sample of the other
+/// side, less half a cell.
+fn shore(m: &ShapeMask, land: &[bool], band: &[bool], grid: &Grid) -> Vec<f64> {
+    let (cols, rows) = (grid.cols, grid.rows);
+    let reach = BOUNDARY_BAND_CELLS as i64;
+    (0..land.len())
+        .map(|i| {
+            if !band[i] {
+                return 1.0;
+            }
+            let (c, r) = ((i % cols) as f64, (i / cols) as f64);
+            let d = match &m.mask {
+                MaskShape::PolygonsM(polys) => {
+                    polys.iter().map(|p| to_outline(p, c * grid.cell_m, r * grid.cell_m)).fold(f64::INFINITY, f64::min)
+                        / grid.cell_m
+                }
+                MaskShape::Image(_) => {
+                    let mut d = f64::INFINITY;
+                    for dr in -reach..=reach {
+                        for dc in -reach..=reach {
+                            let (cc, rr) = (c as i64 + dc, r as i64 + dr);
+                            if (0..cols as i64).contains(&cc)
+                                && (0..rows as i64).contains(&rr)
+                                && land[rr as usize * cols + cc as usize] != land[i]
+                            {
+                                d = d.min(((dc * dc + dr * dr) as f64).sqrt() - 0.5);
+                            }
+                        }
+                    }
+                    d
+                }
+            };
+            d.clamp(0.01, 1.0)
+        })
+        .collect()
+}
+
+/// Distance from (x, z) to a closed polygon's outline, metres.
+fn to_outline(poly: &[PlanPoint], x: f64, z: f64) -> f64 {
+    let mut best = f64::INFINITY;
+    for k in 0..poly.len() {
+        let (a, b) = (&poly[k], &poly[(k + 1) % poly.len()]);
+        let (dx, dz) = (b.x - a.x, b.z - a.z);
+        let len2 = dx * dx + dz * dz;
+        let t = if len2 > 0.0 { (((x - a.x) * dx + (z - a.z) * dz) / len2).clamp(0.0, 1.0) } else { 0.0 };
+        best = best.min((x - a.x - t * dx).hypot(z - a.z - t * dz));
+    }
+    best
 }
 
 /// Even-odd test of a point (x, z), metres, against every polygon.

@@ -52,7 +52,16 @@ fn fields_of(constraints: Vec<Constraint>, h0: &[f64], cols: usize, rows: usize)
         .iter()
         .map(|c| matches!(c, Constraint::EdgeMatch(_) | Constraint::MatchHeightmap(_)).then(|| other.clone()))
         .collect();
-    let grid = Grid { cols, rows, cell_m: 1.0, original: h0, relief: 40.0, slope_limit: f64::INFINITY };
+    let grid = Grid {
+        cols,
+        rows,
+        cell_m: 1.0,
+        original: h0,
+        relief: 40.0,
+        slope_limit: f64::INFINITY,
+        cut: f64::INFINITY,
+        fill: f64::INFINITY,
+    };
     build(&constraints, &resolved, &grid).unwrap()
 }
 
@@ -134,7 +143,16 @@ fn the_best_of_many_displacements_is_the_best_full_recomputation() {
 fn the_closed_form_displacement_is_the_best_of_the_quadratic_part() {
     let (cols, rows) = (30, 30);
     let h0: Vec<f64> = terrain(cols, rows, 0.4).heights_m.iter().map(|&v| v as f64).collect();
-    let grid = Grid { cols, rows, cell_m: 1.0, original: &h0, relief: 40.0, slope_limit: f64::INFINITY };
+    let grid = Grid {
+        cols,
+        rows,
+        cell_m: 1.0,
+        original: &h0,
+        relief: 40.0,
+        slope_limit: f64::INFINITY,
+        cut: f64::INFINITY,
+        fill: f64::INFINITY,
+    };
     let c: Constraint =
         serde_json::from_value(json!({"points": {"points": [{"x": 15.0, "z": 15.0, "height": 50.0}]}})).unwrap();
     let fields = build(&[c], &[None], &grid).unwrap();
@@ -156,7 +174,16 @@ fn mask_polygons_are_metres_on_the_grid_and_the_cell_form_is_refused() {
     // 2 m cells: the square x, z in [9, 29] m holds the samples col, row 5..=14 (10 m .. 28 m).
     let (cols, rows) = (20, 20);
     let h0 = vec![0.0; cols * rows];
-    let grid = Grid { cols, rows, cell_m: 2.0, original: &h0, relief: 10.0, slope_limit: f64::INFINITY };
+    let grid = Grid {
+        cols,
+        rows,
+        cell_m: 2.0,
+        original: &h0,
+        relief: 10.0,
+        slope_limit: f64::INFINITY,
+        cut: f64::INFINITY,
+        fill: f64::INFINITY,
+    };
     let square = json!([{"x": 9.0, "z": 9.0}, {"x": 29.0, "z": 9.0}, {"x": 29.0, "z": 29.0}, {"x": 9.0, "z": 29.0}]);
     let c: Constraint = serde_json::from_value(json!({"shape_mask": {"mask": {"polygons_m": [square]}}})).unwrap();
     let f = &build(&[c], &[None], &grid).unwrap()[0];
@@ -175,7 +202,16 @@ fn mask_polygons_are_metres_on_the_grid_and_the_cell_form_is_refused() {
 fn the_shape_mask_counts_each_side_with_its_margin() {
     let (cols, rows) = (20, 20);
     let h0 = vec![0.0; cols * rows];
-    let grid = Grid { cols, rows, cell_m: 1.0, original: &h0, relief: 10.0, slope_limit: f64::INFINITY };
+    let grid = Grid {
+        cols,
+        rows,
+        cell_m: 1.0,
+        original: &h0,
+        relief: 10.0,
+        slope_limit: f64::INFINITY,
+        cut: f64::INFINITY,
+        fill: f64::INFINITY,
+    };
     let c: Constraint = serde_json::from_value(
         json!({"shape_mask": {"mask": {"polygons_m": [[{"x": 4.5, "z": 4.5}, {"x": 14.5, "z": 4.5}, {"x": 14.5, "z": 14.5}, {"x": 4.5, "z": 14.5}]]}, "water_level": 0.0, "margin": 1.0}}),
     )
@@ -277,7 +313,9 @@ fn with_the_limits_each_displacements_change_is_the_full_recomputations() {
         lo: h0.iter().map(|v| v - 1.0).collect(),
         hi: h0.iter().map(|v| v + 1.0).collect(),
         band_scale: 0.03,
-        step_max: 2.0,
+        // Per step, as the input's own steeper steps make them.
+        step_right: (0..h0.len()).map(|i| 1.5 + 0.2 * (i % 7) as f64).collect(),
+        step_down: (0..h0.len()).map(|i| 1.6 + 0.15 * (i % 5) as f64).collect(),
         step_scale: 0.05,
     };
     let fitness = Fitness::new(&fields, cols, rows).with_limits(limits.clone());
