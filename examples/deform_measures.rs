@@ -1,6 +1,6 @@
 //! deform-terrain measured as issue 50 asks, in release, on the examples and requests of our
 //! own: `cargo run --release --example deform_measures -- [what]`, `what` one of
-//! `earthworks`, `pits` (and the coast), `conflict`, `all`. Figures for people; the same checks, smaller, are
+//! `earthworks`, `pits` (and the coast), `conflict`, `examples`, `all`. Figures for people; the same checks, smaller, are
 //! `tests/deform_earthworks.rs`.
 
 use std::time::Instant;
@@ -182,6 +182,25 @@ fn conflict() {
     );
 }
 
+/// Every example: time, where the search stopped, how much the projection moved, spikes.
+fn examples() {
+    for name in ["star-island", "s-road", "merge-edges", "star-island-roads", "tileable", "terraces"] {
+        let r = run(example(&format!("{name}.json")));
+        let (a, b) = r.grids();
+        println!(
+            "{name}: {:.2} s, {} iterations, stopped {}; projection moved {} samples, up to {:.1} m; spikes (4 m off the 5 × 5 median) input {}, result {}; conflicts {}",
+            r.secs,
+            r.result["iterations"],
+            r.result["stopped"],
+            r.result["limits"]["held"]["samples_moved"],
+            r.result["limits"]["held"]["max_change_m"].as_f64().unwrap_or(0.0),
+            spikes(&a, 4.0),
+            spikes(&b, 4.0),
+            r.result["conflicts"].as_array().map_or(0, |c| c.len())
+        );
+    }
+}
+
 fn main() {
     let what = std::env::args().nth(1).unwrap_or_else(|| "all".into());
     if what == "earthworks" || what == "all" {
@@ -192,5 +211,8 @@ fn main() {
     }
     if what == "conflict" || what == "all" {
         conflict();
+    }
+    if what == "examples" || what == "all" {
+        examples();
     }
 }

@@ -306,3 +306,24 @@ pub fn coast_roughness(g: &Grid, level: f64, window_cells: f64) -> (f64, usize) 
     }
     (if count == 0 { 0.0 } else { (sum / count as f64).sqrt() }, count)
 }
+
+/// Samples more than `off_m` from the median of their 5 × 5 neighbourhood (clipped at the
+/// border): spikes and beads.
+pub fn spikes(g: &Grid, off_m: f64) -> usize {
+    let mut count = 0;
+    let mut window = Vec::with_capacity(25);
+    for r in 0..g.rows {
+        for c in 0..g.cols {
+            window.clear();
+            for rr in r.saturating_sub(2)..(r + 3).min(g.rows) {
+                for cc in c.saturating_sub(2)..(c + 3).min(g.cols) {
+                    window.push(g.h[rr * g.cols + cc]);
+                }
+            }
+            window.sort_by(f64::total_cmp);
+            let median = window[window.len() / 2];
+            count += usize::from((g.h[r * g.cols + c] - median).abs() > off_m);
+        }
+    }
+    count
+}

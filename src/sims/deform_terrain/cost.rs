@@ -105,9 +105,11 @@ pub fn estimate(params: &DeformTerrainParams, terrain: &dyn TerrainLookup) -> Re
     // Each iteration scans the table and applies up to `batch` deformations, each touching its
     // kernel window once per constraint (and its tileable partner).
     let r_max = radii.last().copied().unwrap_or(1) as u64;
-    // With the limits on, the penalties are not quadratic: a window is visited once per
-    // sampled displacement, and once more, rather than through one running sum.
-    let visits = if limited { u64::from(params.amplitudes) + 1 } else { 1 };
+    // A mask's one-sided penalty is not quadratic: a window is visited once per sampled
+    // displacement, and once more, rather than through one running sum. (The limits are the
+    // projection's, after the search: `limit_work`.)
+    let masked = params.constraints.iter().any(|c| matches!(c, Constraint::ShapeMask(_)));
+    let visits = if masked { u64::from(params.amplitudes) + 1 } else { 1 };
     let window = (2 * r_max + 1).pow(2) * visits;
     let first_fill = entries * window.min(625 * visits);
     let per_iteration = entries + u64::from(params.batch) * (2 * k + 2) * window;

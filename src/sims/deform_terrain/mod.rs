@@ -103,15 +103,18 @@ impl Simulation for DeformTerrain {
         let fields = problem.fields(&grid)?;
         let settings = problem.settings(params, &fields)?;
         let mut fitness = Fitness::new(&fields, grid.cols, grid.rows);
-        // The footprints, only when the keep pull or the limits need them.
-        if params.limited() || params.keep_weight > 0.0 {
+        // The footprints, only when the keep pull needs them. The limits are the projection's
+        // after the search ([`bounds`]), so the search stays on its fast path.
+        if params.keep_weight > 0.0 {
             let bounds = bounds::Bounds::new(&fields, &grid, params.max_free_change);
-            if let Some(keep) = constraints::keep(&bounds.footprint, &grid, params.keep_weight) {
-                fitness = fitness.with(&keep);
+            let mut targets = vec![false; grid.cells()];
+            for tier in &constraints::held(&fields)[constraints::Priority::Point as usize..] {
+                for b in tier {
+                    targets[b.sample] = true;
+                }
             }
-            if params.limited() {
-                let scale = LIMIT_WEIGHT * fitness.heaviest();
-                fitness = fitness.with_limits(bounds.soft(&grid, scale, LIMIT_SLOPE_SHARE));
+            if let Some(keep) = constraints::keep(&bounds.footprint, &targets, &grid, params.keep_weight, KEEP_INSIDE) {
+                fitness = fitness.with(&keep);
             }
         }
         let interest = constraints::interest(&fields, grid.cells());
@@ -378,15 +381,10 @@ fn to_heightfield(h: &[f64], cols: usize, rows: usize, cell_m: f64) -> Heightfie
     Heightfield { cols, rows, cell_size_m: cell_m as f32, heights_m: h.iter().map(|&v| v as f32).collect() }
 }
 
-/// How much more a metre of a limit's excess weighs than a metre of error at the most
-/// heavily weighted sample of any constraint. With [`LIMIT_SLOPE_SHARE`], chosen on the
-/// examples run with `max_free_change` 0.1, `max_slope_ratio` 1.1 and `keep_weight` 1: at 100
-/// and the full slope their steepest steps came out 9–27 % past the limit (the penalty is
-/// soft); at 1 000 and 90 % every example but the seam band's kept under it.
-const LIMIT_WEIGHT: f64 = 1000.0;
-/// The steps are penalised from this share of the slope limit: the margin the penalty's
-/// equilibrium excess stays within.
-const LIMIT_SLOPE_SHARE: f64 = 0.9;
+/// The keep pull inside a footprint, as a share of the pull outside ([`constraints::keep`]):
+/// at 0.1 the examples ran 0.24–0.92 s with no spike and the earthworks within their slopes;
+/// at 0 (none) the search stacked kernels 300 m high on `limit_tests`' 22 m of relief.
+const KEEP_INSIDE: f64 = 0.1;
 
 /// What only a run knows.
 struct RunFigures<'a> {
@@ -465,7 +463,11 @@ fn finish(
     let searched = h;
     let (held, conflicts) = match problem.params.limited() {
         true => {
-            let (held, conflicts) = hold_limits(fields, &grid, settings, h);
+            let band = problem.params.constraints.iter().find_map(|c| match c {
+                Constraint::Tileable(t) => Some(t.band_cells as usize),
+                _ => None,
+            });
+            let (held, conflicts) = hold_limits(fields, &grid, settings, problem.params.max_free_change, band, h);
             (Some(held), conflicts)
         }
         false => (None, Vec::new()),
@@ -596,27 +598,49 @@ fn limits_figures(fields: &[Field], grid: &Grid, max_free_change: f64, h: &[f64]
     (figures, b.asked)
 }
 
-/// `h` within the slope limit everywhere, each held sample within its bounds by priority
-/// ([`projection`]), a tiled terrain's opposite edges then set to their mean; and the held
-/// targets it could not meet.
-fn hold_limits(fields: &[Field], grid: &Grid, settings: &Settings, h: &[f64]) -> (Vec<f64>, Vec<projection::Conflict>) {
+/// `h` within the slope limit everywhere and the free samples within their band, each held
+/// sample within its bounds by priority ([`projection`]), a tiled terrain's opposite edges
+/// then set to their mean; and the held targets it could not meet.
+fn hold_limits(
+    fields: &[Field],
+    grid: &Grid,
+    settings: &Settings,
+    max_free_change: f64,
+    tile_band: Option<usize>,
+    h: &[f64],
+) -> (Vec<f64>, Vec<projection::Conflict>) {
     let (cols, rows) = (grid.cols, grid.rows);
     // Held a few f32 steps of the highest height inside the limit, so the f32 heights the
     // artifacts carry keep to it too.
     let highest = h.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let margin = 4.0 * f64::from(f32::EPSILON) * highest;
     let step_max = (grid.slope_limit * grid.cell_m - margin).max(0.0);
-    let limits = bounds::EdgeLimits::new(grid.original, cols, rows, step_max);
+    let mut limits = bounds::EdgeLimits::new(grid.original, cols, rows, step_max);
+    (limits.wrap_x, limits.wrap_z) = (settings.tile_x, settings.tile_z);
+    if let Some(band) = tile_band {
+        // A tile's wrap band is the transition that continues the far edge in height and in
+        // slope (C¹): the search's fit holds there, not the slope limit, whose clipping bent
+        // the wrap past the terrain's own 99th-percentile bend.
+        limits.free_bands(band, settings.tile_x, settings.tile_z);
+    }
+    let bounds = bounds::Bounds::new(fields, grid, max_free_change);
     let held = constraints::held(fields);
     let face = |slope: f64| (slope * grid.cell_m - margin).max(0.0);
-    let tiers: Vec<projection::Tier> = constraints::Priority::ALL
-        .iter()
-        .zip(&held)
-        .map(|(p, held)| match p.earthwork() {
-            true => projection::Tier { held, cut: face(grid.cut), fill: face(grid.fill), pin: p.pinned() },
-            false => projection::Tier { held, cut: step_max, fill: step_max, pin: p.pinned() },
-        })
-        .collect();
+    let terrace = &held[constraints::Priority::Terrace as usize];
+    let mut regions = vec![false; grid.cells()];
+    for b in terrace {
+        regions[b.sample] = true;
+    }
+    let mut tiers: Vec<projection::Tier> = Vec::new();
+    for (p, held) in constraints::Priority::ALL.iter().zip(&held) {
+        let (cut, fill) = if p.earthwork() { (face(grid.cut), face(grid.fill)) } else { (step_max, step_max) };
+        tiers.push(projection::Tier { held, cut, fill, pin: p.pinned(), skip: None });
+        if *p == constraints::Priority::Terrace && !held.is_empty() {
+            // The apron around the regions, at the earthworks' slopes.
+            let (cut, fill) = (face(grid.cut), face(grid.fill));
+            tiers.push(projection::Tier { held, cut, fill, pin: false, skip: Some(&regions) });
+        }
+    }
     // A mask's sea floor no lower than the input's (or the sea's bound, where the input stands
     // above it): the pits the search's kernels dug pushing the sea under are filled back, and
     // the projection lowers only what stands too high.
@@ -627,7 +651,7 @@ fn hold_limits(fields: &[Field], grid: &Grid, settings: &Settings, h: &[f64]) ->
             undug[i] = undug[i].max(grid.original[i].min(b.hi));
         }
     }
-    let mut out = projection::hold(&undug, cols, rows, &limits, &tiers);
+    let mut out = projection::hold(&undug, cols, rows, &limits, Some(bounds.band()), &tiers);
     let conflicts = projection::conflicts(&out, cols, &tiers, CONFLICT_TOLERANCE_M.max(1e-6 * grid.relief));
     let mut pair = |a: usize, b: usize| {
         let m = 0.5 * (out[a] + out[b]);

@@ -3,11 +3,10 @@
 //! sample, a terrace's samples and a seam's edge on their targets, a mask's land above its
 //! water level and its sea below.
 //!
-//! The search weighs the limits as penalties ([`super::bounds`]), so it ends near them, not
-//! within them: on the S-road a step of 1.735 m against 1.722 m allowed, and a road graded at
-//! 6 % that the slope limit kept from its cutting came out at 10.1 % along its centreline. No
-//! stack of Gaussians reaches a limit exactly; a projection does, by moving only the samples
-//! within reach of a violation:
+//! The search only pulls free samples back to their input ([`super::bounds`]); it once
+//! weighed the limits as penalties too, and ended near them, not within them (on the S-road a
+//! step of 1.735 m against 1.722 m allowed). No stack of Gaussians reaches a limit exactly; a
+//! projection does, by moving only the samples within reach of a violation:
 //!
 //! 1. U = min over y of (h(y) + L·d(x, y)) and D = max over y of (h(y) − L·d(x, y)), with d the
 //!    row-and-column step count and L the steepest step allowed, are both L-Lipschitz and
@@ -22,8 +21,10 @@
 //!    where the cones cross, the sample takes their mean and the figures report the steepest
 //!    step left.
 //!
-//! Each envelope is two raster passes (left and up, then right and down): exact for the
-//! row-and-column step count, which is the metric the limit is stated in. The bounds' cones use
+//! Each envelope is raster passes (left and up, then right and down) until nothing changes:
+//! two when every step's limit is the same, a few more where the input's own steeper steps
+//! raise theirs. A tileable terrain's wrap counts as one sample. Where the request bounds how
+//! far free samples may move (`max_free_change`), that band and the slope limit take turns. The bounds' cones use
 //! a rounder path length (diagonal and knight's moves too), still within the limit a row or
 //! column step, so a cutting beside a road at an angle to the grid has a straight face.
 
@@ -65,23 +66,60 @@ pub struct Tier<'a> {
     /// (a road's two legs at a hairpin, a seam's two rows): such a tier's targets are its
     /// shape, not wishes to meet halfway.
     pub pin: bool,
+    /// Samples the tier's faces leave as they are (a terrace's apron is built around the
+    /// regions, not across the riser between two of them).
+    pub skip: Option<&'a [bool]>,
 }
 
-/// `h` with every row and column step within `limits` and each held sample within its
-/// bounds (where the bounds allow both), tier by tier: a later tier wins where two conflict
-/// (a road asked for at a height the mask calls sea keeps its height). The faces from the
-/// held samples are at their tier's slopes, which may be steeper than `limits` (an
-/// embankment a designer asked for on a plain).
-pub fn hold(h: &[f64], cols: usize, rows: usize, limits: &EdgeLimits, tiers: &[Tier]) -> Vec<f64> {
-    let mut upper = h.to_vec();
-    envelope(&mut upper, cols, rows, limits);
-    let mut lower: Vec<f64> = h.iter().map(|v| -v).collect();
-    envelope(&mut lower, cols, rows, limits);
-    let mut out: Vec<f64> = upper.iter().zip(&lower).map(|(u, d)| 0.5 * (u - d)).collect();
+/// `h` with every row and column step within `limits`, within `band` where it is given (each
+/// sample's lowest and highest height), and each held sample within its bounds (where the
+/// bounds allow both), tier by tier: a later tier wins where two conflict (a road asked for at
+/// a height the mask calls sea keeps its height). The faces from the held samples are at
+/// their tier's slopes, which may be steeper than `limits` (an embankment a designer asked for
+/// on a plain).
+pub fn hold(
+    h: &[f64],
+    cols: usize,
+    rows: usize,
+    limits: &EdgeLimits,
+    band: Option<(&[f64], &[f64])>,
+    tiers: &[Tier],
+) -> Vec<f64> {
+    let mut out = lipschitz(h, cols, rows, limits);
+    // The band and the slope limit by turns (the input meets both, so there is a surface that
+    // does): the band's clamp only lowers or raises a sample towards its input, and the next
+    // envelope lays back what that steepened; the last word is the slope limit's.
+    if let Some((lo, hi)) = band {
+        for _ in 0..BAND_ROUNDS {
+            let mut clamped = false;
+            for ((v, &lo), &hi) in out.iter_mut().zip(lo).zip(hi) {
+                let c = v.clamp(lo, hi);
+                clamped |= c != *v;
+                *v = c;
+            }
+            if !clamped {
+                break;
+            }
+            out = lipschitz(&out, cols, rows, limits);
+        }
+    }
     for tier in tiers {
         clamp(&mut out, cols, rows, tier);
     }
     out
+}
+
+/// How many times the band and the slope limit take turns at most.
+const BAND_ROUNDS: usize = 8;
+
+/// The mean of the upper and lower envelopes: spikes come down and pits come up by half their
+/// excess, and a surface within the limits is returned as it is.
+fn lipschitz(h: &[f64], cols: usize, rows: usize, limits: &EdgeLimits) -> Vec<f64> {
+    let mut upper = h.to_vec();
+    envelope(&mut upper, cols, rows, limits);
+    let mut lower: Vec<f64> = h.iter().map(|v| -v).collect();
+    envelope(&mut lower, cols, rows, limits);
+    upper.iter().zip(&lower).map(|(u, d)| 0.5 * (u - d)).collect()
 }
 
 /// Clamp `h` between the cones of the held samples' bounds.
@@ -97,7 +135,10 @@ fn clamp(h: &mut [f64], cols: usize, rows: usize, tier: &Tier) {
     }
     round_envelope(&mut ceiling, cols, rows, tier.cut);
     round_envelope(&mut floor, cols, rows, tier.fill);
-    for ((v, &c), &f) in h.iter_mut().zip(&ceiling).zip(&floor) {
+    for (i, ((v, &c), &f)) in h.iter_mut().zip(&ceiling).zip(&floor).enumerate() {
+        if tier.skip.is_some_and(|skip| skip[i]) {
+            continue;
+        }
         let lowest = -f;
         *v = if lowest <= c { v.clamp(lowest, c) } else { 0.5 * (lowest + c) };
     }
@@ -217,6 +258,25 @@ fn envelope(a: &mut [f64], cols: usize, rows: usize, limits: &EdgeLimits) {
                 }
             }
         }
+        // A tileable terrain's first and last columns (rows) are the same samples.
+        if limits.wrap_x {
+            for r in 0..rows {
+                let (i, j) = (r * cols, r * cols + cols - 1);
+                let m = a[i].min(a[j]);
+                changed |= a[i] != m || a[j] != m;
+                a[i] = m;
+                a[j] = m;
+            }
+        }
+        if limits.wrap_z {
+            for c in 0..cols {
+                let (i, j) = (c, (rows - 1) * cols + c);
+                let m = a[i].min(a[j]);
+                changed |= a[i] != m || a[j] != m;
+                a[i] = m;
+                a[j] = m;
+            }
+        }
         if !changed {
             return;
         }
@@ -270,10 +330,10 @@ mod tests {
     fn hold_uniform(h: &[f64], cols: usize, rows: usize, step: f64, loose: &[Held], firm: &[Held]) -> Vec<f64> {
         let limits = EdgeLimits::new(&vec![0.0; h.len()], cols, rows, step);
         let tiers = [
-            Tier { held: loose, cut: step, fill: step, pin: false },
-            Tier { held: firm, cut: step, fill: step, pin: false },
+            Tier { held: loose, cut: step, fill: step, pin: false, skip: None },
+            Tier { held: firm, cut: step, fill: step, pin: false, skip: None },
         ];
-        hold(h, cols, rows, &limits, &tiers)
+        hold(h, cols, rows, &limits, None, &tiers)
     }
 
     /// The steepest row or column step (the limit's own measure, not the projection's code).
@@ -404,7 +464,8 @@ mod tests {
         let h: Vec<f64> = (0..cols * rows).map(|i| if i / cols < 10 { 12.0 } else { 0.0 }).collect();
         let road: Vec<Held> = (0..cols).map(|c| Held::at(10 * cols + c, 5.0)).collect();
         let limits = EdgeLimits::new(&vec![0.0; h.len()], cols, rows, 3.0);
-        let out = hold(&h, cols, rows, &limits, &[Tier { held: &road, cut: 1.0, fill: 0.5, pin: false }]);
+        let out =
+            hold(&h, cols, rows, &limits, None, &[Tier { held: &road, cut: 1.0, fill: 0.5, pin: false, skip: None }]);
         // By hand: the envelope first lays the 12 m step at the road's row back to 3 m steps
         // on both sides (the mean of U and D), then the road's cones bound it.
         let mut env = vec![0.0; rows];
@@ -441,10 +502,10 @@ mod tests {
         let o: Vec<f64> =
             (0..cols * rows).map(|i| (i % cols) as f64 + if i % cols >= 10 { 6.0 } else { 0.0 }).collect();
         let limits = EdgeLimits::new(&o, cols, rows, 1.5);
-        assert_eq!(hold(&o, cols, rows, &limits, &[]), o);
+        assert_eq!(hold(&o, cols, rows, &limits, None, &[]), o);
         let mut h = o.clone();
         h[2 * cols + 4] += 5.0;
-        let out = hold(&h, cols, rows, &limits, &[]);
+        let out = hold(&h, cols, rows, &limits, None, &[]);
         for r in 0..rows {
             for c in 0..cols - 1 {
                 let i = r * cols + c;
@@ -469,10 +530,10 @@ mod tests {
         let point = [Held::at(10 * cols + 7, 40.0).of(1)];
         let limits = EdgeLimits::new(&vec![0.0; cols * rows], cols, rows, 1.0);
         let tiers = [
-            Tier { held: &point, cut: 1.0, fill: 1.0, pin: false },
-            Tier { held: &road, cut: 1.0, fill: 1.0, pin: true },
+            Tier { held: &point, cut: 1.0, fill: 1.0, pin: false, skip: None },
+            Tier { held: &road, cut: 1.0, fill: 1.0, pin: true, skip: None },
         ];
-        let out = hold(&vec![0.0; cols * rows], cols, rows, &limits, &tiers);
+        let out = hold(&vec![0.0; cols * rows], cols, rows, &limits, None, &tiers);
         assert!(road.iter().all(|b| out[b.sample] == 0.0));
         assert!((out[10 * cols + 7] - 6.0).abs() < 1e-12, "{}", out[10 * cols + 7]);
         let found = conflicts(&out, cols, &tiers, 1e-6);
@@ -480,5 +541,48 @@ mod tests {
         let c = found[0];
         assert_eq!((c.source, c.sample, c.by, c.by_sample), (1, 10 * cols + 7, 0, 4 * cols + 7));
         assert!((c.missed_m + 34.0).abs() < 1e-12, "{}", c.missed_m);
+    }
+
+    #[test]
+    fn free_samples_keep_to_their_band_and_the_slope_limit_has_the_last_word() {
+        // A plane at 0 m with a 10 m block on columns 8–11 of a 20 × 3 grid; every sample may
+        // move 2 m from its input (the band), steps up to 1.5 m. By hand: the block comes down
+        // to the band's 2 m, and the steps at its sides are then within the limit.
+        let (cols, rows) = (20, 3);
+        let o = vec![0.0; cols * rows];
+        let h: Vec<f64> = (0..cols * rows).map(|i| if (8..12).contains(&(i % cols)) { 10.0 } else { 0.0 }).collect();
+        let (lo, hi): (Vec<f64>, Vec<f64>) = o.iter().map(|v| (v - 2.0, v + 2.0)).unzip();
+        let limits = EdgeLimits::new(&o, cols, rows, 1.5);
+        let out = hold(&h, cols, rows, &limits, Some((&lo, &hi)), &[]);
+        for r in 0..rows {
+            for c in 0..cols {
+                let i = r * cols + c;
+                assert!((-2.0..=2.0).contains(&out[i]), "({c}, {r}): {}", out[i]);
+                if c + 1 < cols {
+                    assert!((out[i + 1] - out[i]).abs() <= 1.5 + 1e-12, "({c}, {r})");
+                }
+            }
+            assert_eq!(out[r * cols + 9], 2.0);
+        }
+    }
+
+    #[test]
+    fn a_tileable_terrains_wrap_is_one_sample_for_the_slope_limit() {
+        // One row of 10, a plateau at 5 m over samples 0, 1 and 9 (9 is 0 across the wrap),
+        // 0 m elsewhere; 1 m steps. Unwrapped, sample 0 comes to (2 + 5) / 2 = 3.5 m and sample
+        // 9 to (1 + 5) / 2 = 3 m: the two ends of the tile differ. Wrapped, they are one sample,
+        // U = min(2, 1) = 1, D = 5: both 3 m, and the steps across the wrap within the limit.
+        let cols = 10;
+        let mut h = vec![0.0; cols];
+        for i in [0, 1, 9] {
+            h[i] = 5.0;
+        }
+        let mut limits = EdgeLimits::new(&vec![0.0; cols], cols, 1, 1.0);
+        let apart = hold(&h, cols, 1, &limits, None, &[]);
+        assert_eq!((apart[0], apart[9]), (3.5, 3.0));
+        limits.wrap_x = true;
+        let out = hold(&h, cols, 1, &limits, None, &[]);
+        assert_eq!((out[0], out[9]), (3.0, 3.0));
+        assert!((out[8] - out[9]).abs() <= 1.0 && (out[1] - out[0]).abs() <= 1.0, "{out:?}");
     }
 }

@@ -622,12 +622,12 @@ fn the_seam_filter_averages_the_two_samples_next_to_the_seam_and_nothing_else() 
 
 #[test]
 fn a_search_that_stalls_stops_and_the_projection_finishes_the_road() {
-    // With the limits on, F keeps a floor of penalties that deformations barely lower: run to
-    // `max_iterations` the search spends most of its time there. Stopped when F falls by less
-    // than 1 % in 50 iterations (the defaults), it ends far sooner with nearly the same F, and
+    // Run to `max_iterations` the search spends most of its time gaining little. Stopped when
+    // F falls by less than 10 % in 50 iterations, it ends far sooner with nearly the same F, and
     // the projection still sets the road on its target.
     let mut body = s_road_request();
     body["max_iterations"] = json!(1000);
+    body["stall_gain"] = json!(0.1);
     let stalled = run_with(&params(body.clone()), 1);
     body["stall_iterations"] = json!(0);
     let full = run_with(&params(body), 1);
@@ -635,8 +635,9 @@ fn a_search_that_stalls_stops_and_the_projection_finishes_the_road() {
     assert_eq!(full.result["stopped"], "max_iterations", "{}", full.result);
     let (n_stalled, n_full) =
         (stalled.result["iterations"].as_u64().unwrap(), full.result["iterations"].as_u64().unwrap());
-    assert!(n_stalled * 2 < n_full, "{n_stalled} iterations stalled, {n_full} in full");
     let (f_stalled, f_full) = (stalled.result["fitness"].as_f64().unwrap(), full.result["fitness"].as_f64().unwrap());
+    eprintln!("F {f_stalled} stalled after {n_stalled}, {f_full} in full after {n_full}");
+    assert!(n_stalled * 2 < n_full, "{n_stalled} iterations stalled, {n_full} in full");
     assert!(f_stalled <= 1.05 * f_full, "F {f_stalled} stalled, {f_full} in full");
     for out in [&stalled, &full] {
         assert_eq!(figure(out, "road", "max_error_of_relief"), 0.0);

@@ -1446,7 +1446,7 @@ export interface components {
             terraces: components["schemas"]["DeformTerraces"];
         };
         /**
-         * @description The faces the projection builds from the held targets (roads, terraces, points, seams)
+         * @description The faces the projection builds from the held targets (roads, points, terraces' regions)
          *     to the ground: a cutting where the ground stood above its target, an embankment where it
          *     lay below, each at its slope until it daylights, the ground beyond as the search left it.
          *     Road practice (AASHTO, FHWA): cuts at 1V:1.5H to 2H, fills at 1V:2H to 3H; loose material
@@ -1742,9 +1742,8 @@ export interface components {
              * Format: int32
              * @description Stop when F has fallen by less than `stall_gain` of itself over the last
              *     `stall_iterations` iterations: the search has stalled, and the projection finishes the
-             *     constraints (`stopped`: `stalled`). With the limits on, F keeps a floor of penalties
-             *     that further deformations barely lower, and a search that ran to `max_iterations`
-             *     spent most of its time there. 0: never.
+             *     constraints (`stopped`: `stalled`): a search that ran to `max_iterations` spent most of
+             *     its time gaining little. 0: never.
              * @default 50
              */
             stall_iterations?: number;
@@ -1857,25 +1856,26 @@ export interface components {
              *     paper's "the original terrain be preserved as much as possible", §3.1): the mean
              *     square of their changes in units of relief², weighted against the constraints. It is
              *     not part of the fitness the search stops on (`epsilon`) or reports per constraint.
-             *     0: none, the constraints alone decide, within the limits below.
+             *     Samples in a constraint's footprint (see `max_free_change`) other than its targets are
+             *     pulled a tenth as hard, so kernels do not pile up there. 0: none, the constraints alone
+             *     decide, within the limits below.
              * @default 1
              */
             keep_weight?: number;
             /**
              * Format: double
              * @description How far a sample outside every constraint's footprint may move, as a share of the
-             *     input's relief: a penalty the search weighs, not a cap (the result's `limits` says how
-             *     many samples kept within a tenth; a seam band narrower than its mismatch needs at the
-             *     slope limit runs on past its footprint). A constraint's footprint is what it needs to move (a road's cells, a
-             *     mask's samples on the wrong side, a point, a region, a seam band), the earthwork around
-             *     it (faces at 0.8 × the slope limit from its targets down or up to the input ground, as
-             *     a road's cutting daylights), and room beyond for transitions half as steep. Past a seam
-             *     band, also at most the band's own largest wanted change. The search weighs the limits
-             *     as penalties a thousand times heavier than any constraint's error (a deformation may
-             *     cross them on the way, so a cutting is not stalled behind its own shoulder); the result
-             *     reports how it kept them (`limits`). 1 with `max_slope_ratio` 100: no limits (the
-             *     paper's search alone, about three times faster, with nothing to stop free terrain
-             *     drifting or steps growing many times steeper than the input's).
+             *     input's relief: held after the search, with the slope limit (which has the last word;
+             *     the result's `limits` says how many samples kept within a tenth). A constraint's
+             *     footprint is what it needs to move (a road's cells, a mask's samples on the wrong side,
+             *     a point, a region, a seam band), the earthwork around it (faces at the `earthworks`
+             *     slopes from a target, at 0.8 × the slope limit from a mask or a seam, down or up to the
+             *     input ground, as a road's cutting daylights), and room beyond for transitions half as
+             *     steep. Past a seam band, also at most the band's own largest wanted change. The search
+             *     itself only pulls samples back to their input (`keep_weight`, a tenth as hard inside
+             *     a footprint), so it keeps to its fast path. 1 with `max_slope_ratio` 100: no limits
+             *     (the paper's search alone, with nothing to stop free terrain drifting or steps growing
+             *     many times steeper than the input's).
              * @default 0.1
              */
             max_free_change?: number;
@@ -1883,16 +1883,17 @@ export interface components {
              * Format: double
              * @description The steepest step between row or column neighbours the result may have, as a multiple
              *     of the input's steps' `slope_percentile` (on a flat input, 5 %); where the input's own
-             *     step is steeper, that step. The search penalises steps from 90 % of it; then, after the
-             *     search, every step is held within it exactly, every road cell, point, terrace sample
-             *     and seam edge is set on its target and a mask's land and sea on their sides of the
-             *     water, the samples beside them moved as little as that takes: a cutting or an
-             *     embankment at the `earthworks` slopes from a target, a shore at the limit from a mask.
-             *     Where two targets cannot both be met (a point high above a road beside it), the one of
-             *     higher priority holds — a seam over a road over a terrace over a point over a mask's
-             *     side — and the result names the other in `conflicts`. 1: never steeper than the input's
-             *     percentile; raise it for sharp terraces, cliffs or a seam band narrower than its
-             *     mismatch needs. 100 with `max_free_change` 1: no limits.
+             *     step is steeper, that step (and no limit inside a `tileable` wrap band, whose fit keeps
+             *     the tile C¹). After the search, every step is held within it exactly, every road cell,
+             *     point, terrace sample and seam edge is set on its target and a mask's land and sea on
+             *     their sides of the water, the samples beside them moved as little as that takes: a
+             *     cutting or an embankment at the `earthworks` slopes from a road or a point, an apron
+             *     at those slopes around a terrace's regions (at the limit between two of them), a shore
+             *     at the limit from a mask. Where two targets cannot both be met (a point high above a
+             *     road beside it), the one of higher priority holds — a seam over a road over a terrace
+             *     over a point over a mask's side — and the result names the other in `conflicts`. 1:
+             *     never steeper than the input's percentile; raise it for sharp terraces, cliffs or a
+             *     seam band narrower than its mismatch needs. 100 with `max_free_change` 1: no limits.
              * @default 1.1
              */
             max_slope_ratio?: number;
@@ -1951,9 +1952,8 @@ export interface components {
              * Format: int32
              * @description Stop when F has fallen by less than `stall_gain` of itself over the last
              *     `stall_iterations` iterations: the search has stalled, and the projection finishes the
-             *     constraints (`stopped`: `stalled`). With the limits on, F keeps a floor of penalties
-             *     that further deformations barely lower, and a search that ran to `max_iterations`
-             *     spent most of its time there. 0: never.
+             *     constraints (`stopped`: `stalled`): a search that ran to `max_iterations` spent most of
+             *     its time gaining little. 0: never.
              * @default 50
              */
             stall_iterations?: number;
@@ -2066,25 +2066,26 @@ export interface components {
              *     paper's "the original terrain be preserved as much as possible", §3.1): the mean
              *     square of their changes in units of relief², weighted against the constraints. It is
              *     not part of the fitness the search stops on (`epsilon`) or reports per constraint.
-             *     0: none, the constraints alone decide, within the limits below.
+             *     Samples in a constraint's footprint (see `max_free_change`) other than its targets are
+             *     pulled a tenth as hard, so kernels do not pile up there. 0: none, the constraints alone
+             *     decide, within the limits below.
              * @default 1
              */
             keep_weight?: number;
             /**
              * Format: double
              * @description How far a sample outside every constraint's footprint may move, as a share of the
-             *     input's relief: a penalty the search weighs, not a cap (the result's `limits` says how
-             *     many samples kept within a tenth; a seam band narrower than its mismatch needs at the
-             *     slope limit runs on past its footprint). A constraint's footprint is what it needs to move (a road's cells, a
-             *     mask's samples on the wrong side, a point, a region, a seam band), the earthwork around
-             *     it (faces at 0.8 × the slope limit from its targets down or up to the input ground, as
-             *     a road's cutting daylights), and room beyond for transitions half as steep. Past a seam
-             *     band, also at most the band's own largest wanted change. The search weighs the limits
-             *     as penalties a thousand times heavier than any constraint's error (a deformation may
-             *     cross them on the way, so a cutting is not stalled behind its own shoulder); the result
-             *     reports how it kept them (`limits`). 1 with `max_slope_ratio` 100: no limits (the
-             *     paper's search alone, about three times faster, with nothing to stop free terrain
-             *     drifting or steps growing many times steeper than the input's).
+             *     input's relief: held after the search, with the slope limit (which has the last word;
+             *     the result's `limits` says how many samples kept within a tenth). A constraint's
+             *     footprint is what it needs to move (a road's cells, a mask's samples on the wrong side,
+             *     a point, a region, a seam band), the earthwork around it (faces at the `earthworks`
+             *     slopes from a target, at 0.8 × the slope limit from a mask or a seam, down or up to the
+             *     input ground, as a road's cutting daylights), and room beyond for transitions half as
+             *     steep. Past a seam band, also at most the band's own largest wanted change. The search
+             *     itself only pulls samples back to their input (`keep_weight`, a tenth as hard inside
+             *     a footprint), so it keeps to its fast path. 1 with `max_slope_ratio` 100: no limits
+             *     (the paper's search alone, with nothing to stop free terrain drifting or steps growing
+             *     many times steeper than the input's).
              * @default 0.1
              */
             max_free_change?: number;
@@ -2092,16 +2093,17 @@ export interface components {
              * Format: double
              * @description The steepest step between row or column neighbours the result may have, as a multiple
              *     of the input's steps' `slope_percentile` (on a flat input, 5 %); where the input's own
-             *     step is steeper, that step. The search penalises steps from 90 % of it; then, after the
-             *     search, every step is held within it exactly, every road cell, point, terrace sample
-             *     and seam edge is set on its target and a mask's land and sea on their sides of the
-             *     water, the samples beside them moved as little as that takes: a cutting or an
-             *     embankment at the `earthworks` slopes from a target, a shore at the limit from a mask.
-             *     Where two targets cannot both be met (a point high above a road beside it), the one of
-             *     higher priority holds — a seam over a road over a terrace over a point over a mask's
-             *     side — and the result names the other in `conflicts`. 1: never steeper than the input's
-             *     percentile; raise it for sharp terraces, cliffs or a seam band narrower than its
-             *     mismatch needs. 100 with `max_free_change` 1: no limits.
+             *     step is steeper, that step (and no limit inside a `tileable` wrap band, whose fit keeps
+             *     the tile C¹). After the search, every step is held within it exactly, every road cell,
+             *     point, terrace sample and seam edge is set on its target and a mask's land and sea on
+             *     their sides of the water, the samples beside them moved as little as that takes: a
+             *     cutting or an embankment at the `earthworks` slopes from a road or a point, an apron
+             *     at those slopes around a terrace's regions (at the limit between two of them), a shore
+             *     at the limit from a mask. Where two targets cannot both be met (a point high above a
+             *     road beside it), the one of higher priority holds — a seam over a road over a terrace
+             *     over a point over a mask's side — and the result names the other in `conflicts`. 1:
+             *     never steeper than the input's percentile; raise it for sharp terraces, cliffs or a
+             *     seam band narrower than its mismatch needs. 100 with `max_free_change` 1: no limits.
              * @default 1.1
              */
             max_slope_ratio?: number;

@@ -1,6 +1,7 @@
 //! Penalties of the form w·max(0, g + c·d)², summed over a deformation's window for every
-//! sampled displacement d at once: the shape mask's one-sided margin, and the limits the search
-//! weighs (a sample beyond its band of heights, a step steeper than the slope limit).
+//! sampled displacement d at once: the shape mask's one-sided margin. (The limits were weighed
+//! here too, as penalties on every sample and step of a window; the projection now holds them
+//! after the search, which keeps the search on its fast path: [`super::super::projection`].)
 //!
 //! Each term is a quadratic in d on one side of its breakpoint −g/c and zero on the other. The
 //! sampled displacements are sorted, so a term adds its quadratic's coefficients to one run of
@@ -8,50 +9,6 @@
 //! end and summed once, instead of evaluating every displacement at every sample.
 
 use super::MAX_DELTAS;
-
-/// The limits as penalties: a sample outside [`lo`, `hi`], or a step between row or column
-/// neighbours steeper than its `step_right` or `step_down` metres, costs its squared excess times `band_scale` or
-/// `step_scale`. The search weighs them; no constraint reports them.
-///
-/// They are penalties and not bounds on each deformation: a kernel whose flank crosses a step
-/// already at the limit could then never move the way it steepens, though a second deformation
-/// on the shoulder would make room. Held as bounds, a road's cutting stalled at a quarter of its
-/// depth and more iterations did not help; as penalties the search lowers the road, and the
-/// shoulder's excess then pays for the deformation that lays it back.
-#[derive(Clone, Debug)]
-pub struct SoftLimits {
-    pub lo: Vec<f64>,
-    pub hi: Vec<f64>,
-    pub band_scale: f64,
-    /// Per sample, the largest step to its right and to the row below before a penalty.
-    pub step_right: Vec<f64>,
-    pub step_down: Vec<f64>,
-    pub step_scale: f64,
-}
-
-impl SoftLimits {
-    /// The penalties of every sample and of each step to its right and lower neighbour, from the
-    /// heights alone (what [`Hinges`] sums incrementally; the tests' independent reckoning).
-    #[cfg(test)]
-    pub fn value(&self, h: &[f64], cols: usize) -> f64 {
-        let rows = h.len() / cols;
-        let mut sum = 0.0;
-        for r in 0..rows {
-            for c in 0..cols {
-                let i = r * cols + c;
-                let out = (h[i] - self.hi[i]).max(self.lo[i] - h[i]).max(0.0);
-                sum += self.band_scale * out * out;
-                let right = (c + 1 < cols).then(|| (i + 1, self.step_right[i]));
-                let down = (r + 1 < rows).then(|| (i + cols, self.step_down[i]));
-                for (j, max) in right.into_iter().chain(down) {
-                    let steep = ((h[i] - h[j]).abs() - max).max(0.0);
-                    sum += self.step_scale * steep * steep;
-                }
-            }
-        }
-        sum
-    }
-}
 
 /// The runs of one window's terms over the sorted displacements `sampled`, and their sums
 /// before any displacement and at `optimum` (a displacement outside the order).

@@ -12,7 +12,6 @@ mod hinges;
 
 use super::projection::Held;
 use hinges::Hinges;
-pub use hinges::SoftLimits;
 
 pub use edge_match::seam_filter;
 mod match_heightmap;
@@ -355,8 +354,6 @@ pub struct Fitness {
     m: Vec<f64>,
     one_sided: Option<OneSided>,
     pairs: Option<Pairs>,
-    /// The limits, weighed as penalties ([`SoftLimits`]); none unless asked for.
-    limits: Option<SoftLimits>,
 }
 
 /// The closed-form displacement is over-relaxed, as in successive over-relaxation: the
@@ -391,7 +388,7 @@ impl Fitness {
             }
         }
         let m = (0..n).map(|i| if q[i] > 0.0 { qt[i] / q[i] } else { 0.0 }).collect();
-        Self { cols, rows, q, m, one_sided, pairs, limits: None }
+        Self { cols, rows, q, m, one_sided, pairs }
     }
 
     /// Add a quadratic term the search weighs but no constraint reports (the request's
@@ -406,21 +403,6 @@ impl Fitness {
             }
         }
         self
-    }
-
-    /// Weigh the limits too.
-    pub fn with_limits(mut self, limits: SoftLimits) -> Self {
-        self.limits = Some(limits);
-        self
-    }
-
-    /// The largest weight per metre² any one sample's penalty has (quadratic, the mask's, the
-    /// pairs'): what the limits' penalties are scaled against.
-    pub fn heaviest(&self) -> f64 {
-        let q = self.q.iter().fold(0.0f64, |m, &q| m.max(q));
-        let mask = self.one_sided.as_ref().map_or(0.0, |o| o.scale);
-        let pairs = self.pairs.as_ref().map_or(0.0, |p| p.scale.max(p.kink_scale));
-        q.max(mask).max(pairs)
     }
 
     /// The weighted residual `q (h − m)` of every cell: the quadratic part's slope, which
@@ -451,7 +433,7 @@ impl Fitness {
     /// can be brought up to date from the residual's changes ([`Fitness::lattice_sum`]) and
     /// turned into the best change by [`Fitness::change_from_sums`].
     pub fn residual_only(&self) -> bool {
-        self.one_sided.is_none() && self.pairs.is_none() && self.limits.is_none()
+        self.one_sided.is_none() && self.pairs.is_none()
     }
 
     /// The lattice step [`Fitness::best_change`] sums a window on: `stride`, or every cell of a
@@ -632,40 +614,21 @@ impl Fitness {
         let n = sampled.len();
         debug_assert!(sampled.windows(2).all(|w| w[0] <= w[1]), "displacements are sampled in order");
         let optimum = closed_form(a, b, d_max, with_optimum).and_then(|d| clamp_into(d, range));
-        if self.one_sided.is_none() && self.limits.is_none() {
+        let Some(m) = &self.one_sided else {
             return quadratic_best(a, b, sampled, optimum);
-        }
+        };
         let mut hinges = Hinges::new(sampled, optimum);
-        let at = |c: usize, r: usize| kernel.at(c as i64 - col as i64, r as i64 - row as i64);
         let mut dz = dz0;
         while dz <= dz1 {
             let (krow, i0, i1) = row_slices(dz);
-            let r = (row as i64 + dz) as usize;
             for (t, &k) in krow.iter().enumerate().step_by(stride) {
                 let i = i0 + t;
                 debug_assert!(i <= i1);
-                if let Some(m) = &self.one_sided {
-                    // Land wants h ≥ lo: max(0, (lo − h) − k·d)²; sea h ≤ hi: max(0, (h − hi) + k·d)².
-                    match m.side[i] {
-                        1 if k > 0.0 => hinges.add(m.scale, m.lo - h[i], -k),
-                        -1 if k > 0.0 => hinges.add(m.scale, h[i] - m.hi, k),
-                        _ => {}
-                    }
-                }
-                if let Some(l) = &self.limits {
-                    if k > 0.0 {
-                        hinges.add(l.band_scale, h[i] - l.hi[i], k);
-                        hinges.add(l.band_scale, l.lo[i] - h[i], -k);
-                    }
-                    // The steps to the right and lower neighbours: |Δ + e·d| ≤ their limit.
-                    let c = i % cols;
-                    let right = (c + 1 < cols).then(|| (i + 1, at(c + 1, r), l.step_right[i]));
-                    let down = (r + 1 < self.rows).then(|| (i + cols, at(c, r + 1), l.step_down[i]));
-                    for (j, kj, max) in right.into_iter().chain(down) {
-                        let (e, step) = (k - kj, h[i] - h[j]);
-                        hinges.add(l.step_scale, step - max, e);
-                        hinges.add(l.step_scale, -step - max, -e);
-                    }
+                // Land wants h ≥ lo: max(0, (lo − h) − k·d)²; sea h ≤ hi: max(0, (h − hi) + k·d)².
+                match m.side[i] {
+                    1 if k > 0.0 => hinges.add(m.scale, m.lo - h[i], -k),
+                    -1 if k > 0.0 => hinges.add(m.scale, h[i] - m.hi, k),
+                    _ => {}
                 }
             }
             dz += s;
@@ -891,16 +854,18 @@ pub const PRIORITIES: usize = 5;
 
 impl Priority {
     /// Whether the tier's faces are earthworks (at the cut and fill slopes) rather than a coast
-    /// or a seam's transition (at the slope limit).
+    /// or a seam's transition (at the slope limit). A terrace's are both: at the slope limit
+    /// between its regions, then an apron at the earthworks' slopes around them.
     pub fn earthwork(self) -> bool {
-        matches!(self, Priority::Point | Priority::Terrace | Priority::Road)
+        matches!(self, Priority::Point | Priority::Road)
     }
 
     /// Whether its samples take their targets even where its own faces cross (a road's legs
-    /// at a hairpin, a terrace's riser to the next level, a seam's two rows on a slope steeper
-    /// than the limit): the target is the shape asked for, not a wish to meet halfway.
+    /// at a hairpin, a seam's two rows on a slope steeper than the limit): the target is the
+    /// shape asked for, not a wish to meet halfway. Abutting terraces far apart in level meet
+    /// halfway at the slope limit instead (a one-cell riser's corners stood as spikes).
     pub fn pinned(self) -> bool {
-        matches!(self, Priority::Terrace | Priority::Road | Priority::Seam)
+        matches!(self, Priority::Road | Priority::Seam)
     }
 
     pub const ALL: [Priority; PRIORITIES] =
