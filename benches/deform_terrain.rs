@@ -5,8 +5,9 @@
 //!
 //! First, every example with the limits at their defaults and off (`max_free_change` 1,
 //! `max_slope_ratio` 100, `keep_weight` 0), interleaved three times, the median of each and
-//! their ratio (issue 50: the defaults ≤ 1.5 × the limits off). `-- nothing-matches` prints
-//! only these and the figures.
+//! their ratio (issue 50: the defaults ≤ 1.5 × the limits off, the bay mask ≤ 2 ×), then a bay
+//! cut into a fractal island's coast the same way. `-- nothing-matches` prints only these and
+//! the figures.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use serde_json::Value;
@@ -14,6 +15,8 @@ use serde_json::Value;
 use landform::jobs::Simulation;
 use landform::sims::deform_terrain::{DeformTerrain, DeformTerrainParams};
 
+#[path = "../tests/deform_support/bay.rs"]
+mod bay;
 #[path = "support/mod.rs"]
 mod support;
 
@@ -68,9 +71,16 @@ fn report(label: &str, p: &DeformTerrainParams, seed: u64) {
     );
 }
 
+/// Issue 50's bay, at 257².
+fn bay() -> (DeformTerrainParams, u64) {
+    let mut body = bay::bay_body(257);
+    body.as_object_mut().expect("object").remove("seed");
+    (serde_json::from_value(body).expect("parses"), 5)
+}
+
 /// The median wall time of three runs of each, interleaved so that a busy moment hits both.
 fn limits_on_and_off(name: &str) {
-    let (on, seed) = example(name);
+    let (on, seed) = if name == "bay" { bay() } else { example(name) };
     let mut off = on.clone();
     off.max_free_change = 1.0;
     off.max_slope_ratio = 100.0;
@@ -92,7 +102,7 @@ fn limits_on_and_off(name: &str) {
 }
 
 fn bench(c: &mut Criterion) {
-    for name in EXAMPLES {
+    for name in EXAMPLES.iter().chain(&["bay"]) {
         limits_on_and_off(name);
     }
     let mut group = c.benchmark_group("deform_terrain_257");

@@ -12,6 +12,8 @@ use landform::sims::deform_terrain::{DeformTerrain, DeformTerrainParams};
 use landform::terrain::resolve;
 use landform::validate::Limits;
 
+#[path = "../tests/deform_support/bay.rs"]
+mod bay;
 #[path = "../tests/deform_support/measures.rs"]
 mod measures;
 #[path = "../benches/support/mod.rs"]
@@ -136,8 +138,8 @@ fn earthwork_figures() {
 }
 
 fn pits() {
-    for name in ["star-island.json", "star-island-roads.json"] {
-        let body = example(name);
+    for name in ["star-island.json", "star-island-roads.json", "bay"] {
+        let body = if name == "bay" { bay::bay_body(257) } else { example(name) };
         let r = run(body);
         let (a, b) = r.grids();
         let level = r.result["constraints"]

@@ -101,7 +101,6 @@ pub struct EdgeLimits {
     /// wrap as everywhere else.
     pub wrap_x: bool,
     pub wrap_z: bool,
-    rows: usize,
 }
 
 impl EdgeLimits {
@@ -119,31 +118,7 @@ impl EdgeLimits {
                 }
             }
         }
-        Self { right, down, wrap_x: false, wrap_z: false, rows }
-    }
-
-    /// No limit on the steps within `band` samples of the first and last columns (`x`) and
-    /// rows (`z`).
-    pub fn free_bands(&mut self, band: usize, x: bool, z: bool) {
-        let cols = self.right.len() / self.rows();
-        let rows = self.rows();
-        let near = |v: usize, n: usize| v < band || v + band >= n;
-        for r in 0..rows {
-            for c in 0..cols {
-                let i = r * cols + c;
-                let (in_x, in_z) = (x && near(c, cols), z && near(r, rows));
-                if (in_x && (c + 1 >= cols || near(c + 1, cols))) || in_z {
-                    self.right[i] = f64::INFINITY;
-                }
-                if in_x || (in_z && (r + 1 >= rows || near(r + 1, rows))) {
-                    self.down[i] = f64::INFINITY;
-                }
-            }
-        }
-    }
-
-    fn rows(&self) -> usize {
-        self.rows
+        Self { right, down, wrap_x: false, wrap_z: false }
     }
 }
 

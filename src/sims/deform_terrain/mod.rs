@@ -107,7 +107,17 @@ impl Simulation for DeformTerrain {
         // after the search ([`bounds`]), so the search stays on its fast path.
         if params.keep_weight > 0.0 {
             let bounds = bounds::Bounds::new(&fields, &grid, params.max_free_change);
+            // Not pulled: the targets, and a tile's wrap band (pulled, the tileable example's
+            // p99 bend came out up to 3.4 × the input's: kernels small enough to slip between
+            // the pull and the wrap's fit).
             let mut targets = vec![false; grid.cells()];
+            if let Some(band) = tile_band(params) {
+                let near = |v: usize, n: usize| v < band || v + band >= n;
+                for (i, t) in targets.iter_mut().enumerate() {
+                    let (c, r) = (i % grid.cols, i / grid.cols);
+                    *t = (settings.tile_x && near(c, grid.cols)) || (settings.tile_z && near(r, grid.rows));
+                }
+            }
             for tier in &constraints::held(&fields)[constraints::Priority::Point as usize..] {
                 for b in tier {
                     targets[b.sample] = true;
@@ -463,10 +473,7 @@ fn finish(
     let searched = h;
     let (held, conflicts) = match problem.params.limited() {
         true => {
-            let band = problem.params.constraints.iter().find_map(|c| match c {
-                Constraint::Tileable(t) => Some(t.band_cells as usize),
-                _ => None,
-            });
+            let band = tile_band(problem.params);
             let (held, conflicts) = hold_limits(fields, &grid, settings, problem.params.max_free_change, band, h);
             (Some(held), conflicts)
         }
@@ -617,12 +624,6 @@ fn hold_limits(
     let step_max = (grid.slope_limit * grid.cell_m - margin).max(0.0);
     let mut limits = bounds::EdgeLimits::new(grid.original, cols, rows, step_max);
     (limits.wrap_x, limits.wrap_z) = (settings.tile_x, settings.tile_z);
-    if let Some(band) = tile_band {
-        // A tile's wrap band is the transition that continues the far edge in height and in
-        // slope (C¹): the search's fit holds there, not the slope limit, whose clipping bent
-        // the wrap past the terrain's own 99th-percentile bend.
-        limits.free_bands(band, settings.tile_x, settings.tile_z);
-    }
     let bounds = bounds::Bounds::new(fields, grid, max_free_change);
     let held = constraints::held(fields);
     let face = |slope: f64| (slope * grid.cell_m - margin).max(0.0);
@@ -668,7 +669,48 @@ fn hold_limits(
             pair(c, (rows - 1) * cols + c);
         }
     }
+    if let Some(band) = tile_band {
+        let reach = band.clamp(2, cols.min(rows) / 4);
+        if settings.tile_x {
+            for r in 0..rows {
+                smooth_wrap(&mut out, r * cols, 1, cols, reach);
+            }
+        }
+        if settings.tile_z {
+            for c in 0..cols {
+                smooth_wrap(&mut out, c, cols, rows, reach);
+            }
+        }
+    }
     (out, conflicts)
+}
+
+/// A `tileable` constraint's wrap band, in samples.
+fn tile_band(params: &DeformTerrainParams) -> Option<usize> {
+    params.constraints.iter().find_map(|c| match c {
+        Constraint::Tileable(t) => Some(t.band_cells as usize),
+        _ => None,
+    })
+}
+
+/// Make a line of `n` samples (from `start`, `stride` apart), whose ends are one sample on a
+/// tile, C¹ across its wrap: the slope mismatch k between its first and last steps is shared
+/// out, each end's step moved by k/2 towards the other's and the change faded out over `reach`
+/// samples by d(j) = j (1 − (j − 1)/(reach − 1))² (d(1) = 1, d(reach) = 0, flat there), so
+/// its bends are about 2k/reach. The slope limit's clipping near the wrap bent it by up to
+/// 1.1 × the terrain's own 99th-percentile bend; this may steepen a step there by k/2.
+fn smooth_wrap(h: &mut [f64], start: usize, stride: usize, n: usize, reach: usize) {
+    let at = |j: usize| start + j * stride;
+    let k = (h[at(1)] - h[at(0)]) - (h[at(n - 1)] - h[at(n - 2)]);
+    let fade = |j: usize| {
+        let t = 1.0 - (j as f64 - 1.0) / (reach as f64 - 1.0);
+        j as f64 * t * t
+    };
+    for j in 1..reach {
+        // The first step falls by k/2, the last rises by k/2.
+        h[at(j)] -= 0.5 * k * fade(j);
+        h[at(n - 1 - j)] -= 0.5 * k * fade(j);
+    }
 }
 
 /// A held target missed by less than this is met (a centimetre).
