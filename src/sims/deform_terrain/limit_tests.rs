@@ -60,29 +60,10 @@ fn steepest(h: &[f64], n: usize) -> f64 {
     m
 }
 
-/// Distance from (x, z) to a polyline, metres.
-fn to_path(path: &[(f64, f64)], x: f64, z: f64) -> f64 {
-    path.windows(2)
-        .map(|w| {
-            let ((x0, z0), (x1, z1)) = (w[0], w[1]);
-            let (dx, dz) = (x1 - x0, z1 - z0);
-            let t = (((x - x0) * dx + (z - z0) * dz) / (dx * dx + dz * dz)).clamp(0.0, 1.0);
-            (x - x0 - t * dx).hypot(z - z0 - t * dz)
-        })
-        .fold(f64::INFINITY, f64::min)
-}
-
-/// Even-odd point in polygon.
-fn inside(poly: &[(f64, f64)], x: f64, z: f64) -> bool {
-    let mut inside = false;
-    for k in 0..poly.len() {
-        let (a, b) = (poly[k], poly[(k + 1) % poly.len()]);
-        if (a.1 > z) != (b.1 > z) && x < a.0 + (z - a.1) / (b.1 - a.1) * (b.0 - a.0) {
-            inside = !inside;
-        }
-    }
-    inside
-}
+// The integration tests' own geometry (distance to a polyline, even-odd inside), shared.
+#[path = "../../../tests/deform_support/measures.rs"]
+mod measures;
+use measures::{inside, to_path};
 
 #[test]
 fn free_terrain_stays_near_its_input_and_nothing_grows_steeper_than_the_input() {
