@@ -16,9 +16,11 @@ const EVALUATIONS_PER_SECOND: f64 = 2e9;
 /// disjoint, so at most one value a cell), the interest and candidate marks, and transients
 /// while fields are built.
 const GRID_BYTES_PER_CELL: u64 = 76;
-/// Bytes per cell the limits add when on: each sample's band (two f64), the footprint and
-/// asked marks, the earthwork cones while they are built (four f64), and the final
-/// projection's envelopes (four f64).
+/// Bytes per cell the limits add when on, all of it between the search (whose table is freed
+/// by then) and the exports (which start once it is freed again), so the peak holds the
+/// largest of the three: each sample's band (two f64), the footprint and asked marks, the
+/// earthwork cones while they are built (four f64), and the projection's envelopes (four
+/// f64).
 const LIMIT_BYTES_PER_CELL: u64 = 82;
 /// Bytes per cell a constraint's field keeps (weights, targets, interest), and the largest
 /// transient while one is built.
@@ -89,10 +91,11 @@ pub fn estimate(params: &DeformTerrainParams, terrain: &dyn TerrainLookup) -> Re
     let per_operation = OPERATION_BYTES + OPERATION_BYTES_PER_CONSTRAINT * k;
 
     let limited = params.limited();
-    let grid = (GRID_BYTES_PER_CELL + if limited { LIMIT_BYTES_PER_CELL } else { 0 }) * cells;
+    let grid = GRID_BYTES_PER_CELL * cells;
     let fields = field_cells * cells + BUILD_BYTES_PER_CELL * cells;
+    let limit_bytes = if limited { LIMIT_BYTES_PER_CELL * cells } else { 0 };
     let search_bytes = TABLE_ENTRY_BYTES * entries + 24 * lattice + kernel_bytes;
-    let exports = heightfield_artifacts_peak_bytes(cols, rows, params.tiles.is_some());
+    let exports = heightfield_artifacts_peak_bytes(cols, rows, params.tiles.is_some()).max(limit_bytes);
     let mut cost = CostBuilder::new();
     cost.lods(heightfield_lod_triangles(cols, rows, params.tiles.is_some()), HEIGHTFIELD_LOD_BYTES_PER_TRIANGLE);
     cost.memory("", BASE_BYTES)
